@@ -1,0 +1,1359 @@
+"""Numba kernels of the stick-slip oscillator (paper's Eq. 7).
+
+Three integrators share one event logic:
+
+* ``exact`` (Coulomb law, b1 = b3 = 0): each slip step is the closed-form solution of the
+  linear slip equation (homogeneous transition matrix for any damping, including the
+  critically damped and resonant cases, plus the particular response to each tone); each
+  stick phase is exact. Only switching instants are found numerically, by bracketed
+  Newton iteration on the closed form.
+* ``event`` (any friction law): Dormand–Prince 5(4) with dense output inside slip phases,
+  exact stick phases, switching instants polished by re-stepping the Runge–Kutta formula.
+* ``rk4``: the paper's fixed-step RK4 with ``sgn``, kept as the baseline. It cannot
+  represent sticking.
+
+Switches (slip -> stick, stick -> slip, reversal) are searched on every scan step: a sign
+change at the ends, and an interior extremum located from the sign change of the
+derivative. Scan steps are short against the fastest active tone (``PHASE_PER_STEP``
+radians) so that a step holds at most one extremum; that is how grazing contacts, where
+``v`` touches ``V`` tangentially, are caught.
+
+Public kernels (all ``@njit(cache=True)``, allocation-free in their step loops):
+``reset_stats``, ``initial_state``, ``advance`` (stats only) and the recording runners used
+by :mod:`fricenv.simulate`. Array layouts are in :mod:`fricenv.layout` and
+:mod:`fricenv.params`.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from .layout import (
+    EVENT_REVERSAL,
+    EVENT_SLIP,
+    EVENT_STICK,
+    METHOD_EVENT,
+    METHOD_EXACT,
+    ST_DURATION,
+    ST_N_REVERSAL,
+    ST_N_SLIP,
+    ST_N_STEPS,
+    ST_N_STICK,
+    ST_STICK_TIME,
+    ST_V_MAX,
+    ST_V_MIN,
+    ST_VR2_INT,
+    ST_X_MAX,
+    ST_X_MIN,
+    STATUS_BUFFER_FULL,
+    STATUS_EVENT_CAP,
+    STATUS_NONFINITE,
+    STATUS_OK,
+    S_MODE,
+    S_PHI1,
+    S_PHI2,
+    S_T,
+    S_V,
+    S_X,
+)
+from .params import P_B1, P_B3, P_LAM, P_U1, P_U2, P_V, P_W1, P_W2, P_XFK, P_XFS
+
+TWO_PI = 2.0 * math.pi
+DELTA_MAX = 0.25  # longest scan step in tau: 25 per natural period
+PHASE_PER_STEP = 0.2  # longest scan step in radians of the fastest active tone
+MAX_ROOT_ITER = 200
+EVENT_REL_TOL = 4e-16  # switching instants: to rounding
+# An extremum's value is insensitive to its position (error ~ f'' dt^2), so 1e-9 in time
+# already gives the value to rounding.
+EXTREMUM_REL_TOL = 1e-9
+
+# Slots of the per-call context array ``cx`` (one small allocation per call).
+C_LAM, C_V, C_XFK, C_XFS, C_U1, C_U2, C_W1, C_W2, C_P2 = range(9)
+C_KC1, C_KS1, C_KC2, C_KS2, C_RES1, C_RES2, C_B1, C_B3 = range(9, 17)
+C_XA, C_VA, C_C1A, C_S1A, C_C2A, C_S2A, C_SD, C_DX, C_DV = range(17, 26)
+C_H, C_QX0 = 26, 27  # dense output: step length, then 4 x-coefficients, 4 v-coefficients
+C_QV0 = 31
+C_PH1A, C_PH2A = 35, 36  # tone phases (angles) at the step start, for the RK method
+C_CP1, C_SP1, C_CP2, C_SP2 = 37, 38, 39, 40  # their cos/sin, carried from step to step
+C_CE1, C_SE1, C_CE2, C_SE2 = 41, 42, 43, 44  # cos/sin at the end of the last RK step
+N_CX = 45
+
+# What a root search evaluates.
+K_SLIP_H = 0  # slip (closed form): h = sd * (v - V)
+K_SLIP_V = 1  # slip (closed form): v
+K_STICK_F = 2  # stick: f = -lam V - x + g
+K_DENSE_H = 3  # slip (RK dense output): h = sd * (v - V)
+K_DENSE_V = 4  # slip (RK dense output): v
+
+
+@njit(cache=True, inline="always")
+def _wrap(phi):
+    if 0.0 <= phi < TWO_PI:
+        return phi
+    phi = phi - TWO_PI * math.floor(phi / TWO_PI)
+    return phi if phi < TWO_PI else 0.0
+
+
+@njit(cache=True)
+def reset_stats(stats):
+    """Zero the counters of ``stats`` and set the extrema to +-inf."""
+    for i in range(stats.shape[0]):
+        stats[i] = 0.0
+    stats[ST_V_MAX] = -np.inf
+    stats[ST_V_MIN] = np.inf
+    stats[ST_X_MAX] = -np.inf
+    stats[ST_X_MIN] = np.inf
+
+
+@njit(cache=True, inline="always")
+def _note_v(stats, v):
+    if v > stats[ST_V_MAX]:
+        stats[ST_V_MAX] = v
+    if v < stats[ST_V_MIN]:
+        stats[ST_V_MIN] = v
+
+
+@njit(cache=True, inline="always")
+def _note_x(stats, x):
+    if x > stats[ST_X_MAX]:
+        stats[ST_X_MAX] = x
+    if x < stats[ST_X_MIN]:
+        stats[ST_X_MIN] = x
+
+
+@njit(cache=True)
+def stick_force(P, x, phi1, phi2):
+    """Everything but friction acting on a block riding with the belt: -lam V - x + g."""
+    return -P[P_LAM] * P[P_V] - x + P[P_U1] * math.cos(phi1) + P[P_U2] * math.cos(phi2)
+
+
+@njit(cache=True)
+def initial_state(P, x0, v0, S):
+    """Fill ``S`` for a start at t = 0 with zero tone phases; mode is chosen from the rules."""
+    S[S_T] = 0.0
+    S[S_X] = x0
+    S[S_V] = v0
+    S[S_PHI1] = 0.0
+    S[S_PHI2] = 0.0
+    S[S_MODE] = initial_mode(P, x0, v0, 0.0, 0.0)
+
+
+@njit(cache=True)
+def initial_mode(P, x, v, phi1, phi2):
+    """-1/+1 for slip below/above the belt, 0 for stick (v == V and |f| <= xfs)."""
+    vr = v - P[P_V]
+    if vr > 0.0:
+        return 1.0
+    if vr < 0.0:
+        return -1.0
+    f = stick_force(P, x, phi1, phi2)
+    if abs(f) <= P[P_XFS]:
+        return 0.0
+    return 1.0 if f > 0.0 else -1.0
+
+
+# ----------------------------------------------------------------------------------------
+# Closed form of a Coulomb slip step
+# ----------------------------------------------------------------------------------------
+@njit(cache=True, inline="always")
+def _homog(tau, lam, p2):
+    """Transition matrix of x'' + lam x' + x = 0 over tau, for every damping.
+
+    With p^2 = 1 - lam^2/4, C = cos(p tau) and S = sin(p tau)/p are entire in p^2, so one
+    formula covers under-, critically and over-damped motion; near p^2 tau^2 = 0 a series
+    avoids dividing by p, and in the over-damped case the two real exponentials are
+    formed directly so nothing overflows.
+    """
+    z = p2 * tau * tau
+    if abs(z) < 1e-2:
+        c = 1.0 - z / 2.0 * (1.0 - z / 12.0 * (1.0 - z / 30.0 * (1.0 - z / 56.0 * (
+            1.0 - z / 90.0 * (1.0 - z / 132.0)))))
+        s = tau * (1.0 - z / 6.0 * (1.0 - z / 20.0 * (1.0 - z / 42.0 * (1.0 - z / 72.0 * (
+            1.0 - z / 110.0 * (1.0 - z / 156.0))))))
+        e = math.exp(-0.5 * lam * tau)
+        ec = e * c
+        es = e * s
+    elif p2 > 0.0:
+        p = math.sqrt(p2)
+        e = math.exp(-0.5 * lam * tau)
+        ec = e * math.cos(p * tau)
+        es = e * math.sin(p * tau) / p
+    else:
+        q = math.sqrt(-p2)
+        slow = math.exp(-tau / (0.5 * lam + q))  # rate lam/2 - q, written without cancelling
+        fast = math.exp(-(0.5 * lam + q) * tau)
+        ec = 0.5 * (slow + fast)
+        es = 0.5 * (slow - fast) / q
+    return ec + 0.5 * lam * es, es, -es, ec - 0.5 * lam * es
+
+
+@njit(cache=True)
+def _setup_context(P, cx):
+    """Constants of the run: particular-solution coefficients of each tone."""
+    lam = P[P_LAM]
+    cx[C_LAM] = lam
+    cx[C_V] = P[P_V]
+    cx[C_XFK] = P[P_XFK]
+    cx[C_XFS] = P[P_XFS]
+    cx[C_U1] = P[P_U1]
+    cx[C_U2] = P[P_U2]
+    cx[C_W1] = P[P_W1]
+    cx[C_W2] = P[P_W2]
+    cx[C_B1] = P[P_B1]
+    cx[C_B3] = P[P_B3]
+    cx[C_P2] = 1.0 - 0.25 * lam * lam
+    for i in range(2):
+        u = P[P_U1 + i]
+        w = P[P_W1 + i]
+        re = 1.0 - w * w
+        im = lam * w
+        d2 = re * re + im * im
+        res = 1.0 if (u != 0.0 and d2 == 0.0) else 0.0  # lam = 0 and w = 1: resonance
+        kc = 0.0
+        ks = 0.0
+        if u != 0.0 and res == 0.0:
+            kc = u * re / d2  # x_p = kc cos(phi) + ks sin(phi) = A cos(phi - theta)
+            ks = u * im / d2
+        cx[C_KC1 + 2 * i] = kc
+        cx[C_KS1 + 2 * i] = ks
+        cx[C_RES1 + i] = res
+
+
+@njit(cache=True)
+def _scan_cap(P):
+    """Longest scan step: short against the fastest active tone and the damping rate."""
+    cap = DELTA_MAX
+    for i in range(2):
+        if P[P_U1 + i] != 0.0:
+            w = abs(P[P_W1 + i])
+            if w * cap > PHASE_PER_STEP:
+                cap = PHASE_PER_STEP / w
+    lam = P[P_LAM]
+    if lam > 2.0:
+        rate = 0.5 * lam + math.sqrt(0.25 * lam * lam - 1.0)
+        if rate * cap > 1.0:
+            cap = 1.0 / rate
+    return cap
+
+
+@njit(cache=True, inline="always")
+def _particular(cx, tau, c1, s1, c2, s2, sd):
+    """Particular solution (x_p, v_p) at relative time tau, tone phases (c_i, s_i) there."""
+    xp = -sd * cx[C_XFK]
+    vp = 0.0
+    if cx[C_U1] != 0.0:
+        if cx[C_RES1] != 0.0:
+            xp += 0.5 * cx[C_U1] * tau * s1
+            vp += 0.5 * cx[C_U1] * (s1 + tau * c1)
+        else:
+            xp += cx[C_KC1] * c1 + cx[C_KS1] * s1
+            vp += cx[C_W1] * (cx[C_KS1] * c1 - cx[C_KC1] * s1)
+    if cx[C_U2] != 0.0:
+        if cx[C_RES2] != 0.0:
+            xp += 0.5 * cx[C_U2] * tau * s2
+            vp += 0.5 * cx[C_U2] * (s2 + tau * c2)
+        else:
+            xp += cx[C_KC2] * c2 + cx[C_KS2] * s2
+            vp += cx[C_W2] * (cx[C_KS2] * c2 - cx[C_KC2] * s2)
+    return xp, vp
+
+
+@njit(cache=True, inline="always")
+def _slip_start(cx, x, v, c1, s1, c2, s2, sd):
+    """Start a closed-form slip step at (x, v) with tone phases (c_i, s_i)."""
+    cx[C_XA] = x
+    cx[C_VA] = v
+    cx[C_C1A] = c1
+    cx[C_S1A] = s1
+    cx[C_C2A] = c2
+    cx[C_S2A] = s2
+    cx[C_SD] = sd
+    xp, vp = _particular(cx, 0.0, c1, s1, c2, s2, sd)
+    cx[C_DX] = x - xp
+    cx[C_DV] = v - vp
+
+
+@njit(cache=True, inline="always")
+def _rotate(cx, cr1, sr1, cr2, sr2):
+    """Tone phases at the step start advanced by the rotations (cr_i, sr_i)."""
+    c1 = cx[C_C1A] * cr1 - cx[C_S1A] * sr1
+    s1 = cx[C_S1A] * cr1 + cx[C_C1A] * sr1
+    c2 = cx[C_C2A] * cr2 - cx[C_S2A] * sr2
+    s2 = cx[C_S2A] * cr2 + cx[C_C2A] * sr2
+    return c1, s1, c2, s2
+
+
+@njit(cache=True, inline="always")
+def _forcing(cx, c1, s1, c2, s2):
+    """g, g' and g'' for tone phases (c_i, s_i)."""
+    u1 = cx[C_U1]
+    u2 = cx[C_U2]
+    w1 = cx[C_W1]
+    w2 = cx[C_W2]
+    g = u1 * c1 + u2 * c2
+    gd = -u1 * w1 * s1 - u2 * w2 * s2
+    gdd = -u1 * w1 * w1 * c1 - u2 * w2 * w2 * c2
+    return g, gd, gdd
+
+
+@njit(cache=True, inline="always")
+def _slip_with(cx, tau, h11, h12, h21, h22, c1, s1, c2, s2):
+    """Closed-form slip state at relative time tau: x, v, acceleration and jerk."""
+    sd = cx[C_SD]
+    xp, vp = _particular(cx, tau, c1, s1, c2, s2, sd)
+    x = xp + h11 * cx[C_DX] + h12 * cx[C_DV]
+    v = vp + h21 * cx[C_DX] + h22 * cx[C_DV]
+    g, gd, _ = _forcing(cx, c1, s1, c2, s2)
+    acc = -cx[C_LAM] * v - x - sd * cx[C_XFK] + g
+    jerk = -cx[C_LAM] * acc - v + gd
+    return x, v, acc, jerk
+
+
+@njit(cache=True)
+def _slip_at(cx, tau):
+    h11, h12, h21, h22 = _homog(tau, cx[C_LAM], cx[C_P2])
+    c1, s1, c2, s2 = _rotate(cx, math.cos(cx[C_W1] * tau), math.sin(cx[C_W1] * tau),
+                             math.cos(cx[C_W2] * tau), math.sin(cx[C_W2] * tau))
+    return _slip_with(cx, tau, h11, h12, h21, h22, c1, s1, c2, s2)
+
+
+@njit(cache=True)
+def _stick_at(cx, tau):
+    """Stick state at relative time tau: x and f, f', f''."""
+    c1, s1, c2, s2 = _rotate(cx, math.cos(cx[C_W1] * tau), math.sin(cx[C_W1] * tau),
+                             math.cos(cx[C_W2] * tau), math.sin(cx[C_W2] * tau))
+    x = cx[C_XA] + cx[C_V] * tau
+    g, gd, gdd = _forcing(cx, c1, s1, c2, s2)
+    return x, -cx[C_LAM] * cx[C_V] - x + g, -cx[C_V] + gd, gdd
+
+
+# ----------------------------------------------------------------------------------------
+# Dense output of a Dormand–Prince step (Shampine's quartic interpolant)
+# ----------------------------------------------------------------------------------------
+@njit(cache=True)
+def _dense_v(cx, tau):
+    """v, v', v'' on the dense output of the current RK step."""
+    h = cx[C_H]
+    th = tau / h
+    q0 = cx[C_QV0]
+    q1 = cx[C_QV0 + 1]
+    q2 = cx[C_QV0 + 2]
+    q3 = cx[C_QV0 + 3]
+    v = cx[C_VA] + h * th * (q0 + th * (q1 + th * (q2 + th * q3)))
+    dv = q0 + th * (2.0 * q1 + th * (3.0 * q2 + th * 4.0 * q3))
+    ddv = (2.0 * q1 + th * (6.0 * q2 + th * 12.0 * q3)) / h
+    return v, dv, ddv
+
+
+@njit(cache=True)
+def _dense_x(cx, tau):
+    h = cx[C_H]
+    th = tau / h
+    return cx[C_XA] + h * th * (cx[C_QX0] + th * (cx[C_QX0 + 1] + th * (
+        cx[C_QX0 + 2] + th * cx[C_QX0 + 3])))
+
+
+@njit(cache=True)
+def _feval(cx, kind, tau):
+    """Value, first and second derivative of the searched function at relative time tau."""
+    if kind == K_SLIP_H:
+        _, v, acc, jerk = _slip_at(cx, tau)
+        sd = cx[C_SD]
+        return sd * (v - cx[C_V]), sd * acc, sd * jerk
+    if kind == K_SLIP_V:
+        _, v, acc, jerk = _slip_at(cx, tau)
+        return v, acc, jerk
+    if kind == K_STICK_F:
+        _, f, fd, fdd = _stick_at(cx, tau)
+        return f, fd, fdd
+    v, dv, ddv = _dense_v(cx, tau)
+    if kind == K_DENSE_H:
+        sd = cx[C_SD]
+        return sd * (v - cx[C_V]), sd * dv, sd * ddv
+    return v, dv, ddv
+
+
+@njit(cache=True)
+def _bracket(cx, kind, deriv, offset, lo, hi, flo, fhi, rel_tol):
+    """Shrink a bracket [lo, hi] of a root of F to rounding level; return (lo, hi).
+
+    F is ``value - offset`` (deriv = 0) or the first derivative (deriv = 1) of ``kind``;
+    ``flo`` and ``fhi`` have opposite signs or ``fhi`` is 0. Newton steps from the last
+    point, kept inside the bracket, fall back to bisection; once a Newton step is below the
+    tolerance the next point is placed just past the root so the bracket closes from both
+    sides. The returned ``hi`` is on ``fhi``'s side of the root.
+    """
+    if fhi == 0.0:
+        return hi, hi
+    if flo == 0.0:
+        return lo, lo
+    tol = rel_tol * (abs(lo) + abs(hi)) + 1e-300
+    t = 0.5 * (lo + hi)
+    pos_lo = flo > 0.0
+    for _ in range(MAX_ROOT_ITER):
+        f0, f1, f2 = _feval(cx, kind, t)
+        if deriv == 0:
+            f = f0 - offset
+            df = f1
+        else:
+            f = f1
+            df = f2
+        if f == 0.0:
+            return t, t
+        if (f > 0.0) == pos_lo:
+            lo = t
+        else:
+            hi = t
+        if hi - lo <= tol:
+            break
+        tn = -1.0
+        if df != 0.0:
+            tn = t - f / df
+            if abs(tn - t) < tol:  # converged from one side: step just across the root
+                tn = tn + (tol if tn > t else -tol)
+        if not (lo < tn < hi):
+            tn = 0.5 * (lo + hi)
+        t = tn
+    return lo, hi
+
+
+@njit(cache=True)
+def _root(cx, kind, deriv, offset, lo, hi, flo, fhi):
+    """Point of a bracket of a root on ``fhi``'s side (where the switch has happened)."""
+    _, b = _bracket(cx, kind, deriv, offset, lo, hi, flo, fhi, EVENT_REL_TOL)
+    return b
+
+
+@njit(cache=True)
+def _extremum(cx, kind, lo, hi, dlo, dhi):
+    """Relative time of the extremum of ``kind`` in [lo, hi], from its derivative's signs."""
+    a, b = _bracket(cx, kind, 1, 0.0, lo, hi, dlo, dhi, EXTREMUM_REL_TOL)
+    return 0.5 * (a + b)
+
+
+@njit(cache=True)
+def _contact_time(cx, kind, L, h0, d0, h1, d1, t_ext, h_ext):
+    """First relative time in (0, L] where h = sd (v - V) reaches 0, or -1.
+
+    ``t_ext``/``h_ext`` describe the interior extremum of h (t_ext < 0: none). A phase
+    that starts on the switching surface (h0 = 0, d0 clamped to >= 0 by the caller) only
+    ends once h has been positive.
+    """
+    if t_ext >= 0.0 and d0 > 0.0:  # h rises to a maximum, then falls
+        if h1 <= 0.0:
+            if h_ext <= 0.0:
+                return 0.0
+            return _root(cx, kind, 0, 0.0, t_ext, L, h_ext, h1)
+        return -1.0
+    if t_ext >= 0.0 and d0 < 0.0:  # h falls to a minimum (grazing if it only touches 0)
+        if h_ext <= 0.0:
+            if h0 <= 0.0:
+                return 0.0
+            return _root(cx, kind, 0, 0.0, 0.0, t_ext, h0, h_ext)
+        return -1.0
+    if h1 <= 0.0:
+        if h0 <= 0.0:
+            return 0.0
+        return _root(cx, kind, 0, 0.0, 0.0, L, h0, h1)
+    return -1.0
+
+
+@njit(cache=True)
+def _x_extrema_between(cx, kind, stats, a, b, va, vb, vabs):
+    """Displacement extremum where v changes sign on a monotone piece [a, b] of v.
+
+    ``vabs`` bounds |v| over the whole step, so |x - x(0)| <= vabs * b: when that cannot
+    reach past the recorded extrema the search is skipped (it matters once the motion
+    has decayed to rounding noise, where v flips sign every step).
+    """
+    if va * vb < 0.0:
+        x0 = cx[C_XA]
+        reach = vabs * b * 1.0000001
+        if x0 + reach <= stats[ST_X_MAX] and x0 - reach >= stats[ST_X_MIN]:
+            return
+        t = _bracket(cx, kind, 0, 0.0, a, b, va, vb, EXTREMUM_REL_TOL)[1]
+        if kind == K_SLIP_V:
+            x, _, _, _ = _slip_at(cx, t)
+        else:
+            x = _dense_x(cx, t)
+        _note_x(stats, x)
+
+
+@njit(cache=True)
+def _extremum_matters(stats, sd, v0, v1, a0, a1, L, V):
+    """Can the interior extremum of v on this step change v's extrema or touch v = V?
+
+    acc goes from a0 to a1 through 0, so |v - v(end)| <= max(|a0|, |a1|) L on a step whose
+    acceleration is monotone; a factor 2 covers the mild non-monotonicity a short step
+    allows.
+    """
+    reach = 2.0 * max(abs(a0), abs(a1)) * L
+    top = max(v0, v1) + reach
+    bottom = min(v0, v1) - reach
+    if top > stats[ST_V_MAX] or bottom < stats[ST_V_MIN]:
+        return True
+    return bottom <= V <= top
+
+
+@njit(cache=True)
+def _slip_stats(cx, kind, stats, tau_e, t_ext, v_ext, v0, a0, v1, a1, x1, V):
+    """Extrema and the (v - V)^2 integral over a slip step [0, tau_e]."""
+    _note_v(stats, v1)
+    _note_x(stats, x1)
+    if 0.0 <= t_ext <= tau_e:
+        _note_v(stats, v_ext)
+        vabs = max(abs(v0), abs(v_ext), abs(v1))
+        _x_extrema_between(cx, kind, stats, 0.0, t_ext, v0, v_ext, vabs)
+        _x_extrema_between(cx, kind, stats, t_ext, tau_e, v_ext, v1, vabs)
+    else:
+        _x_extrema_between(cx, kind, stats, 0.0, tau_e, v0, v1, max(abs(v0), abs(v1)))
+    # Hermite quadrature of y = (v - V)^2 with y' = 2 (v - V) v' at both ends.
+    y0 = (v0 - V) * (v0 - V)
+    y1 = (v1 - V) * (v1 - V)
+    dy0 = 2.0 * (v0 - V) * a0
+    dy1 = 2.0 * (v1 - V) * a1
+    stats[ST_VR2_INT] += 0.5 * tau_e * (y0 + y1) + tau_e * tau_e * (dy0 - dy1) / 12.0
+
+
+@njit(cache=True)
+def _stick_exit_time(cx, L, f0, fd0, f1, fd1):
+    """First relative time in [0, L] where |f| exceeds xfs during a stick, or -1.
+
+    Each side (f > xfs, f < -xfs) is checked on the monotone pieces of f, split at the
+    interior extremum of f when f' changes sign, so a peak of |f| inside the step that
+    pokes past xfs is not missed.
+    """
+    xfs = cx[C_XFS]
+    t_ext = -1.0
+    f_ext = 0.0
+    if fd0 * fd1 < 0.0:
+        t_ext = _extremum(cx, K_STICK_F, 0.0, L, fd0, fd1)
+        _, f_ext, _, _ = _stick_at(cx, t_ext)
+    best = -1.0
+    for side in (1.0, -1.0):
+        off = side * xfs  # the root searched is f = off; violated where side * f > xfs
+        if side * f0 > xfs:
+            return 0.0
+        te = -1.0
+        if t_ext >= 0.0:
+            if side * fd0 > 0.0:  # f heads to this side first and turns inside the step
+                if side * f_ext > xfs:
+                    te = _root(cx, K_STICK_F, 0, off, 0.0, t_ext, f0 - off, f_ext - off)
+            elif side * f1 > xfs:  # f turns back towards this side and crosses after
+                te = _root(cx, K_STICK_F, 0, off, t_ext, L, f_ext - off, f1 - off)
+        elif side * f1 > xfs:
+            te = _root(cx, K_STICK_F, 0, off, 0.0, L, f0 - off, f1 - off)
+        if te >= 0.0 and (best < 0.0 or te < best):
+            best = te
+    return best
+
+
+# ----------------------------------------------------------------------------------------
+# Shared per-step pieces
+# ----------------------------------------------------------------------------------------
+@njit(cache=True, inline="always")
+def _record_event(ev_t, ev_kind, ev_x, counts, t, kind, x):
+    n = counts[0]
+    if n >= ev_t.shape[0]:
+        return False
+    ev_t[n] = t
+    ev_kind[n] = kind
+    ev_x[n] = x
+    counts[0] = n + 1
+    return True
+
+
+@njit(cache=True)
+def _contact_outcome(cx, stats, x, c1, c2, sd):
+    """Mode after slip in direction sd reaches v = V at x: stick, or reverse."""
+    f = -cx[C_LAM] * cx[C_V] - x + cx[C_U1] * c1 + cx[C_U2] * c2
+    if abs(f) <= cx[C_XFS]:
+        stats[ST_N_STICK] += 1.0
+        return 0.0, EVENT_STICK
+    stats[ST_N_REVERSAL] += 1.0
+    return (1.0 if f > 0.0 else -1.0), EVENT_REVERSAL
+
+
+@njit(cache=True)
+def _stick_outcome(cx, stats, x, c1, c2):
+    f = -cx[C_LAM] * cx[C_V] - x + cx[C_U1] * c1 + cx[C_U2] * c2
+    stats[ST_N_SLIP] += 1.0
+    return 1.0 if f > 0.0 else -1.0
+
+
+@njit(cache=True, inline="always")
+def _renorm(c, s):
+    k = 1.5 - 0.5 * (c * c + s * s)
+    return c * k, s * k
+
+
+# ----------------------------------------------------------------------------------------
+# Exact (closed-form) runner
+# ----------------------------------------------------------------------------------------
+@njit(cache=True)
+def _run_exact(P, S, t_span, out_t, stats, max_events, out_x, out_v, out_mode, ev_t, ev_kind,
+               ev_x, counts):
+    """Advance S by t_span with the closed-form solver; see ``advance``.
+
+    Steps are aligned with the output grid (``out_t``, or the single interval [t, t +
+    t_span] when it is None), each output interval split into equal scan steps whose
+    transition constants are computed once, so recording costs nothing extra.
+    """
+    cx = np.empty(N_CX)
+    _setup_context(P, cx)
+    cap = _scan_cap(P)
+    V = cx[C_V]
+    lam = cx[C_LAM]
+    w1 = cx[C_W1]
+    w2 = cx[C_W2]
+    t0 = S[S_T]
+    t_stop = t0 + t_span
+    n_int = 1
+    dt_reg = t_span
+    if out_t is not None:
+        n_int = out_t.shape[0] - 1
+        dt_reg = out_t[1] - out_t[0] if n_int > 0 else t_span
+    m_reg = max(1, int(math.ceil(dt_reg / cap - 1e-9)))
+    h_reg = dt_reg / m_reg
+    r11, r12, r21, r22 = _homog(h_reg, lam, cx[C_P2])
+    rc1 = math.cos(w1 * h_reg)
+    rs1 = math.sin(w1 * h_reg)
+    rc2 = math.cos(w2 * h_reg)
+    rs2 = math.sin(w2 * h_reg)
+
+    x = S[S_X]
+    v = S[S_V]
+    mode = S[S_MODE]
+    c1 = math.cos(S[S_PHI1])
+    s1 = math.sin(S[S_PHI1])
+    c2 = math.cos(S[S_PHI2])
+    s2 = math.sin(S[S_PHI2])
+    t = t0
+    n_events = 0
+    status = STATUS_OK
+    fresh = True  # the current phase starts on a switching surface (or at the call start)
+    _note_v(stats, v)
+    _note_x(stats, x)
+    if out_x is not None:
+        out_x[0] = x
+        out_v[0] = v
+        out_mode[0] = mode
+    # acceleration at the step start (slip) or f' (stick), carried from step to step
+    if mode != 0.0:
+        _slip_start(cx, x, v, c1, s1, c2, s2, mode)
+        _, _, acc, _ = _slip_at(cx, 0.0)
+    else:
+        acc = 0.0
+    for j in range(n_int):
+        ta = out_t[j] if out_t is not None else t0
+        tb = t_stop if j == n_int - 1 else (out_t[j + 1] if out_t is not None else t_stop)
+        length = tb - ta
+        if length <= 0.0:
+            continue
+        regular_interval = abs(length - dt_reg) <= 1e-12 * dt_reg
+        if regular_interval:
+            m = m_reg
+        else:
+            m = max(1, int(math.ceil(length / cap - 1e-9)))
+        hk = length / m
+        for k in range(1, m + 1):
+            tk = tb if k == m else ta + k * hk
+            on_grid = regular_interval
+            while t < tk:
+                L = tk - t
+                stats[ST_N_STEPS] += 1.0
+                if mode != 0.0:
+                    # ---------------- slip step ----------------
+                    _slip_start(cx, x, v, c1, s1, c2, s2, mode)
+                    if on_grid:
+                        nc1, ns1, nc2, ns2 = _rotate(cx, rc1, rs1, rc2, rs2)
+                        nc1, ns1 = _renorm(nc1, ns1)
+                        nc2, ns2 = _renorm(nc2, ns2)
+                        x1, v1, a1, _ = _slip_with(cx, L, r11, r12, r21, r22, nc1, ns1, nc2,
+                                                   ns2)
+                    else:
+                        nc1, ns1, nc2, ns2 = _rotate(cx, math.cos(w1 * L), math.sin(w1 * L),
+                                                     math.cos(w2 * L), math.sin(w2 * L))
+                        x1, v1, a1, _ = _slip_at(cx, L)
+                    sd = mode
+                    h0 = sd * (v - V)
+                    d0 = sd * acc
+                    if fresh and d0 < 0.0 and h0 <= 0.0:
+                        d0 = 0.0
+                    h1 = sd * (v1 - V)
+                    d1 = sd * a1
+                    t_ext = -1.0
+                    v_ext = 0.0
+                    h_ext = 0.0
+                    if acc * a1 < 0.0 and _extremum_matters(stats, sd, v, v1, acc, a1, L, V):
+                        t_ext = _extremum(cx, K_SLIP_V, 0.0, L, acc, a1)
+                        _, v_ext, _, _ = _slip_at(cx, t_ext)
+                        h_ext = sd * (v_ext - V)
+                    te = _contact_time(cx, K_SLIP_H, L, h0, d0, h1, d1, t_ext, h_ext)
+                    if te >= 0.0:
+                        xe, _, ae, _ = _slip_at(cx, te)
+                        ec1, es1, ec2, es2 = _rotate(cx, math.cos(w1 * te), math.sin(w1 * te),
+                                                     math.cos(w2 * te), math.sin(w2 * te))
+                        _slip_stats(cx, K_SLIP_V, stats, te, t_ext, v_ext, v, acc, V, ae, xe,
+                                    V)
+                        new_mode, kind = _contact_outcome(cx, stats, xe, ec1, ec2, sd)
+                        t = t + te
+                        x = xe
+                        v = V
+                        c1, s1, c2, s2 = ec1, es1, ec2, es2
+                        mode = new_mode
+                        if mode != 0.0:
+                            _slip_start(cx, x, v, c1, s1, c2, s2, mode)
+                            _, _, acc, _ = _slip_at(cx, 0.0)
+                        else:
+                            acc = 0.0
+                        fresh = True
+                        on_grid = False
+                        n_events += 1
+                        if ev_t is not None:
+                            if not _record_event(ev_t, ev_kind, ev_x, counts, t, kind, x):
+                                status = STATUS_BUFFER_FULL
+                        if n_events > max_events:
+                            status = STATUS_EVENT_CAP
+                        if status != STATUS_OK:
+                            break
+                        continue
+                    _slip_stats(cx, K_SLIP_V, stats, L, t_ext, v_ext, v, acc, v1, a1, x1, V)
+                    x = x1
+                    v = v1
+                    acc = a1
+                    c1, s1, c2, s2 = nc1, ns1, nc2, ns2
+                else:
+                    # ---------------- stick step ----------------
+                    cx[C_XA] = x
+                    cx[C_C1A] = c1
+                    cx[C_S1A] = s1
+                    cx[C_C2A] = c2
+                    cx[C_S2A] = s2
+                    if on_grid:
+                        nc1, ns1, nc2, ns2 = _rotate(cx, rc1, rs1, rc2, rs2)
+                        nc1, ns1 = _renorm(nc1, ns1)
+                        nc2, ns2 = _renorm(nc2, ns2)
+                    else:
+                        nc1, ns1, nc2, ns2 = _rotate(cx, math.cos(w1 * L), math.sin(w1 * L),
+                                                     math.cos(w2 * L), math.sin(w2 * L))
+                    g0, gd0, _ = _forcing(cx, c1, s1, c2, s2)
+                    f0 = -lam * V - x + g0
+                    fd0 = -V + gd0
+                    x1 = x + V * L
+                    g1, gd1, _ = _forcing(cx, nc1, ns1, nc2, ns2)
+                    f1 = -lam * V - x1 + g1
+                    fd1 = -V + gd1
+                    te = _stick_exit_time(cx, L, f0, fd0, f1, fd1)
+                    if te >= 0.0:
+                        xe = x + V * te
+                        stats[ST_STICK_TIME] += te
+                        _note_x(stats, xe)
+                        _note_v(stats, V)
+                        ec1, es1, ec2, es2 = _rotate(cx, math.cos(w1 * te), math.sin(w1 * te),
+                                                     math.cos(w2 * te), math.sin(w2 * te))
+                        mode = _stick_outcome(cx, stats, xe, ec1, ec2)
+                        t = t + te
+                        x = xe
+                        v = V
+                        c1, s1, c2, s2 = ec1, es1, ec2, es2
+                        _slip_start(cx, x, v, c1, s1, c2, s2, mode)
+                        _, _, acc, _ = _slip_at(cx, 0.0)
+                        fresh = True
+                        on_grid = False
+                        n_events += 1
+                        if ev_t is not None:
+                            if not _record_event(ev_t, ev_kind, ev_x, counts, t, EVENT_SLIP, x):
+                                status = STATUS_BUFFER_FULL
+                        if n_events > max_events:
+                            status = STATUS_EVENT_CAP
+                        if status != STATUS_OK:
+                            break
+                        continue
+                    stats[ST_STICK_TIME] += L
+                    _note_x(stats, x1)
+                    _note_v(stats, V)
+                    x = x1
+                    c1, s1, c2, s2 = nc1, ns1, nc2, ns2
+                t = tk
+                fresh = False
+                if not (math.isfinite(x) and math.isfinite(v)):
+                    status = STATUS_NONFINITE
+                    break
+            if status != STATUS_OK:
+                break
+        if status != STATUS_OK:
+            break
+        if out_x is not None:
+            out_x[j + 1] = x
+            out_v[j + 1] = v
+            out_mode[j + 1] = mode
+            counts[1] = j + 2
+    stats[ST_DURATION] += t - t0
+    S[S_T] = t
+    S[S_X] = x
+    S[S_V] = v
+    S[S_MODE] = mode
+    S[S_PHI1] = _wrap(math.atan2(s1, c1))
+    S[S_PHI2] = _wrap(math.atan2(s2, c2))
+    return status
+
+
+# ----------------------------------------------------------------------------------------
+# Event-driven Dormand–Prince 5(4) runner
+# ----------------------------------------------------------------------------------------
+@njit(cache=True)
+def _rhs_acc(cx, sd, x, v, ph1, ph2):
+    """Slip acceleration for any friction law; tone phases given as angles."""
+    return _acc(cx[C_LAM], cx[C_V], sd * cx[C_XFK], cx[C_B1], cx[C_B3], cx[C_U1], cx[C_U2],
+                x, v, ph1, ph2)
+
+
+@njit(cache=True, inline="always")
+def _acc(lam, V, sxfk, b1, b3, u1, u2, x, v, ph1, ph2):
+    """Slip acceleration from scalars; terms a configuration zeroes are skipped."""
+    a = -lam * v - x - sxfk
+    if u1 != 0.0:
+        a += u1 * math.cos(ph1)
+    if u2 != 0.0:
+        a += u2 * math.cos(ph2)
+    if b1 != 0.0 or b3 != 0.0:
+        vr = v - V
+        a += (b1 - b3 * vr * vr) * vr
+    return a
+
+
+# Taylor coefficients (-1)^k / (2k)! and (-1)^k / (2k+1)!, as products (no divisions).
+_C2, _C4, _C6, _C8 = -1.0 / 2.0, 1.0 / 24.0, -1.0 / 720.0, 1.0 / 40320.0
+_C10, _C12, _C14 = -1.0 / 3628800.0, 1.0 / 479001600.0, -1.0 / 87178291200.0
+_S3, _S5, _S7, _S9 = -1.0 / 6.0, 1.0 / 120.0, -1.0 / 5040.0, 1.0 / 362880.0
+_S11, _S13, _S15 = -1.0 / 39916800.0, 1.0 / 6227020800.0, -1.0 / 1307674368000.0
+
+
+@njit(cache=True, inline="always")
+def _sincos_small(t):
+    """cos and sin of |t| <= 0.25 by their Taylor series (error < 1e-20).
+
+    Scan steps keep every active tone's phase advance under PHASE_PER_STEP, so the stage
+    phases of a Runge–Kutta step are the step-start phase plus such small angles; this
+    spares the libm calls that otherwise dominate a step.
+    """
+    z = t * t
+    c = 1.0 + z * (_C2 + z * (_C4 + z * (_C6 + z * (_C8 + z * (_C10 + z * (_C12 + z * _C14))))))
+    s = t * (1.0 + z * (_S3 + z * (_S5 + z * (_S7 + z * (_S9 + z * (_S11 + z * (
+        _S13 + z * _S15)))))))
+    return c, s
+
+
+@njit(cache=True, inline="always")
+def _tone_at(u, cp, sp, th):
+    """u cos(phase + th) from cos/sin of the phase."""
+    c, s = _sincos_small(th)
+    return u * (cp * c - sp * s)
+
+
+@njit(cache=True, inline="always")
+def _forcing_at(u1, u2, cp1, sp1, cp2, sp2, th1, th2):
+    g = 0.0
+    if u1 != 0.0:
+        g += _tone_at(u1, cp1, sp1, th1)
+    if u2 != 0.0:
+        g += _tone_at(u2, cp2, sp2, th2)
+    return g
+
+
+@njit(cache=True)
+def _set_phases(cx, ph1, ph2):
+    """Tone phases at an RK step start, as angles and as cos/sin."""
+    cx[C_PH1A] = ph1
+    cx[C_PH2A] = ph2
+    cx[C_CP1] = math.cos(ph1)
+    cx[C_SP1] = math.sin(ph1)
+    cx[C_CP2] = math.cos(ph2)
+    cx[C_SP2] = math.sin(ph2)
+
+
+@njit(cache=True)
+def _dp5_step(cx, sd, x0, v0, a0, h, kx, kv):
+    """One Dormand–Prince step from (x0, v0) at the step start (phases in cx); fills k.
+
+    Everything is kept in scalars and the stage arrays are written once at the end, so the
+    compiler need not reload the context array after every stage. cos/sin of the tone
+    phases at the step end go to cx[C_CE1..C_SE2] for the next step.
+    """
+    lam = cx[C_LAM]
+    V = cx[C_V]
+    sxfk = sd * cx[C_XFK]
+    b1 = cx[C_B1]
+    b3 = cx[C_B3]
+    u1 = cx[C_U1]
+    u2 = cx[C_U2]
+    cp1 = cx[C_CP1]
+    sp1 = cx[C_SP1]
+    cp2 = cx[C_CP2]
+    sp2 = cx[C_SP2]
+    d1 = cx[C_W1] * h
+    d2 = cx[C_W2] * h
+    g2 = _forcing_at(u1, u2, cp1, sp1, cp2, sp2, 0.2 * d1, 0.2 * d2)
+    g3 = _forcing_at(u1, u2, cp1, sp1, cp2, sp2, 0.3 * d1, 0.3 * d2)
+    g4 = _forcing_at(u1, u2, cp1, sp1, cp2, sp2, 0.8 * d1, 0.8 * d2)
+    g5 = _forcing_at(u1, u2, cp1, sp1, cp2, sp2, (8.0 / 9.0) * d1, (8.0 / 9.0) * d2)
+    ce1, se1 = _sincos_small(d1)
+    ce2, se2 = _sincos_small(d2)
+    c_end1 = cp1 * ce1 - sp1 * se1
+    s_end1 = sp1 * ce1 + cp1 * se1
+    c_end2 = cp2 * ce2 - sp2 * se2
+    s_end2 = sp2 * ce2 + cp2 * se2
+    g6 = u1 * c_end1 + u2 * c_end2
+    k1x = v0
+    k1v = a0
+    k2x = v0 + h * (0.2 * k1v)
+    k2v = _acc(lam, V, sxfk, b1, b3, 0.0, 0.0, x0 + h * (0.2 * k1x), k2x, 0.0, 0.0) + g2
+    k3x = v0 + h * (3.0 / 40.0 * k1v + 9.0 / 40.0 * k2v)
+    k3v = _acc(lam, V, sxfk, b1, b3, 0.0, 0.0, x0 + h * (3.0 / 40.0 * k1x + 9.0 / 40.0 * k2x),
+               k3x, 0.0, 0.0) + g3
+    k4x = v0 + h * (44.0 / 45.0 * k1v - 56.0 / 15.0 * k2v + 32.0 / 9.0 * k3v)
+    k4v = _acc(lam, V, sxfk, b1, b3, 0.0, 0.0,
+               x0 + h * (44.0 / 45.0 * k1x - 56.0 / 15.0 * k2x + 32.0 / 9.0 * k3x),
+               k4x, 0.0, 0.0) + g4
+    k5x = v0 + h * (19372.0 / 6561.0 * k1v - 25360.0 / 2187.0 * k2v
+                    + 64448.0 / 6561.0 * k3v - 212.0 / 729.0 * k4v)
+    k5v = _acc(lam, V, sxfk, b1, b3, 0.0, 0.0,
+               x0 + h * (19372.0 / 6561.0 * k1x - 25360.0 / 2187.0 * k2x
+                         + 64448.0 / 6561.0 * k3x - 212.0 / 729.0 * k4x),
+               k5x, 0.0, 0.0) + g5
+    k6x = v0 + h * (9017.0 / 3168.0 * k1v - 355.0 / 33.0 * k2v + 46732.0 / 5247.0 * k3v
+                    + 49.0 / 176.0 * k4v - 5103.0 / 18656.0 * k5v)
+    k6v = _acc(lam, V, sxfk, b1, b3, 0.0, 0.0,
+               x0 + h * (9017.0 / 3168.0 * k1x - 355.0 / 33.0 * k2x + 46732.0 / 5247.0 * k3x
+                         + 49.0 / 176.0 * k4x - 5103.0 / 18656.0 * k5x),
+               k6x, 0.0, 0.0) + g6
+    x1 = x0 + h * (35.0 / 384.0 * k1x + 500.0 / 1113.0 * k3x + 125.0 / 192.0 * k4x
+                   - 2187.0 / 6784.0 * k5x + 11.0 / 84.0 * k6x)
+    v1 = v0 + h * (35.0 / 384.0 * k1v + 500.0 / 1113.0 * k3v + 125.0 / 192.0 * k4v
+                   - 2187.0 / 6784.0 * k5v + 11.0 / 84.0 * k6v)
+    k7v = _acc(lam, V, sxfk, b1, b3, 0.0, 0.0, x1, v1, 0.0, 0.0) + g6
+    cx[C_CE1] = c_end1
+    cx[C_SE1] = s_end1
+    cx[C_CE2] = c_end2
+    cx[C_SE2] = s_end2
+    kx[0] = k1x
+    kx[1] = k2x
+    kx[2] = k3x
+    kx[3] = k4x
+    kx[4] = k5x
+    kx[5] = k6x
+    kx[6] = v1
+    kv[0] = k1v
+    kv[1] = k2v
+    kv[2] = k3v
+    kv[3] = k4v
+    kv[4] = k5v
+    kv[5] = k6v
+    kv[6] = k7v
+    return x1, v1
+
+
+@njit(cache=True, inline="always")
+def _dp5_error(kx, kv, h, x0, v0, x1, v1, rtol, atol):
+    """RMS of the embedded error estimate scaled by atol + rtol |y| (SciPy's RK45 norm)."""
+    ex = (-71.0 / 57600.0 * kx[0] + 71.0 / 16695.0 * kx[2] - 71.0 / 1920.0 * kx[3]
+          + 17253.0 / 339200.0 * kx[4] - 22.0 / 525.0 * kx[5] + 1.0 / 40.0 * kx[6])
+    ev = (-71.0 / 57600.0 * kv[0] + 71.0 / 16695.0 * kv[2] - 71.0 / 1920.0 * kv[3]
+          + 17253.0 / 339200.0 * kv[4] - 22.0 / 525.0 * kv[5] + 1.0 / 40.0 * kv[6])
+    ex = h * ex / (atol + rtol * max(abs(x0), abs(x1)))
+    ev = h * ev / (atol + rtol * max(abs(v0), abs(v1)))
+    return math.sqrt(0.5 * (ex * ex + ev * ev))
+
+
+# Shampine's quartic interpolant for DP5 (as in SciPy's RK45), row i = stage i; stage 2
+# has no weight.
+_P01, _P02, _P03 = (-8048581381.0 / 2820520608.0, 8663915743.0 / 2820520608.0,
+                    -12715105075.0 / 11282082432.0)
+_P21, _P22, _P23 = (131558114200.0 / 32700410799.0, -68118460800.0 / 10900136933.0,
+                    87487479700.0 / 32700410799.0)
+_P31, _P32, _P33 = (-1754552775.0 / 470086768.0, 14199869525.0 / 1410260304.0,
+                    -10690763975.0 / 1880347072.0)
+_P41, _P42, _P43 = (127303824393.0 / 49829197408.0, -318862633887.0 / 49829197408.0,
+                    701980252875.0 / 199316789632.0)
+_P51, _P52, _P53 = (-282668133.0 / 205662961.0, 2019193451.0 / 616988883.0,
+                    -1453857185.0 / 822651844.0)
+_P61, _P62, _P63 = (40617522.0 / 29380423.0, -110615467.0 / 29380423.0,
+                    69997945.0 / 29380423.0)
+
+
+@njit(cache=True, inline="always")
+def _dense_coeffs(k):
+    q0 = k[0]
+    q1 = _P01 * k[0] + _P21 * k[2] + _P31 * k[3] + _P41 * k[4] + _P51 * k[5] + _P61 * k[6]
+    q2 = _P02 * k[0] + _P22 * k[2] + _P32 * k[3] + _P42 * k[4] + _P52 * k[5] + _P62 * k[6]
+    q3 = _P03 * k[0] + _P23 * k[2] + _P33 * k[3] + _P43 * k[4] + _P53 * k[5] + _P63 * k[6]
+    return q0, q1, q2, q3
+
+
+@njit(cache=True, inline="always")
+def _dp5_dense(cx, kx, kv):
+    """Coefficients of the dense output of the last DP5 step, stored in cx."""
+    cx[C_QX0], cx[C_QX0 + 1], cx[C_QX0 + 2], cx[C_QX0 + 3] = _dense_coeffs(kx)
+    cx[C_QV0], cx[C_QV0 + 1], cx[C_QV0 + 2], cx[C_QV0 + 3] = _dense_coeffs(kv)
+
+
+@njit(cache=True)
+def _run_event(P, S, t_span, out_t, stats, max_events, rtol, atol, out_x, out_v, out_mode,
+               ev_t, ev_kind, ev_x, counts):
+    """Advance S by t_span: adaptive DP5(4) in slip, exact stick; see ``advance``."""
+    cx = np.empty(N_CX)
+    _setup_context(P, cx)
+    kx = np.empty(7)
+    kv = np.empty(7)
+    cap = _scan_cap(P)
+    V = cx[C_V]
+    lam = cx[C_LAM]
+    w1 = cx[C_W1]
+    w2 = cx[C_W2]
+    t0 = S[S_T]
+    t_stop = t0 + t_span
+    x = S[S_X]
+    v = S[S_V]
+    mode = S[S_MODE]
+    ph1 = S[S_PHI1]
+    ph2 = S[S_PHI2]
+    t = t0
+    n_events = 0
+    status = STATUS_OK
+    fresh = True
+    h = min(cap, 0.05)
+    phases_stale = True
+    n_carried = 0
+    j_out = 1
+    n_out = 0
+    if out_t is not None:
+        n_out = out_t.shape[0]
+        out_x[0] = x
+        out_v[0] = v
+        out_mode[0] = mode
+        counts[1] = 1
+    _note_v(stats, v)
+    _note_x(stats, x)
+    acc = _rhs_acc(cx, mode, x, v, ph1, ph2) if mode != 0.0 else 0.0
+    while t < t_stop and status == STATUS_OK:
+        if t_stop - t <= 1e-13 * max(1.0, abs(t_stop)):
+            t = t_stop
+            break
+        if mode != 0.0:
+            # ---------------- one accepted DP5 step ----------------
+            if phases_stale or n_carried >= 64:
+                _set_phases(cx, ph1, ph2)  # resync the carried cos/sin with the angles
+                phases_stale = False
+                n_carried = 0
+            else:
+                cx[C_PH1A] = ph1
+                cx[C_PH2A] = ph2
+            sd = mode
+            while True:
+                h = min(h, cap, t_stop - t)
+                x1, v1 = _dp5_step(cx, sd, x, v, acc, h, kx, kv)
+                err = _dp5_error(kx, kv, h, x, v, x1, v1, rtol, atol)
+                if err <= 1.0 or h <= 1e-14 * max(1.0, abs(t)):
+                    break
+                h *= max(0.2, 0.9 * err ** -0.2)
+            stats[ST_N_STEPS] += 1.0
+            hstep = h
+            a1 = kv[6]
+            cx[C_XA] = x
+            cx[C_VA] = v
+            cx[C_SD] = sd
+            cx[C_H] = hstep
+            h0 = sd * (v - V)
+            d0 = sd * acc
+            if fresh and d0 < 0.0 and h0 <= 0.0:
+                d0 = 0.0
+            h1 = sd * (v1 - V)
+            d1 = sd * a1
+            t_ext = -1.0
+            v_ext = 0.0
+            h_ext = 0.0
+            # the dense output is built only for steps that need it: an extremum, a contact,
+            # a sign change of v, or an output time inside
+            need_dense = acc * a1 < 0.0 or h1 <= 0.0 or v * v1 < 0.0
+            if out_t is not None:
+                if j_out < n_out:
+                    if out_t[j_out] <= t + hstep + 1e-13 * max(1.0, abs(t)):
+                        need_dense = True
+            if need_dense:
+                _dp5_dense(cx, kx, kv)
+            if acc * a1 < 0.0 and _extremum_matters(stats, sd, v, v1, acc, a1, hstep, V):
+                t_ext = _extremum(cx, K_DENSE_V, 0.0, hstep, acc, a1)
+                v_ext, _, _ = _dense_v(cx, t_ext)
+                h_ext = sd * (v_ext - V)
+            te = _contact_time(cx, K_DENSE_H, hstep, h0, d0, h1, d1, t_ext, h_ext)
+            if te > 0.0:
+                # polish the switching time on the RK formula itself (order 5, not 4)
+                for _ in range(3):
+                    xe, ve = _dp5_step(cx, sd, x, v, acc, te, kx, kv)
+                    he = sd * (ve - V)
+                    de = sd * kv[6]
+                    if abs(de) < 1e-8 or abs(he) <= 1e-15 * (1.0 + abs(V)):
+                        break
+                    tn = te - he / de
+                    if not (0.0 < tn <= hstep):
+                        break
+                    te = tn
+                xe, ve = _dp5_step(cx, sd, x, v, acc, te, kx, kv)
+                ae = kv[6]
+                _dp5_dense(cx, kx, kv)  # dense output of [0, te] for stats and outputs
+                cx[C_H] = te
+                step_end = te
+                x1 = xe
+                v1 = V
+                a1 = ae
+                if not (0.0 <= t_ext <= te):
+                    t_ext = -1.0
+                else:
+                    v_ext, _, _ = _dense_v(cx, t_ext)
+            elif te == 0.0:
+                step_end = 0.0
+            else:
+                step_end = hstep
+            if out_t is not None:  # outputs inside (t, t + step_end]
+                while j_out < n_out and out_t[j_out] <= t + step_end + 1e-13 * max(1.0,
+                                                                                 abs(t)):
+                    tau = min(max(out_t[j_out] - t, 0.0), step_end)
+                    if tau == step_end:
+                        out_x[j_out] = x1
+                        out_v[j_out] = v1 if te < 0.0 else V
+                    else:
+                        out_x[j_out] = _dense_x(cx, tau)
+                        out_v[j_out], _, _ = _dense_v(cx, tau)
+                    out_mode[j_out] = mode
+                    j_out += 1
+                    counts[1] = j_out
+            if step_end > 0.0:
+                _slip_stats(cx, K_DENSE_V, stats, step_end, t_ext, v_ext, v, acc, v1, a1, x1, V)
+            if te >= 0.0:
+                pe1 = ph1 + w1 * te
+                pe2 = ph2 + w2 * te
+                xe = x1 if te > 0.0 else x
+                new_mode, kind = _contact_outcome(cx, stats, xe, math.cos(pe1), math.cos(pe2),
+                                                  sd)
+                t = t + te
+                x = xe
+                v = V
+                ph1 = _wrap(pe1)
+                ph2 = _wrap(pe2)
+                phases_stale = True
+                mode = new_mode
+                acc = _rhs_acc(cx, mode, x, v, ph1, ph2) if mode != 0.0 else 0.0
+                fresh = True
+                n_events += 1
+                if ev_t is not None:
+                    if not _record_event(ev_t, ev_kind, ev_x, counts, t, kind, x):
+                        status = STATUS_BUFFER_FULL
+                if n_events > max_events:
+                    status = STATUS_EVENT_CAP
+            else:
+                t = t + hstep
+                x = x1
+                v = v1
+                acc = a1
+                ph1 = _wrap(ph1 + w1 * hstep)
+                ph2 = _wrap(ph2 + w2 * hstep)
+                cx[C_CP1], cx[C_SP1] = _renorm(cx[C_CE1], cx[C_SE1])
+                cx[C_CP2], cx[C_SP2] = _renorm(cx[C_CE2], cx[C_SE2])
+                n_carried += 1
+                fresh = False
+            err_fac = 0.9 * max(err, 1e-10) ** -0.2
+            h = hstep * min(5.0, max(0.2, err_fac))
+        else:
+            # ---------------- exact stick step ----------------
+            L = min(cap, t_stop - t)
+            stats[ST_N_STEPS] += 1.0
+            cx[C_XA] = x
+            cx[C_C1A] = math.cos(ph1)
+            cx[C_S1A] = math.sin(ph1)
+            cx[C_C2A] = math.cos(ph2)
+            cx[C_S2A] = math.sin(ph2)
+            _, f0, fd0, _ = _stick_at(cx, 0.0)
+            x1, f1, fd1, _ = _stick_at(cx, L)
+            te = _stick_exit_time(cx, L, f0, fd0, f1, fd1)
+            step_end = L if te < 0.0 else te
+            if out_t is not None:
+                while j_out < n_out and out_t[j_out] <= t + step_end + 1e-13 * max(1.0,
+                                                                                 abs(t)):
+                    tau = min(max(out_t[j_out] - t, 0.0), step_end)
+                    out_x[j_out] = x + V * tau
+                    out_v[j_out] = V
+                    out_mode[j_out] = 0
+                    j_out += 1
+                    counts[1] = j_out
+            stats[ST_STICK_TIME] += step_end
+            _note_v(stats, V)
+            _note_x(stats, x + V * step_end)
+            ph1e = ph1 + w1 * step_end
+            ph2e = ph2 + w2 * step_end
+            x = x + V * step_end
+            t = t + step_end
+            ph1 = _wrap(ph1e)
+            ph2 = _wrap(ph2e)
+            fresh = False
+            phases_stale = True
+            if te >= 0.0:
+                mode = _stick_outcome(cx, stats, x, math.cos(ph1e), math.cos(ph2e))
+                acc = _rhs_acc(cx, mode, x, v, ph1, ph2)
+                fresh = True
+                n_events += 1
+                if ev_t is not None:
+                    if not _record_event(ev_t, ev_kind, ev_x, counts, t, EVENT_SLIP, x):
+                        status = STATUS_BUFFER_FULL
+                if n_events > max_events:
+                    status = STATUS_EVENT_CAP
+        if not (math.isfinite(x) and math.isfinite(v)):
+            status = STATUS_NONFINITE
+    # any output times left at the very end (rounding of the last step)
+    if out_t is not None:
+        while status == STATUS_OK and j_out < n_out:
+            out_x[j_out] = x
+            out_v[j_out] = v
+            out_mode[j_out] = mode
+            j_out += 1
+            counts[1] = j_out
+    stats[ST_DURATION] += t - t0
+    S[S_T] = t
+    S[S_X] = x
+    S[S_V] = v
+    S[S_MODE] = mode
+    S[S_PHI1] = ph1
+    S[S_PHI2] = ph2
+    return status
+
+
+# ----------------------------------------------------------------------------------------
+# The paper's scheme: fixed-step RK4 with sgn
+# ----------------------------------------------------------------------------------------
+@njit(cache=True)
+def _sgn_acc(P, x, v, ph1, ph2):
+    vr = v - P[P_V]
+    s = 1.0 if vr > 0.0 else (-1.0 if vr < 0.0 else 0.0)
+    return (-P[P_LAM] * v - x - P[P_XFK] * s + P[P_B1] * vr - P[P_B3] * vr * vr * vr
+            + P[P_U1] * math.cos(ph1) + P[P_U2] * math.cos(ph2))
+
+
+@njit(cache=True)
+def run_rk4(P, S, t_span, dt, out_t, stats, out_x, out_v, out_mode):
+    """The paper's scheme: classical RK4 on Eq. 7 with sgn(v - V), fixed step ``dt``.
+
+    Kept as the baseline. It cannot represent sticking: v == V holds at no step, so the
+    static level xfs never acts and the block chatters across v = V instead of riding the
+    belt. ``mode`` reports sgn(v - V); ``ST_N_REVERSAL`` counts sign changes of v - V.
+    Steps stay exactly ``dt`` (the last one is shortened to end at t_span); output times
+    between steps are filled by cubic Hermite interpolation, which does not change the
+    scheme.
+    """
+    w1 = P[P_W1]
+    w2 = P[P_W2]
+    V = P[P_V]
+    t0 = S[S_T]
+    t = t0
+    x = S[S_X]
+    v = S[S_V]
+    ph1 = S[S_PHI1]
+    ph2 = S[S_PHI2]
+    n_out = 0
+    if out_t is not None:
+        n_out = out_t.shape[0]
+        out_x[0] = x
+        out_v[0] = v
+        out_mode[0] = 1.0 if v > V else (-1.0 if v < V else 0.0)
+    j = 1
+    _note_v(stats, v)
+    _note_x(stats, x)
+    n = int(math.ceil(t_span / dt - 1e-9))
+    k1v = _sgn_acc(P, x, v, ph1, ph2)
+    status = STATUS_OK
+    for i in range(n):
+        hh = dt if i < n - 1 else t_span - (n - 1) * dt
+        k1x = v
+        k2x = v + 0.5 * hh * k1v
+        k2v = _sgn_acc(P, x + 0.5 * hh * k1x, k2x, ph1 + 0.5 * hh * w1, ph2 + 0.5 * hh * w2)
+        k3x = v + 0.5 * hh * k2v
+        k3v = _sgn_acc(P, x + 0.5 * hh * k2x, k3x, ph1 + 0.5 * hh * w1, ph2 + 0.5 * hh * w2)
+        k4x = v + hh * k3v
+        k4v = _sgn_acc(P, x + hh * k3x, k4x, ph1 + hh * w1, ph2 + hh * w2)
+        xn = x + hh / 6.0 * (k1x + 2.0 * k2x + 2.0 * k3x + k4x)
+        vn = v + hh / 6.0 * (k1v + 2.0 * k2v + 2.0 * k3v + k4v)
+        ph1n = _wrap(ph1 + hh * w1)
+        ph2n = _wrap(ph2 + hh * w2)
+        an = _sgn_acc(P, xn, vn, ph1n, ph2n)
+        tn = t0 + (i + 1) * dt if i < n - 1 else t0 + t_span
+        if out_t is not None:
+            while j < n_out and out_t[j] <= tn + 1e-12 * max(1.0, abs(tn)):
+                th = (out_t[j] - t) / hh
+                h00 = (1.0 + 2.0 * th) * (1.0 - th) * (1.0 - th)
+                h10 = th * (1.0 - th) * (1.0 - th)
+                h01 = th * th * (3.0 - 2.0 * th)
+                h11 = th * th * (th - 1.0)
+                out_x[j] = h00 * x + h10 * hh * v + h01 * xn + h11 * hh * vn
+                vj = h00 * v + h10 * hh * k1v + h01 * vn + h11 * hh * an
+                out_v[j] = vj
+                out_mode[j] = 1.0 if vj > V else (-1.0 if vj < V else 0.0)
+                j += 1
+        if (v - V) * (vn - V) < 0.0:
+            stats[ST_N_REVERSAL] += 1.0
+        vr0 = v - V
+        vr1 = vn - V
+        stats[ST_VR2_INT] += 0.5 * hh * (vr0 * vr0 + vr1 * vr1)
+        x = xn
+        v = vn
+        k1v = an
+        ph1 = ph1n
+        ph2 = ph2n
+        t = tn
+        stats[ST_N_STEPS] += 1.0
+        _note_v(stats, v)
+        _note_x(stats, x)
+        if not (math.isfinite(x) and math.isfinite(v)):
+            status = STATUS_NONFINITE
+            break
+    stats[ST_DURATION] += t - t0
+    S[S_T] = t
+    S[S_X] = x
+    S[S_V] = v
+    S[S_MODE] = 1.0 if v > V else (-1.0 if v < V else 0.0)
+    S[S_PHI1] = ph1
+    S[S_PHI2] = ph2
+    return status
+
+
+# ----------------------------------------------------------------------------------------
+# Public stats-only kernel
+# ----------------------------------------------------------------------------------------
+@njit(cache=True)
+def advance(P, S, t_span, stats, method, rtol, atol, max_events):
+    """Advance the state ``S`` in place by ``t_span``, accumulating ``stats``; no trajectory.
+
+    ``method`` is METHOD_EXACT (Coulomb law only; the caller checks) or METHOD_EVENT.
+    Tone phases are carried in ``S``, so P's amplitudes and frequencies may change between
+    calls without a jump in the force. Returns a STATUS_* code; at most ``max_events``
+    switches are allowed in the call (STATUS_EVENT_CAP beyond).
+    """
+    if method == METHOD_EXACT:
+        return _run_exact(P, S, t_span, None, stats, max_events, None, None, None, None, None,
+                          None, None)
+    return _run_event(P, S, t_span, None, stats, max_events, rtol, atol, None, None, None,
+                      None, None, None, None)
+
+
+@njit(cache=True)
+def record(P, S, out_t, stats, method, rtol, atol, max_events, out_x, out_v, out_mode, ev_t,
+           ev_kind, ev_x, counts):
+    """Like ``advance`` over [out_t[0], out_t[-1]], recording the state at ``out_t`` and the
+    events (time, kind, x); ``counts`` returns (events recorded, outputs written)."""
+    t_span = out_t[out_t.shape[0] - 1] - out_t[0]
+    if method == METHOD_EXACT:
+        return _run_exact(P, S, t_span, out_t, stats, max_events, out_x, out_v, out_mode, ev_t,
+                          ev_kind, ev_x, counts)
+    return _run_event(P, S, t_span, out_t, stats, max_events, rtol, atol, out_x, out_v,
+                      out_mode, ev_t, ev_kind, ev_x, counts)

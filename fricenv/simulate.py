@@ -1,0 +1,349 @@
+"""Public simulation API: validated inputs, allocated outputs, numba kernels underneath."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from . import core
+from .layout import (
+    EVENT_REVERSAL,
+    EVENT_SLIP,
+    EVENT_STICK,
+    METHOD_EVENT,
+    METHOD_EXACT,
+    METHODS,
+    N_STATE,
+    N_STATS,
+    ST_DURATION,
+    ST_N_REVERSAL,
+    ST_N_SLIP,
+    ST_N_STEPS,
+    ST_N_STICK,
+    ST_STICK_TIME,
+    ST_V_MAX,
+    ST_V_MIN,
+    ST_VR2_INT,
+    ST_X_MAX,
+    ST_X_MIN,
+    STATUS_BUFFER_FULL,
+    STATUS_EVENT_CAP,
+    STATUS_NONFINITE,
+    STATUS_OK,
+    S_MODE,
+    S_PHI1,
+    S_PHI2,
+    S_T,
+    S_V,
+    S_X,
+)
+from .params import OscillatorParams
+
+#: Default cap on switching events per unit of dimensionless time. A physical run switches a
+#: few times per forcing period; far more means chattering (a Zeno-like accumulation).
+MAX_EVENT_RATE = 1000.0
+EVENT_NAMES = {EVENT_STICK: "stick", EVENT_SLIP: "slip", EVENT_REVERSAL: "reversal"}
+
+
+class SimulationError(RuntimeError):
+    """A run that cannot continue: event cap exceeded or a non-finite state."""
+
+
+def _finite(name: str, value: float) -> float:
+    try:
+        value = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be a real number, got {value!r}") from None
+    if not math.isfinite(value):
+        raise ValueError(f"{name} must be finite, got {value!r}")
+    return value
+
+
+def _positive(name: str, value: float) -> float:
+    value = _finite(name, value)
+    if value <= 0.0:
+        raise ValueError(f"{name} must be > 0, got {value!r}")
+    return value
+
+
+def _check_params(params: OscillatorParams) -> None:
+    if not isinstance(params, OscillatorParams):
+        raise TypeError(f"params must be an OscillatorParams, got {type(params).__name__}")
+
+
+def resolve_method(params: OscillatorParams, method: str) -> str:
+    """``"auto"`` -> exact for the Coulomb law, event otherwise; validate the name."""
+    if method == "auto":
+        return "exact" if params.is_coulomb else "event"
+    if method not in METHODS:
+        raise ValueError(f"unknown method {method!r}; expected 'auto' or one of {sorted(METHODS)}")
+    if method == "exact" and not params.is_coulomb:
+        raise ValueError(
+            f"method 'exact' needs the Coulomb law (b1 = b3 = 0), got b1={params.b1!r}, "
+            f"b3={params.b3!r}; use 'event' or 'auto'"
+        )
+    return method
+
+
+def _raise_status(status: int, t: float, max_events: int, t_span: float) -> None:
+    if status == STATUS_EVENT_CAP:
+        raise SimulationError(
+            f"more than {max_events} switching events in a span of {t_span:g} (stopped at "
+            f"t = {t:.6g}): the run chatters between stick and slip; raise max_event_rate "
+            "if this is physical"
+        )
+    if status == STATUS_NONFINITE:
+        raise SimulationError(f"the state became non-finite at t = {t:.6g}")
+    if status != STATUS_OK:
+        raise SimulationError(f"kernel returned status {status} at t = {t:.6g}")
+
+
+@dataclass(frozen=True)
+class OscillatorState:
+    """Where a run is: time, displacement, velocity, mode and the two tone phases.
+
+    ``mode`` is -1 (slip below belt speed), 0 (stick) or +1 (slip above). The phases are
+    accumulated, so continuing a run after changing u0 or nu keeps the force continuous.
+    """
+
+    t: float = 0.0
+    x: float = 0.0
+    v: float = 0.0
+    mode: int = -1
+    phase1: float = 0.0
+    phase2: float = 0.0
+
+    @classmethod
+    def start(cls, params: OscillatorParams, x0: float = 0.0, v0: float = 0.0, *,
+              t0: float = 0.0, phase1: float = 0.0, phase2: float = 0.0) -> OscillatorState:
+        """A consistent start: stick iff v0 == V and the static friction can hold the block."""
+        _check_params(params)
+        x0, v0 = _finite("x0", x0), _finite("v0", v0)
+        t0 = _finite("t0", t0)
+        phase1, phase2 = _finite("phase1", phase1), _finite("phase2", phase2)
+        mode = core.initial_mode(params.to_array(), x0, v0, phase1, phase2)
+        return cls(t0, x0, v0, int(mode), phase1, phase2)
+
+    def to_array(self) -> np.ndarray:
+        s = np.empty(N_STATE)
+        s[S_T], s[S_X], s[S_V], s[S_MODE] = self.t, self.x, self.v, self.mode
+        s[S_PHI1], s[S_PHI2] = self.phase1, self.phase2
+        return s
+
+    @classmethod
+    def from_array(cls, s: np.ndarray) -> OscillatorState:
+        return cls(float(s[S_T]), float(s[S_X]), float(s[S_V]), int(s[S_MODE]),
+                   float(s[S_PHI1]), float(s[S_PHI2]))
+
+
+@dataclass(frozen=True)
+class RunStats:
+    """What a stats-only run measured over its span."""
+
+    duration: float
+    stick_time: float
+    n_stick: int
+    n_slip: int
+    n_reversals: int
+    v_max: float
+    v_min: float
+    x_max: float
+    x_min: float
+    vr2_integral: float
+    n_steps: int
+    state: OscillatorState
+
+    @property
+    def stick_fraction(self) -> float:
+        return self.stick_time / self.duration if self.duration > 0 else 0.0
+
+    @property
+    def rms_relative_velocity(self) -> float:
+        return math.sqrt(max(self.vr2_integral, 0.0) / self.duration) if self.duration > 0 else 0.0
+
+    @classmethod
+    def from_array(cls, st: np.ndarray, state: OscillatorState) -> RunStats:
+        return cls(
+            duration=float(st[ST_DURATION]), stick_time=float(st[ST_STICK_TIME]),
+            n_stick=int(st[ST_N_STICK]), n_slip=int(st[ST_N_SLIP]),
+            n_reversals=int(st[ST_N_REVERSAL]), v_max=float(st[ST_V_MAX]),
+            v_min=float(st[ST_V_MIN]), x_max=float(st[ST_X_MAX]), x_min=float(st[ST_X_MIN]),
+            vr2_integral=float(st[ST_VR2_INT]), n_steps=int(st[ST_N_STEPS]), state=state,
+        )
+
+
+@dataclass(frozen=True)
+class Trajectory:
+    """A recorded run: the state on the output grid and every switching event.
+
+    ``mode`` is -1/0/+1 (slip below belt, stick, slip above) at each output time;
+    ``event_kind`` uses :data:`fricenv.layout.EVENT_STICK`, ``EVENT_SLIP`` and
+    ``EVENT_REVERSAL`` (names in :data:`EVENT_NAMES`).
+    """
+
+    params: OscillatorParams
+    method: str
+    t: np.ndarray
+    x: np.ndarray
+    v: np.ndarray
+    mode: np.ndarray
+    event_t: np.ndarray
+    event_kind: np.ndarray
+    event_x: np.ndarray
+    stats: RunStats = field(repr=False)
+
+    @property
+    def stick_fraction(self) -> float:
+        """Share of the time spent stuck, from the exact stick durations (not the grid)."""
+        return self.stats.stick_fraction
+
+    @property
+    def n_stick(self) -> int:
+        """Number of stick phases entered (slip -> stick switches)."""
+        return self.stats.n_stick
+
+    @property
+    def n_reversals(self) -> int:
+        """Direct reversals through v = V without sticking."""
+        return self.stats.n_reversals
+
+    @property
+    def n_steps(self) -> int:
+        return self.stats.n_steps
+
+    @property
+    def final_state(self) -> OscillatorState:
+        return self.stats.state
+
+    def summary(self) -> dict:
+        """Headline figures of the run, for printing."""
+        s = self.stats
+        return {
+            "method": self.method, "t_end": float(self.t[-1]),
+            "stick_fraction": s.stick_fraction, "n_stick": s.n_stick,
+            "n_reversals": s.n_reversals, "v_min": s.v_min, "v_max": s.v_max,
+            "x_min": s.x_min, "x_max": s.x_max,
+        }
+
+
+def output_times(t0: float, t_end: float, dt_out: float) -> np.ndarray:
+    """t0, t0 + dt_out, ... up to t_end; t_end itself is appended if off the grid."""
+    span = t_end - t0
+    n = int(math.floor(span / dt_out * (1.0 + 1e-12) + 1e-9))
+    t = t0 + dt_out * np.arange(n + 1)
+    if span - n * dt_out > 1e-9 * dt_out:
+        t = np.append(t, t_end)
+    else:
+        t[-1] = t_end
+    return t
+
+
+def simulate(
+    params: OscillatorParams,
+    t_end: float,
+    *,
+    x0: float = 0.0,
+    v0: float = 0.0,
+    dt_out: float = 0.1,
+    method: str = "auto",
+    rtol: float = 1e-10,
+    atol: float = 1e-12,
+    dt: float = 0.04,
+    phase1: float = 0.0,
+    phase2: float = 0.0,
+    max_event_rate: float = MAX_EVENT_RATE,
+) -> Trajectory:
+    """Simulate from (x0, v0) at t = 0 to ``t_end`` and record the state every ``dt_out``.
+
+    ``method``: ``"exact"`` (closed form, Coulomb law), ``"event"`` (DP5(4) with dense
+    output in slip, any law; ``rtol``/``atol`` set its accuracy), ``"rk4"`` (the paper's
+    fixed-step scheme with step ``dt``; it cannot stick) or ``"auto"`` (exact where it
+    applies, event otherwise). Output times are 0, dt_out, ... and t_end.
+    """
+    _check_params(params)
+    t_end = _positive("t_end", t_end)
+    dt_out = _positive("dt_out", dt_out)
+    rtol = _positive("rtol", rtol)
+    atol = _positive("atol", atol)
+    max_event_rate = _positive("max_event_rate", max_event_rate)
+    method = resolve_method(params, method)
+    state = OscillatorState.start(params, x0, v0, phase1=phase1, phase2=phase2)
+    P = params.to_array()
+    out_t = output_times(0.0, t_end, dt_out)
+    n = out_t.shape[0]
+    out_x = np.empty(n)
+    out_v = np.empty(n)
+    out_mode = np.empty(n)
+    stats = np.empty(N_STATS)
+    if method == "rk4":
+        dt = _positive("dt", dt)
+        S = state.to_array()
+        core.reset_stats(stats)
+        status = core.run_rk4(P, S, t_end, dt, out_t, stats, out_x, out_v, out_mode)
+        _raise_status(status, S[S_T], 0, t_end)
+        empty = np.empty(0)
+        return Trajectory(params, method, out_t, out_x, out_v, out_mode.astype(np.int8),
+                          empty, np.empty(0, np.int8), empty,
+                          RunStats.from_array(stats, OscillatorState.from_array(S)))
+    max_events = int(min(max_event_rate * max(t_end, 1.0), 2**62))
+    code = METHOD_EXACT if method == "exact" else METHOD_EVENT
+    # A periodic run switches a few times per forcing period; start there, grow if needed.
+    w = max(params.omega1, params.omega2, 1.0)
+    capacity = int(min(max_events + 1, 64 + 8 * t_end * w / (2 * math.pi)))
+    counts = np.zeros(2, np.int64)
+    while True:
+        S = state.to_array()
+        core.reset_stats(stats)
+        counts[:] = 0
+        ev_t = np.empty(capacity)
+        ev_kind = np.empty(capacity, np.int8)
+        ev_x = np.empty(capacity)
+        status = core.record(P, S, out_t, stats, code, rtol, atol, max_events, out_x, out_v,
+                             out_mode, ev_t, ev_kind, ev_x, counts)
+        if status != STATUS_BUFFER_FULL:
+            break
+        capacity *= 4
+    _raise_status(status, S[S_T], max_events, t_end)
+    k = int(counts[0])
+    return Trajectory(params, method, out_t, out_x, out_v, out_mode.astype(np.int8),
+                      ev_t[:k].copy(), ev_kind[:k].copy(), ev_x[:k].copy(),
+                      RunStats.from_array(stats, OscillatorState.from_array(S)))
+
+
+def run_stats(
+    params: OscillatorParams,
+    t_span: float,
+    *,
+    state: OscillatorState | None = None,
+    method: str = "auto",
+    rtol: float = 1e-10,
+    atol: float = 1e-12,
+    max_event_rate: float = MAX_EVENT_RATE,
+) -> RunStats:
+    """Advance by ``t_span`` from ``state`` (default: rest at t = 0) storing no trajectory.
+
+    Returns stick time, switch counts, exact extrema, the integral of (v - V)^2 and the
+    final state, from which a later call continues (possibly with other u0 or nu: the tone
+    phases carry over, so the force stays continuous).
+    """
+    _check_params(params)
+    t_span = _positive("t_span", t_span)
+    method = resolve_method(params, method)
+    if method == "rk4":
+        raise ValueError("run_stats needs an event-driven method ('exact' or 'event'), got 'rk4'")
+    if state is None:
+        state = OscillatorState.start(params)
+    elif not isinstance(state, OscillatorState):
+        raise TypeError(f"state must be an OscillatorState, got {type(state).__name__}")
+    max_event_rate = _positive("max_event_rate", max_event_rate)
+    max_events = int(min(max_event_rate * max(t_span, 1.0), 2**62))
+    S = state.to_array()
+    stats = np.empty(N_STATS)
+    core.reset_stats(stats)
+    code = METHOD_EXACT if method == "exact" else METHOD_EVENT
+    status = core.advance(params.to_array(), S, t_span, stats, code, _positive("rtol", rtol),
+                          _positive("atol", atol), max_events)
+    _raise_status(status, S[S_T], max_events, t_span)
+    return RunStats.from_array(stats, OscillatorState.from_array(S))
