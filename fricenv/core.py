@@ -35,8 +35,13 @@ from .layout import (
     EVENT_REVERSAL,
     EVENT_SLIP,
     EVENT_STICK,
-    METHOD_EVENT,
     METHOD_EXACT,
+    S_MODE,
+    S_PHI1,
+    S_PHI2,
+    S_T,
+    S_V,
+    S_X,
     ST_DURATION,
     ST_N_REVERSAL,
     ST_N_SLIP,
@@ -52,12 +57,6 @@ from .layout import (
     STATUS_EVENT_CAP,
     STATUS_NONFINITE,
     STATUS_OK,
-    S_MODE,
-    S_PHI1,
-    S_PHI2,
-    S_T,
-    S_V,
-    S_X,
 )
 from .params import P_B1, P_B3, P_LAM, P_U1, P_U2, P_V, P_W1, P_W2, P_XFK, P_XFS
 
@@ -1011,7 +1010,6 @@ def _run_event(P, S, t_span, out_t, stats, max_events, rtol, atol, out_x, out_v,
     kv = np.empty(7)
     cap = _scan_cap(P)
     V = cx[C_V]
-    lam = cx[C_LAM]
     w1 = cx[C_W1]
     w2 = cx[C_W2]
     t0 = S[S_T]

@@ -17,6 +17,12 @@ from .layout import (
     METHODS,
     N_STATE,
     N_STATS,
+    S_MODE,
+    S_PHI1,
+    S_PHI2,
+    S_T,
+    S_V,
+    S_X,
     ST_DURATION,
     ST_N_REVERSAL,
     ST_N_SLIP,
@@ -32,12 +38,6 @@ from .layout import (
     STATUS_EVENT_CAP,
     STATUS_NONFINITE,
     STATUS_OK,
-    S_MODE,
-    S_PHI1,
-    S_PHI2,
-    S_T,
-    S_V,
-    S_X,
 )
 from .params import OscillatorParams
 

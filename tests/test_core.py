@@ -1,0 +1,292 @@
+"""Physics core: parameters, invariants of the switching rules, stress and bad input."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+import fricenv
+from fricenv import OscillatorParams, OscillatorState, SimulationError, run_stats, simulate
+from fricenv.layout import EVENT_REVERSAL, EVENT_SLIP, EVENT_STICK
+
+PAPER_CASES = {  # MODEL.md: Figs. 4-7 (Coulomb law, lam = 1/2, V = 1)
+    "4a": dict(nu=0.10, u0=0.2),
+    "4b": dict(nu=0.95, u0=0.05),
+    "5a": dict(nu=0.10, u0=1.15),
+    "5b": dict(nu=0.2, u0=3.05),
+    "6": dict(nu=1.15, u0=0.7),
+    "7": dict(nu=1.0, u0=1.65, eta=0.2),
+}
+
+
+def stick_force(p: OscillatorParams, t, x):
+    g = p.amp1 * np.cos(p.omega1 * np.asarray(t)) + p.amp2 * np.cos(p.omega2 * np.asarray(t))
+    return -p.lam * p.V - np.asarray(x) + g
+
+
+def check_invariants(p: OscillatorParams, tr: fricenv.Trajectory) -> None:
+    """The switch model's rules, checked on a recorded run."""
+    assert np.all(np.isfinite(tr.x)) and np.all(np.isfinite(tr.v))
+    stuck = tr.mode == 0
+    # v == V exactly during stick, and the static friction holds the block there
+    assert np.all(tr.v[stuck] == p.V)
+    f = stick_force(p, tr.t[stuck], tr.x[stuck])
+    assert np.all(np.abs(f) <= p.xfs * (1 + 1e-9) + 1e-9)
+    # slip direction matches the sign of v - V at every output time
+    slip = ~stuck
+    rel = tr.v[slip] - p.V
+    assert np.all(np.sign(rel) * tr.mode[slip] >= 0) or np.all(np.abs(rel[np.sign(rel)
+                                                                   * tr.mode[slip] < 0]) < 1e-9)
+    # events are strictly ordered and obey the rules at their instants
+    assert np.all(np.diff(tr.event_t) > 0)
+    fe = stick_force(p, tr.event_t, tr.event_x)
+    tol = 1e-9 * max(1.0, p.xfs)
+    assert np.all(np.abs(fe[tr.event_kind == EVENT_SLIP]) >= p.xfs - tol)
+    assert np.all(np.abs(fe[tr.event_kind == EVENT_STICK]) <= p.xfs + tol)
+    assert np.all(np.abs(fe[tr.event_kind == EVENT_REVERSAL]) >= p.xfs - tol)
+    # counts agree with the event log
+    assert tr.n_stick == int(np.sum(tr.event_kind == EVENT_STICK))
+    assert tr.n_reversals == int(np.sum(tr.event_kind == EVENT_REVERSAL))
+    assert 0.0 <= tr.stick_fraction <= 1.0
+
+
+# -- parameters -----------------------------------------------------------------------------
+def test_defaults_are_the_papers():
+    p = OscillatorParams()
+    assert (p.lam, p.eta, p.nu, p.u0, p.V, p.xfk, p.xfs, p.b1, p.b3) == (
+        0.5, 0.6, 1.0, 0.0, 1.0, 2.5, 4.0, 0.0, 0.0)
+    assert p.is_coulomb and p.law == "coulomb"
+
+
+@pytest.mark.parametrize("law,b1,b3", [("coulomb", 0.0, 0.0), ("viscous", 0.2, 0.0),
+                                       ("stribeck", 0.2, 0.16), ("coulomb+viscosity", 0.2, 0.0)])
+def test_presets(law, b1, b3):
+    p = OscillatorParams.preset(law, eta=1 / 9)
+    assert (p.b1, p.b3, p.eta) == (b1, b3, 1 / 9)
+
+
+@pytest.mark.parametrize("field,value", [
+    ("lam", -0.1), ("xfk", -1.0), ("eta", 0.0), ("eta", -1.0), ("nu", -0.5),
+    ("u0", float("nan")), ("V", float("inf")), ("b1", float("nan")), ("u0", -1.0),
+])
+def test_invalid_parameters_name_field_and_value(field, value):
+    with pytest.raises(ValueError, match=field) as info:
+        OscillatorParams(**{field: value})
+    assert repr(value) in str(info.value) or str(value) in str(info.value)
+
+
+def test_xfs_below_xfk_rejected():
+    with pytest.raises(ValueError, match="xfs"):
+        OscillatorParams(xfk=3.0, xfs=2.0)
+
+
+def test_unknown_law_and_field():
+    with pytest.raises(ValueError, match="unknown friction law"):
+        OscillatorParams.preset("tribology")
+    with pytest.raises(ValueError, match="unknown parameter"):
+        OscillatorParams.preset("coulomb", mu=1.0)
+
+
+def test_separate_tone_amplitudes():
+    p = OscillatorParams(u0=1.0, u2=0.0)
+    assert (p.amp1, p.amp2) == (1.0, 0.0)
+    single = simulate(OscillatorParams(u0=1.0, nu=0.0, u2=0.0), 50.0)
+    assert np.all(np.isfinite(single.x))
+
+
+# -- simulate: input checking ---------------------------------------------------------------
+@pytest.mark.parametrize("t_end", [0.0, -1.0, float("nan"), float("inf")])
+def test_bad_t_end(t_end):
+    with pytest.raises(ValueError, match="t_end"):
+        simulate(OscillatorParams(), t_end)
+
+
+def test_bad_method_and_exact_needs_coulomb():
+    with pytest.raises(ValueError, match="unknown method"):
+        simulate(OscillatorParams(), 1.0, method="euler")
+    with pytest.raises(ValueError, match="Coulomb"):
+        simulate(OscillatorParams.preset("stribeck"), 1.0, method="exact")
+
+
+def test_output_grid():
+    tr = simulate(OscillatorParams(u0=1.0), 1.05, dt_out=0.1)
+    assert tr.t[0] == 0.0 and tr.t[-1] == 1.05
+    assert np.allclose(np.diff(tr.t[:-1]), 0.1)
+    tr = simulate(OscillatorParams(u0=1.0), 1.0, dt_out=0.25)
+    assert np.allclose(tr.t, [0, 0.25, 0.5, 0.75, 1.0])
+
+
+# -- physics -------------------------------------------------------------------------------
+@pytest.mark.parametrize("case", sorted(PAPER_CASES))
+def test_paper_cases_invariants(case):
+    p = OscillatorParams(**PAPER_CASES[case])
+    for method in ("exact", "event"):
+        check_invariants(p, simulate(p, 200.0, method=method))
+
+
+@pytest.mark.parametrize("case", sorted(PAPER_CASES))
+def test_exact_and_event_agree(case):
+    p = OscillatorParams(**PAPER_CASES[case])
+    a = simulate(p, 200.0, method="exact")
+    b = simulate(p, 200.0, method="event", rtol=1e-12, atol=1e-14)
+    assert np.max(np.abs(a.x - b.x)) <= 1e-9
+    np.testing.assert_array_equal(a.event_kind, b.event_kind)
+    assert np.max(np.abs(a.event_t - b.event_t)) <= 1e-8
+
+
+def test_free_oscillation_closed_form():
+    """No friction contact (huge V), no forcing: x - xfk is a damped cosine."""
+    p = OscillatorParams(V=1e3, lam=0.3)
+    tr = simulate(p, 30.0, x0=1.0, method="exact")
+    lam = p.lam
+    om = math.sqrt(1 - lam**2 / 4)
+    y0 = 1.0 - p.xfk  # slip below the belt: friction pushes forward, equilibrium x = +xfk
+    y = np.exp(-lam * tr.t / 2) * (y0 * np.cos(om * tr.t) + lam / 2 * y0 / om * np.sin(om * tr.t))
+    np.testing.assert_allclose(tr.x, y + p.xfk, atol=1e-12)
+
+
+def test_stick_phase_is_exact():
+    """From rest on a belt with a weak spring force the block rides: x = V t exactly."""
+    p = OscillatorParams(V=0.5)
+    tr = simulate(p, 3.0, v0=0.5, method="exact")
+    assert np.all(tr.mode == 0)
+    np.testing.assert_array_equal(tr.x, 0.5 * tr.t)
+
+
+def test_rk4_baseline_cannot_stick():
+    p = OscillatorParams(**PAPER_CASES["5b"])
+    tr = simulate(p, 100.0, method="rk4")
+    assert not np.any(tr.mode == 0) and tr.stick_fraction == 0.0
+    exact = simulate(p, 100.0, method="exact")
+    assert exact.stick_fraction > 0.3
+    assert np.max(np.abs(tr.x - exact.x)) > 0.1  # MODEL.md: the paper's scheme is off by O(1)
+
+
+def test_grazing_contact_is_found():
+    """A velocity maximum that touches V tangentially must stick, not slip past."""
+    p = OscillatorParams(V=1.0, lam=0.0, xfk=0.0, xfs=0.5)
+    # Free undamped motion x = -cos t has v = sin t, whose maximum 1 touches V at t = pi/2.
+    tr = simulate(p, 3.0, x0=-1.0, v0=0.0, method="exact")
+    assert tr.n_stick == 1
+    assert abs(tr.event_t[0] - math.pi / 2) < 1e-6
+
+
+@pytest.mark.parametrize("method", ["exact", "event"])
+@pytest.mark.parametrize("side", [1.0, -1.0])
+def test_near_grazing_contact_is_not_missed(method, side):
+    """v peaks 1e-7 past V for ~1e-3 in time: far shorter than a step, still a contact."""
+    amp = 1.0 + 1e-7
+    p = OscillatorParams(V=side * 1.0, lam=0.0, xfk=0.0, xfs=0.5)
+    # x = -side * amp cos t: v = side * amp sin t reaches V = side at t ~ pi/2
+    tr = simulate(p, 3.0, x0=-side * amp, v0=0.0, method=method)
+    assert tr.n_stick == 1
+    assert abs(tr.event_t[0] - math.pi / 2) < 1e-3
+
+
+def test_resonant_undamped_tone():
+    """lam = 0 and eta = 1: x_p grows like t sin t; compare with the closed form."""
+    p = OscillatorParams(lam=0.0, eta=1.0, nu=0.0, u0=0.2, u2=0.0, V=1e3, xfk=0.0, xfs=0.0)
+    tr = simulate(p, 20.0, method="exact")
+    np.testing.assert_allclose(tr.x, 0.1 * tr.t * np.sin(tr.t), atol=1e-12)
+    ev = simulate(p, 20.0, method="event", rtol=1e-12, atol=1e-14)
+    np.testing.assert_allclose(ev.x, tr.x, atol=1e-9)
+
+
+@pytest.mark.parametrize("lam", [0.0, 1.0, 2.0, 3.0])
+def test_damping_regimes_match_event_solver(lam):
+    p = OscillatorParams(lam=lam, u0=2.0, nu=0.3)
+    a = simulate(p, 60.0, method="exact")
+    b = simulate(p, 60.0, method="event", rtol=1e-12, atol=1e-14)
+    assert np.max(np.abs(a.x - b.x)) < 1e-8
+
+
+def test_continuation_with_phase_carry():
+    """Two stats-only calls equal one; the force stays continuous across a change of nu."""
+    p = OscillatorParams(u0=1.15, nu=0.1)
+    whole = run_stats(p, 100.0)
+    half = run_stats(p, 50.0)
+    rest = run_stats(p, 50.0, state=half.state)
+    assert abs(rest.state.x - whole.state.x) < 1e-10
+    assert abs(rest.state.t - 100.0) < 1e-12
+    assert abs(half.stick_time + rest.stick_time - whole.stick_time) < 1e-9
+    # retune tone 2: the phase carried over is nu*eta*t, not the new nu*eta*t
+    q = p.replace(nu=0.3)
+    cont = run_stats(q, 1.0, state=half.state)
+    assert abs(half.state.phase2 - (0.06 * 50.0) % (2 * math.pi)) < 1e-12
+    assert abs(cont.state.phase2 - (half.state.phase2 + 0.18) % (2 * math.pi)) < 1e-12
+
+
+def test_state_start_chooses_mode():
+    p = OscillatorParams()
+    assert OscillatorState.start(p, 0.0, 1.0).mode == 0
+    assert OscillatorState.start(p, 10.0, 1.0).mode == -1  # spring pulls back past xfs
+    assert OscillatorState.start(p, 0.0, 2.0).mode == 1
+
+
+def test_event_cap_raises():
+    p = OscillatorParams(u0=1e3, eta=50.0, nu=1.3)
+    with pytest.raises(SimulationError, match="events"):
+        simulate(p, 50.0, max_event_rate=0.5)
+    with pytest.raises(SimulationError, match="events"):
+        run_stats(p, 50.0, max_event_rate=0.5)
+
+
+# -- stress -------------------------------------------------------------------------------
+STRESS = {
+    "u0=1e3": dict(u0=1e3, nu=0.1),
+    "u0=1e3,eta=50": dict(u0=1e3, eta=50.0, nu=1.3),
+    "eta=50": dict(u0=5.0, eta=50.0, nu=0.5),
+    "lam=0": dict(lam=0.0, u0=1.0, nu=0.1),
+    "lam=2": dict(lam=2.0, u0=2.0, nu=0.3),
+    "lam=3": dict(lam=3.0, u0=2.0, nu=0.3),
+    "xfs=xfk": dict(xfs=2.5, u0=1.15, nu=0.1),
+    "V=0": dict(V=0.0, u0=3.0, nu=0.2),
+}
+
+
+@pytest.mark.parametrize("case", sorted(STRESS))
+@pytest.mark.parametrize("law", ["coulomb", "stribeck"])
+def test_stress_runs_finish(case, law):
+    p = OscillatorParams.preset(law, **STRESS[case])
+    tr = simulate(p, 100.0)
+    check_invariants(p, tr)
+
+
+def test_long_stats_only_run():
+    s = run_stats(OscillatorParams(u0=1.15, nu=0.1), 1e6)
+    assert s.duration == pytest.approx(1e6)
+    assert 0.0 < s.stick_fraction < 1.0 and np.isfinite(s.state.x)
+
+
+# -- properties ---------------------------------------------------------------------------
+@st.composite
+def valid_params(draw, coulomb=False):
+    xfk = draw(st.floats(0.0, 4.0))
+    kw = dict(
+        lam=draw(st.floats(0.0, 3.0)), eta=draw(st.floats(0.05, 5.0)),
+        nu=draw(st.floats(0.0, 3.0)), u0=draw(st.floats(0.0, 10.0)),
+        V=draw(st.floats(0.0, 2.0)), xfk=xfk, xfs=xfk + draw(st.floats(0.0, 3.0)),
+    )
+    if not coulomb:
+        kw.update(b1=draw(st.floats(0.0, 0.4)), b3=draw(st.floats(0.0, 0.3)))
+    return OscillatorParams(**kw)
+
+
+@settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(valid_params())
+def test_property_invariants_any_law(p):
+    check_invariants(p, simulate(p, 30.0, method="event", rtol=1e-9, atol=1e-11))
+
+
+@settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(valid_params(coulomb=True))
+def test_property_exact_matches_event(p):
+    a = simulate(p, 30.0, method="exact")
+    b = simulate(p, 30.0, method="event", rtol=1e-12, atol=1e-14)
+    check_invariants(p, a)
+    scale = 1.0 + np.max(np.abs(a.x))
+    assert np.max(np.abs(a.x - b.x)) <= 1e-6 * scale
