@@ -1000,6 +1000,31 @@ def _dp5_dense(cx, kx, kv):
     cx[C_QV0], cx[C_QV0 + 1], cx[C_QV0 + 2], cx[C_QV0 + 3] = _dense_coeffs(kv)
 
 
+@njit(cache=True, inline="always")
+def _step_factor(err):
+    """0.9 err^(-1/5) clamped to [0.2, 5]: the step-size update of a 5th-order pair.
+
+    A controller needs a few digits at most, so err^(-1/5) comes from the binary exponent
+    and a cubic in the mantissa (relative error < 3e-4) instead of a pow call.
+    """
+    if err <= 1e-10:
+        return 5.0
+    m, e = math.frexp(err)  # err = m 2^e, m in [0.5, 1)
+    q = e // 5
+    r = e - 5 * q
+    y = 1.50716815 + m * (-1.0481009 + m * (0.7816801 - m * 0.24094984))  # ~ m^(-1/5)
+    if r == 1:
+        y *= 0.8705505632961241
+    elif r == 2:
+        y *= 0.757858283255199
+    elif r == 3:
+        y *= 0.6597539553864471
+    elif r == 4:
+        y *= 0.5743491774985174
+    y = math.ldexp(0.9 * y, -q)
+    return min(5.0, max(0.2, y))
+
+
 @njit(cache=True)
 def _run_event(P, S, t_span, out_t, stats, max_events, rtol, atol, out_x, out_v, out_mode,
                ev_t, ev_kind, ev_x, counts):
@@ -1057,7 +1082,7 @@ def _run_event(P, S, t_span, out_t, stats, max_events, rtol, atol, out_x, out_v,
                 err = _dp5_error(kx, kv, h, x, v, x1, v1, rtol, atol)
                 if err <= 1.0 or h <= 1e-14 * max(1.0, abs(t)):
                     break
-                h *= max(0.2, 0.9 * err ** -0.2)
+                h *= _step_factor(err)
             stats[ST_N_STEPS] += 1.0
             hstep = h
             a1 = kv[6]
@@ -1163,8 +1188,7 @@ def _run_event(P, S, t_span, out_t, stats, max_events, rtol, atol, out_x, out_v,
                 cx[C_CP2], cx[C_SP2] = _renorm(cx[C_CE2], cx[C_SE2])
                 n_carried += 1
                 fresh = False
-            err_fac = 0.9 * max(err, 1e-10) ** -0.2
-            h = hstep * min(5.0, max(0.2, err_fac))
+            h = hstep * _step_factor(err)
         else:
             # ---------------- exact stick step ----------------
             L = min(cap, t_stop - t)

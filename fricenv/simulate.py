@@ -45,6 +45,7 @@ from .params import OscillatorParams
 #: few times per forcing period; far more means chattering (a Zeno-like accumulation).
 MAX_EVENT_RATE = 1000.0
 EVENT_NAMES = {EVENT_STICK: "stick", EVENT_SLIP: "slip", EVENT_REVERSAL: "reversal"}
+EVENT_DTYPE = np.dtype([("t", "f8"), ("kind", "i1"), ("name", "U8"), ("x", "f8")])
 
 
 class SimulationError(RuntimeError):
@@ -193,6 +194,17 @@ class Trajectory:
     event_kind: np.ndarray
     event_x: np.ndarray
     stats: RunStats = field(repr=False)
+
+    @property
+    def events(self) -> np.ndarray:
+        """Every switch as a structured array with fields ``t``, ``kind`` (1 stick, 2 slip,
+        3 reversal), ``name`` and ``x``, in time order."""
+        out = np.empty(self.event_t.shape[0], dtype=EVENT_DTYPE)
+        out["t"] = self.event_t
+        out["kind"] = self.event_kind
+        out["name"] = [EVENT_NAMES[int(k)] for k in self.event_kind]
+        out["x"] = self.event_x
+        return out
 
     @property
     def stick_fraction(self) -> float:

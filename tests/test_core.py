@@ -112,6 +112,14 @@ def test_bad_method_and_exact_needs_coulomb():
         simulate(OscillatorParams.preset("stribeck"), 1.0, method="exact")
 
 
+def test_events_record():
+    tr = simulate(OscillatorParams(**PAPER_CASES["5a"]), 60.0)
+    ev = tr.events
+    assert len(ev) == len(tr.event_t) > 0
+    assert set(ev["name"]) <= {"stick", "slip", "reversal"}
+    assert ev["name"][0] == "stick" and ev["name"][1] == "slip"  # dragged along, then let go
+
+
 def test_output_grid():
     tr = simulate(OscillatorParams(u0=1.0), 1.05, dt_out=0.1)
     assert tr.t[0] == 0.0 and tr.t[-1] == 1.05
