@@ -23,3 +23,7 @@ __all__ = [
     "simulate",
 ]
 __version__ = "0.1.0"
+
+from .envs import register_envs as _register_envs  # noqa: E402
+
+_register_envs()  # gymnasium.make("fricenv/StickSlip-v0") works after `import fricenv`

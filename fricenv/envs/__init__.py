@@ -1,0 +1,72 @@
+"""Gymnasium environments for stick-slip suppression (single and natively vectorised).
+
+``register_envs()`` (called by ``import fricenv``) registers one id per scene, each with the
+scene's horizon as ``max_episode_steps`` (as Gymnasium does for ``FrozenLake8x8``):
+
+=================================  ==============  =================
+id                                 scene           max_episode_steps
+=================================  ==============  =================
+``fricenv/StickSlip-v0``           ``paper``       200
+``fricenv/StickSlipSelfExcited-v0``  ``self_excited``  400
+=================================  ==============  =================
+
+Registration imports nothing heavy: the classes (and numba) load on the first ``make``.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+#: Registered ids and the scene each one makes.
+ENV_IDS: dict[str, str] = {
+    "fricenv/StickSlip-v0": "paper",
+    "fricenv/StickSlipSelfExcited-v0": "self_excited",
+}
+
+__all__ = [
+    "ENV_IDS",
+    "SCENES",
+    "Scene",
+    "StickSlipEnv",
+    "StickSlipSB3VecEnv",
+    "StickSlipVectorEnv",
+    "register_envs",
+]
+
+
+def register_envs() -> None:
+    """Register the environments with Gymnasium (idempotent)."""
+    from gymnasium.envs.registration import register, registry
+
+    from fricenv.envs.scenes import SCENES
+
+    for env_id, scene in ENV_IDS.items():
+        if env_id in registry:
+            continue
+        register(
+            id=env_id,
+            entry_point="fricenv.envs.stick_slip:StickSlipEnv",
+            vector_entry_point="fricenv.envs.vector:StickSlipVectorEnv",
+            max_episode_steps=SCENES[scene].max_episode_steps,
+            kwargs={"scene": scene},
+        )
+
+
+def __getattr__(name: str) -> Any:  # lazy exports keep ``import fricenv`` light
+    if name in ("SCENES", "Scene"):
+        from fricenv.envs import scenes
+
+        return getattr(scenes, name)
+    if name == "StickSlipEnv":
+        from fricenv.envs.stick_slip import StickSlipEnv
+
+        return StickSlipEnv
+    if name == "StickSlipVectorEnv":
+        from fricenv.envs.vector import StickSlipVectorEnv
+
+        return StickSlipVectorEnv
+    if name == "StickSlipSB3VecEnv":
+        from fricenv.envs.sb3 import StickSlipSB3VecEnv
+
+        return StickSlipSB3VecEnv
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -1,0 +1,383 @@
+"""Numba kernels of the RL environments: action scaling, one control interval, reward, obs.
+
+The single environment and the native vector environment call the same inner functions, so
+they agree bit for bit. The step kernels allocate nothing of their own (only
+``sample_interval``, used for rendering, works on copies) and run on the physics core's
+stats-only path (``core.advance``): an environment step integrates to the next control
+instant and keeps no trajectory.
+
+Note for developers: numba's on-disk cache does not notice edits to ``fricenv.core``; after
+changing the core, delete ``fricenv/envs/__pycache__/*.nb[ic]``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from fricenv.core import advance, initial_mode, initial_state, reset_stats
+from fricenv.layout import (
+    METHOD_EVENT,
+    METHOD_EXACT,
+    S_MODE,
+    S_PHI1,
+    S_PHI2,
+    S_T,
+    S_V,
+    S_X,
+    ST_STICK_TIME,
+    ST_VR2_INT,
+)
+from fricenv.params import P_B1, P_B3, P_U1, P_U2, P_V, P_W1, P_W2
+
+# Action modes (index into scenes.ACTION_MODES).
+MODE_AMPLITUDE, MODE_FREQUENCY, MODE_BOTH = 0, 1, 2
+
+# Layout of the float64 configuration vector shared by all plants of an environment.
+(
+    C_DT,
+    C_ACTION_MODE,
+    C_INCREMENTAL,
+    C_U_LO,
+    C_U_HI,
+    C_NU_LO,
+    C_NU_HI,
+    C_DU,
+    C_DNU,
+    C_G1,
+    C_G2,
+    C_W_STICK,
+    C_W_VEL,
+    C_W_EFFORT,
+    C_EFFORT_NORM,
+    C_X_LIM,
+    C_V_LIM,
+    C_METHOD,
+    C_RTOL,
+    C_ATOL,
+    C_MAX_EVENTS,
+) = range(21)
+N_CFG = 21
+METHOD_AUTO = -1
+
+# Per-step results (float64 row): reward, stick fraction, effort, velocity variance, terminated.
+R_REWARD, R_STICK, R_EFFORT, R_VAR, R_TERM = range(5)
+N_RES = 5
+
+# Layout of the per-episode starting vector (mirrors scenes.I_*).
+I_X0, I_V0, I_PHI1, I_PHI2, I_U0, I_NU = range(6)
+
+# Observation layout.
+O_X, O_VR, O_STICK, O_COS1, O_SIN1, O_COS2, O_SIN2, O_U0, O_NU = range(9)
+N_OBS = 9
+
+# Status returned when an action is not finite (the core's codes are >= 0).
+STATUS_BAD_ACTION = -1
+
+# Autoreset modes of the vector kernel.
+AUTORESET_NEXT_STEP, AUTORESET_SAME_STEP, AUTORESET_DISABLED = 0, 1, 2
+
+
+@njit(cache=True)
+def _clip(v, lo, hi):
+    return lo if v < lo else (hi if v > hi else v)
+
+
+@njit(cache=True)
+def actions_finite(a) -> bool:
+    for k in range(a.shape[0]):
+        if not math.isfinite(a[k]):
+            return False
+    return True
+
+
+@njit(cache=True)
+def set_excitation(P, ctrl, cfg) -> None:
+    """Write the tone amplitudes and the second tone's frequency from (u0, nu).
+
+    The core accumulates tone phases in the state, so retuning here between two calls of
+    ``advance`` keeps every phase continuous.
+    """
+    P[P_U1] = cfg[C_G1] * ctrl[0]
+    P[P_U2] = cfg[C_G2] * ctrl[0]
+    P[P_W2] = ctrl[1] * P[P_W1]
+
+
+@njit(cache=True)
+def apply_action(ctrl, cfg, a) -> None:
+    """Map a normalised action in [-1, 1] (clipped) to (u0, nu), absolute or incremental."""
+    mode = int(cfg[C_ACTION_MODE])
+    incremental = cfg[C_INCREMENTAL] != 0.0
+    j = 0
+    if mode != MODE_FREQUENCY:
+        ai = _clip(a[j], -1.0, 1.0)
+        if incremental:
+            ctrl[0] = _clip(ctrl[0] + ai * cfg[C_DU], cfg[C_U_LO], cfg[C_U_HI])
+        else:
+            ctrl[0] = cfg[C_U_LO] + 0.5 * (ai + 1.0) * (cfg[C_U_HI] - cfg[C_U_LO])
+        j = 1
+    if mode != MODE_AMPLITUDE:
+        ai = _clip(a[j], -1.0, 1.0)
+        if incremental:
+            ctrl[1] = _clip(ctrl[1] + ai * cfg[C_DNU], cfg[C_NU_LO], cfg[C_NU_HI])
+        else:
+            ctrl[1] = cfg[C_NU_LO] + 0.5 * (ai + 1.0) * (cfg[C_NU_HI] - cfg[C_NU_LO])
+
+
+@njit(cache=True)
+def _method(P, cfg) -> int:
+    m = int(cfg[C_METHOD])
+    if m != METHOD_AUTO:
+        return m
+    if P[P_B1] == 0.0 and P[P_B3] == 0.0:
+        return METHOD_EXACT
+    return METHOD_EVENT
+
+
+@njit(cache=True)
+def control_interval(P, S, ctrl, cfg, a, stats, res) -> int:
+    """Apply action ``a``, advance one control interval, fill the reward terms in ``res``.
+
+    Returns the core's status (non-zero: the interval failed and ``res`` is meaningless).
+    """
+    apply_action(ctrl, cfg, a)
+    set_excitation(P, ctrl, cfg)
+    dt = cfg[C_DT]
+    x_start = S[S_X]
+    reset_stats(stats)
+    status = advance(
+        P, S, dt, stats, _method(P, cfg), cfg[C_RTOL], cfg[C_ATOL], int(cfg[C_MAX_EVENTS])
+    )
+    if status != 0:
+        return status
+    V = P[P_V]
+    stick = _clip(stats[ST_STICK_TIME] / dt, 0.0, 1.0)
+    # Variance of v - V over the interval: the mean of v is exactly (x_end - x_start) / dt.
+    mean_vr = (S[S_X] - x_start) / dt - V
+    var = stats[ST_VR2_INT] / dt - mean_vr * mean_vr
+    if var < 0.0:
+        var = 0.0
+    fluct = var / (var + max(V * V, 1e-12))
+    effort = (P[P_U1] * P[P_U1] + P[P_U2] * P[P_U2]) * cfg[C_EFFORT_NORM]
+    res[R_REWARD] = -(cfg[C_W_STICK] * stick + cfg[C_W_VEL] * fluct + cfg[C_W_EFFORT] * effort)
+    res[R_STICK] = stick
+    res[R_EFFORT] = effort
+    res[R_VAR] = var
+    return 0
+
+
+@njit(cache=True)
+def write_obs(P, S, ctrl, cfg, obs) -> bool:
+    """Write the float32 observation; True when the state left the observation box."""
+    x = S[S_X]
+    vr = S[S_V] - P[P_V]
+    xl = cfg[C_X_LIM]
+    vl = cfg[C_V_LIM]
+    obs[O_X] = _clip(x, -xl, xl)
+    obs[O_VR] = _clip(vr, -vl, vl)
+    obs[O_STICK] = 1.0 if S[S_MODE] == 0.0 else 0.0
+    obs[O_COS1] = math.cos(S[S_PHI1])
+    obs[O_SIN1] = math.sin(S[S_PHI1])
+    obs[O_COS2] = math.cos(S[S_PHI2])
+    obs[O_SIN2] = math.sin(S[S_PHI2])
+    obs[O_U0] = ctrl[0]
+    obs[O_NU] = ctrl[1]
+    return abs(x) > xl or abs(vr) > vl
+
+
+@njit(cache=True)
+def start_episode(P, S, ctrl, cfg, P_new, init, obs) -> None:
+    """Begin an episode from a sampled parameter vector and starting vector."""
+    for k in range(P.shape[0]):
+        P[k] = P_new[k]
+    ctrl[0] = init[I_U0]
+    ctrl[1] = init[I_NU]
+    set_excitation(P, ctrl, cfg)
+    initial_state(P, init[I_X0], init[I_V0], S)
+    S[S_PHI1] = init[I_PHI1]
+    S[S_PHI2] = init[I_PHI2]
+    # initial_state chose the mode with zero phases; redo it with the drawn ones.
+    S[S_MODE] = initial_mode(P, S[S_X], S[S_V], S[S_PHI1], S[S_PHI2])
+    write_obs(P, S, ctrl, cfg, obs)
+
+
+@njit(cache=True)
+def step_single(P, S, ctrl, cfg, a, stats, obs, res) -> int:
+    """One step of the single environment (one dispatch per step keeps it cheap)."""
+    if not actions_finite(a):
+        return STATUS_BAD_ACTION
+    status = control_interval(P, S, ctrl, cfg, a, stats, res)
+    if status != 0:
+        return status
+    res[R_TERM] = 1.0 if write_obs(P, S, ctrl, cfg, obs) else 0.0
+    return 0
+
+
+@njit(cache=True)
+def _plant_step(
+    i,
+    P,
+    S,
+    ctrl,
+    cfg,
+    A,
+    stats,
+    obs,
+    res,
+    terminated,
+    truncated,
+    steps,
+    autoreset,
+    next_P,
+    next_init,
+    did_reset,
+    final_obs,
+    max_steps,
+    mode,
+) -> int:
+    """Body of the batch step for plant ``i`` (see ``step_batch``)."""
+    did_reset[i] = False
+    if mode == AUTORESET_NEXT_STEP and autoreset[i]:
+        start_episode(P[i], S[i], ctrl[i], cfg, next_P[i], next_init[i], obs[i])
+        steps[i] = 0
+        for k in range(res.shape[1]):
+            res[i, k] = 0.0
+        terminated[i] = False
+        truncated[i] = False
+        autoreset[i] = False
+        did_reset[i] = True
+        return 0
+    status = control_interval(P[i], S[i], ctrl[i], cfg, A[i], stats[i], res[i])
+    if status != 0:
+        return status
+    term = write_obs(P[i], S[i], ctrl[i], cfg, obs[i])
+    res[i, R_TERM] = 1.0 if term else 0.0
+    steps[i] += 1
+    trunc = steps[i] >= max_steps
+    terminated[i] = term
+    truncated[i] = trunc
+    done = term or trunc
+    if mode == AUTORESET_SAME_STEP and done:
+        for k in range(obs.shape[1]):
+            final_obs[i, k] = obs[i, k]
+        start_episode(P[i], S[i], ctrl[i], cfg, next_P[i], next_init[i], obs[i])
+        steps[i] = 0
+        did_reset[i] = True
+    else:
+        autoreset[i] = done
+    return 0
+
+
+@njit(cache=True)
+def _first_bad_action(A, autoreset, mode) -> int:
+    for i in range(A.shape[0]):
+        if mode == AUTORESET_NEXT_STEP and autoreset[i]:
+            continue
+        if not actions_finite(A[i]):
+            return i
+    return -1
+
+
+@njit(cache=True)
+def step_batch(
+    P,
+    S,
+    ctrl,
+    cfg,
+    A,
+    stats,
+    obs,
+    res,
+    terminated,
+    truncated,
+    steps,
+    autoreset,
+    next_P,
+    next_init,
+    did_reset,
+    final_obs,
+    status,
+    ivars,
+) -> int:
+    """Step N plants with autoreset in one call.
+
+    ``ivars`` = [max_episode_steps, autoreset mode]. ``autoreset[i]`` marks a plant whose
+    episode ended on the previous call. NEXT_STEP: such a plant is reset from its stashed
+    episode (``next_P``, ``next_init``) instead of stepped, with reward 0. SAME_STEP: a plant
+    whose episode ends now is reset at once, its last observation saved in ``final_obs``.
+    DISABLED: the caller resets. ``did_reset`` marks plants that consumed their stash (the
+    caller draws a new one). Actions are all checked before any plant moves: a non-finite
+    one returns its plant's index + 1 as a negative number. Otherwise returns the number of
+    plants whose integration failed (their codes are in ``status``).
+    """
+    bad = _first_bad_action(A, autoreset, ivars[1])
+    if bad >= 0:
+        return -(bad + 1)
+    n_failed = 0
+    for i in range(P.shape[0]):
+        status[i] = _plant_step(
+            i,
+            P,
+            S,
+            ctrl,
+            cfg,
+            A,
+            stats,
+            obs,
+            res,
+            terminated,
+            truncated,
+            steps,
+            autoreset,
+            next_P,
+            next_init,
+            did_reset,
+            final_obs,
+            ivars[0],
+            ivars[1],
+        )
+        if status[i] != 0:
+            n_failed += 1
+    return n_failed
+
+
+@njit(cache=True)
+def start_batch(P, S, ctrl, cfg, P_new, init, mask, obs, steps, autoreset) -> None:
+    """Begin episodes for the plants selected by ``mask``."""
+    for i in range(P.shape[0]):
+        if mask[i]:
+            start_episode(P[i], S[i], ctrl[i], cfg, P_new[i], init[i], obs[i])
+            steps[i] = 0
+            autoreset[i] = False
+
+
+@njit(cache=True)
+def sample_interval(P, S, ctrl, cfg, a, stats, t_out, v_out, stick_out) -> int:
+    """Rendering only: the coming interval's velocity at ``len(t_out)`` instants.
+
+    Works on copies, so drawing never perturbs the dynamics of the real step.
+    """
+    Pc = P.copy()
+    Sc = S.copy()
+    cc = ctrl.copy()
+    apply_action(cc, cfg, a)
+    set_excitation(Pc, cc, cfg)
+    n = t_out.shape[0]
+    h = cfg[C_DT] / n
+    m = _method(Pc, cfg)
+    t0 = Sc[S_T]
+    for k in range(n):
+        reset_stats(stats)
+        status = advance(Pc, Sc, h, stats, m, cfg[C_RTOL], cfg[C_ATOL], int(cfg[C_MAX_EVENTS]))
+        if status != 0:
+            return status
+        t_out[k] = t0 + (k + 1) * h
+        v_out[k] = Sc[S_V]
+        stick_out[k] = stats[ST_STICK_TIME] > 0.5 * h
+    return 0
+
+
+def empty_cfg() -> np.ndarray:
+    return np.zeros(N_CFG)

@@ -1,0 +1,291 @@
+"""Named scenes: a plant, its actuator, its reward and its horizon, bundled for the RL envs.
+
+A scene is everything that makes a control *task* out of the oscillator: the nominal
+parameters, the physical ranges the normalised action is scaled to, the reward weights, the
+episode horizon, the starting-state distribution and the ranges for per-episode domain
+randomisation. Environments read a scene once at construction, so swapping scenes never
+touches the kernels.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, fields, replace
+from typing import Any
+
+import numpy as np
+
+from fricenv.params import (
+    N_PARAMS,
+    P_B1,
+    P_B3,
+    P_LAM,
+    P_U1,
+    P_U2,
+    P_V,
+    P_W1,
+    P_W2,
+    P_XFK,
+    P_XFS,
+    OscillatorParams,
+)
+
+#: Action modes: which excitation settings the agent drives.
+ACTION_MODES = ("amplitude", "frequency", "both")
+
+#: Plant parameters that may be randomised per episode or overridden by ``reset(options=...)``,
+#: in the fixed order in which their uniform draws are consumed (determinism depends on it).
+RANDOMIZABLE = ("lam", "eta", "V", "xfk", "xfs", "b1", "b3")
+
+#: Starting-state quantities, drawn after the parameters in this order.
+INITIAL = ("x0", "v0", "phi1", "phi2")
+
+#: Number of uniform draws one episode consumes, whatever the options or settings.
+N_DRAWS = len(RANDOMIZABLE) + len(INITIAL)
+
+#: Keys ``reset(options=...)`` accepts: plant parameters, starting state, starting excitation.
+OPTION_KEYS = (*RANDOMIZABLE, *INITIAL, "u0", "nu")
+
+# Layout of the per-episode starting vector (what a reset needs besides the parameters).
+I_X0, I_V0, I_PHI1, I_PHI2, I_U0, I_NU = range(6)
+N_INIT = 6
+
+TWO_PI = 2.0 * math.pi
+
+
+def _pair(name: str, value: Any) -> tuple[float, float]:
+    lo, hi = (float(v) for v in value)
+    if not (math.isfinite(lo) and math.isfinite(hi)) or lo > hi:
+        raise ValueError(f"{name} must be a finite (lo, hi) with lo <= hi, got {value!r}")
+    return lo, hi
+
+
+@dataclass(frozen=True)
+class Scene:
+    """A control task on the oscillator (see the module docstring).
+
+    ``params.u0`` and ``params.nu`` are the excitation the episode starts with (and keeps in
+    the dimension the action mode does not drive). ``tone_gains`` scale u0 per tone, so
+    ``(1, 0)`` is a single tone. Ranges are ``(lo, hi)``; a randomisation range applies only
+    when the environment is made with ``randomize=True``.
+    """
+
+    name: str
+    description: str
+    params: OscillatorParams
+    u0_range: tuple[float, float]
+    nu_range: tuple[float, float]
+    action_mode: str = "both"
+    tone_gains: tuple[float, float] = (1.0, 1.0)
+    #: control interval in tau: a twelfth of the natural period 2 pi (>= 0.5, see README)
+    control_dt: float = math.pi / 6.0
+    max_episode_steps: int = 200
+    #: weights of (stick fraction, relative-velocity fluctuation, effort) in the cost
+    reward_weights: tuple[float, float, float] = (1.0, 0.5, 0.1)
+    #: incremental actions: largest change per step, as a fraction of each range
+    max_delta: float = 0.1
+    x0_range: tuple[float, float] = (-1.0, 1.0)
+    v0_range: tuple[float, float] = (-0.5, 0.5)
+    random_phase: bool = True
+    #: observation clip for |x| and |v - V|; leaving it terminates the episode
+    x_limit: float = 100.0
+    v_limit: float = 100.0
+    #: ranges ``{param: (lo, hi)}`` (given as a dict; stored as a tuple of pairs so that a
+    #: scene stays hashable, copyable and picklable)
+    randomization: Any = ()
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.params, OscillatorParams):
+            raise ValueError(f"params must be an OscillatorParams, got {self.params!r}")
+        if self.action_mode not in ACTION_MODES:
+            raise ValueError(f"action_mode must be one of {ACTION_MODES}, got {self.action_mode!r}")
+        for name in ("u0_range", "nu_range", "x0_range", "v0_range"):
+            object.__setattr__(self, name, _pair(name, getattr(self, name)))
+        (ulo, uhi), (nlo, nhi) = self.u0_range, self.nu_range
+        if not (0.0 <= ulo < uhi):
+            raise ValueError(f"u0_range must satisfy 0 <= lo < hi, got {self.u0_range}")
+        if not (0.0 <= nlo < nhi):
+            raise ValueError(f"nu_range must satisfy 0 <= lo < hi, got {self.nu_range}")
+        if not ulo <= self.params.u0 <= uhi:
+            raise ValueError(f"params.u0 = {self.params.u0} lies outside u0_range {self.u0_range}")
+        if not nlo <= self.params.nu <= nhi:
+            raise ValueError(f"params.nu = {self.params.nu} lies outside nu_range {self.nu_range}")
+        if self.params.u1 is not None or self.params.u2 is not None:
+            raise ValueError("scene params must not set u1/u2; use tone_gains")
+        gains = tuple(float(g) for g in self.tone_gains)
+        if len(gains) != 2 or min(gains) < 0.0 or max(gains) == 0.0:
+            raise ValueError(f"tone_gains must be two gains >= 0, not both 0, got {gains}")
+        object.__setattr__(self, "tone_gains", gains)
+        weights = tuple(float(w) for w in self.reward_weights)
+        if len(weights) != 3 or not all(math.isfinite(w) and w >= 0.0 for w in weights):
+            raise ValueError(f"reward_weights must be three finite weights >= 0, got {weights}")
+        object.__setattr__(self, "reward_weights", weights)
+        checks = (
+            ("control_dt", math.isfinite(self.control_dt) and self.control_dt > 0.0),
+            ("max_episode_steps", int(self.max_episode_steps) >= 1),
+            ("max_delta", 0.0 < self.max_delta <= 1.0),
+            ("x_limit", self.x_limit > 0.0),
+            ("v_limit", self.v_limit > 0.0),
+        )
+        for name, ok in checks:
+            if not ok:
+                raise ValueError(f"{name} is out of range, got {getattr(self, name)!r}")
+        rnd = {}
+        for key, value in dict(self.randomization).items():
+            if key not in RANDOMIZABLE:
+                raise ValueError(f"cannot randomise {key!r}; expected some of {RANDOMIZABLE}")
+            rnd[key] = _pair(f"randomization[{key!r}]", value)
+        ordered = tuple((k, rnd[k]) for k in RANDOMIZABLE if k in rnd)
+        object.__setattr__(self, "randomization", ordered)
+        # Every corner of the randomisation box must be a valid plant, so that a sampled
+        # episode never needs validating at reset time.
+        lo = {k: v[0] for k, v in rnd.items()}
+        hi = {k: v[1] for k, v in rnd.items()}
+        self.params.replace(**lo)
+        self.params.replace(**hi)
+        if "xfk" in rnd or "xfs" in rnd:
+            xfk_hi = rnd.get("xfk", (self.params.xfk,) * 2)[1]
+            xfs_lo = rnd.get("xfs", (self.params.xfs,) * 2)[0]
+            if xfs_lo < xfk_hi:
+                raise ValueError("randomization must keep xfs >= xfk: xfs lo < xfk hi")
+
+    @property
+    def ranges(self) -> dict[str, tuple[float, float]]:
+        """The randomisation ranges as a dict."""
+        return dict(self.randomization)
+
+    def replace(self, **changes: Any) -> Scene:
+        """A copy with ``changes`` applied (validated like a new scene)."""
+        known = {f.name for f in fields(self)}
+        unknown = sorted(set(changes) - known)
+        if unknown:
+            raise ValueError(f"unknown scene field(s) {unknown}; expected some of {sorted(known)}")
+        return replace(self, **changes)
+
+    # -- sampling ---------------------------------------------------------------------------
+    def draw_bounds(self, randomize: bool) -> tuple[np.ndarray, np.ndarray]:
+        """Lower and upper bounds of the N_DRAWS uniforms an episode consumes.
+
+        Without randomisation the parameter bounds collapse to the nominal value, so the number
+        of draws (and hence the random stream) is the same either way.
+        """
+        lo = np.empty(N_DRAWS)
+        hi = np.empty(N_DRAWS)
+        ranges = self.ranges if randomize else {}
+        for k, name in enumerate(RANDOMIZABLE):
+            nominal = float(getattr(self.params, name))
+            lo[k], hi[k] = ranges.get(name, (nominal, nominal))
+        k = len(RANDOMIZABLE)
+        lo[k], hi[k] = self.x0_range
+        lo[k + 1], hi[k + 1] = self.v0_range
+        phase_hi = TWO_PI if self.random_phase else 0.0
+        lo[k + 2 : k + 4] = 0.0
+        hi[k + 2 : k + 4] = phase_hi
+        return lo, hi
+
+
+def episode_from_draws(
+    scene: Scene, values: np.ndarray, options: dict | None, P_out: np.ndarray, init_out: np.ndarray
+) -> None:
+    """Fill the parameter vector and starting vector of one episode.
+
+    ``values`` are the drawn quantities (already scaled to their bounds) in the order
+    RANDOMIZABLE + INITIAL. ``options`` (from ``reset(options=...)``) override any of them and
+    the starting excitation; an override is validated, so a bad one fails at reset.
+    """
+    vals = dict(zip((*RANDOMIZABLE, *INITIAL), values.tolist(), strict=True))
+    u0, nu = scene.params.u0, scene.params.nu
+    if options:
+        unknown = sorted(set(options) - set(OPTION_KEYS))
+        if unknown:
+            raise ValueError(f"unknown reset option(s) {unknown}; expected some of {OPTION_KEYS}")
+        for key, value in options.items():
+            if isinstance(value, bool) or not isinstance(value, (int, float, np.number)):
+                raise ValueError(f"reset option {key!r} must be a real number, got {value!r}")
+            if not math.isfinite(float(value)):
+                raise ValueError(f"reset option {key!r} must be finite, got {value!r}")
+            vals[key] = float(value)
+        # Validates the plant (raises ValueError naming the field).
+        scene.params.replace(**{k: vals[k] for k in RANDOMIZABLE})
+        u0 = float(options.get("u0", u0))
+        nu = float(options.get("nu", nu))
+        (ulo, uhi), (nlo, nhi) = scene.u0_range, scene.nu_range
+        if not ulo <= u0 <= uhi:
+            raise ValueError(f"reset option u0 = {u0} lies outside u0_range {scene.u0_range}")
+        if not nlo <= nu <= nhi:
+            raise ValueError(f"reset option nu = {nu} lies outside nu_range {scene.nu_range}")
+    P_out[P_LAM] = vals["lam"]
+    P_out[P_V] = vals["V"]
+    P_out[P_XFK] = vals["xfk"]
+    P_out[P_XFS] = vals["xfs"]
+    P_out[P_B1] = vals["b1"]
+    P_out[P_B3] = vals["b3"]
+    P_out[P_W1] = vals["eta"]
+    # The excitation slots are written by the kernels from (u0, nu) and the tone gains.
+    P_out[P_U1] = scene.tone_gains[0] * u0
+    P_out[P_U2] = scene.tone_gains[1] * u0
+    P_out[P_W2] = nu * vals["eta"]
+    init_out[I_X0] = vals["x0"]
+    init_out[I_V0] = vals["v0"]
+    init_out[I_PHI1] = vals["phi1"] % TWO_PI
+    init_out[I_PHI2] = vals["phi2"] % TWO_PI
+    init_out[I_U0] = u0
+    init_out[I_NU] = nu
+
+
+def new_episode_arrays() -> tuple[np.ndarray, np.ndarray]:
+    return np.zeros(N_PARAMS), np.zeros(N_INIT)
+
+
+# -- presets --------------------------------------------------------------------------------
+_PLANT_RANDOMIZATION = {"V": (0.8, 1.2), "xfk": (2.2, 2.8), "xfs": (3.6, 4.4)}
+
+SCENES: dict[str, Scene] = {
+    "paper": Scene(
+        name="paper",
+        description=(
+            "The paper's plant (Coulomb law, lambda = 1/2, eta = 3/5, V = 1, x_fk = 2.5, "
+            "x_fs = 4) under its two-tone excitation. The process needs the vibration "
+            "(u0 = 2 at the start, where nu = 0.1 gives stick phases); the agent retunes the "
+            "frequency ratio, and with action_mode='both' also the amplitude, to avoid sticking."
+        ),
+        params=OscillatorParams.preset("coulomb", u0=2.0, nu=0.1),
+        u0_range=(0.0, 4.0),
+        nu_range=(0.1, 2.0),
+        action_mode="frequency",
+        max_episode_steps=200,
+        reward_weights=(1.0, 0.5, 0.1),
+        x0_range=(-1.0, 1.0),
+        v0_range=(-0.5, 0.5),
+        randomization={"lam": (0.4, 0.6), **_PLANT_RANDOMIZATION},
+    ),
+    "self_excited": Scene(
+        name="self_excited",
+        description=(
+            "A lightly damped plant (Coulomb law, lambda = 0.05) that stick-slips with no "
+            "excitation at all (about 37 % of the time stuck). Two tones at eta = 6 and "
+            "nu * eta can quench it (in phase, nu = 1 and u0 = 1 add up to the single tone of "
+            "amplitude 2 known to leave no stick), while other settings leave or worsen it. "
+            "Once quenched, the unforced plant can also coast without sticking."
+        ),
+        params=OscillatorParams.preset("coulomb", lam=0.05, eta=6.0, u0=0.0, nu=1.0),
+        u0_range=(0.0, 2.0),
+        nu_range=(0.5, 1.5),
+        action_mode="both",
+        max_episode_steps=400,
+        reward_weights=(1.0, 0.5, 0.1),
+        x0_range=(-1.0, 1.0),
+        v0_range=(-0.5, 0.5),
+        randomization={"lam": (0.03, 0.08), **_PLANT_RANDOMIZATION},
+    ),
+}
+
+
+def get_scene(scene: str | Scene) -> Scene:
+    """The scene named ``scene`` (or ``scene`` itself); ``ValueError`` listing the names."""
+    if isinstance(scene, Scene):
+        return scene
+    try:
+        return SCENES[str(scene)]
+    except KeyError:
+        raise ValueError(f"unknown scene {scene!r}; expected one of {sorted(SCENES)}") from None

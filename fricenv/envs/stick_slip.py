@@ -1,0 +1,489 @@
+"""Gymnasium environment: suppress stick-slip of a mass on a moving belt by retuning excitation.
+
+Structured like Gymnasium's classic-control ``pendulum.py``. The physics lives in
+``fricenv.core`` (which knows nothing of Gymnasium); one environment step is one call of a
+numba kernel (``kernels.step_single``) that integrates exactly to the next control instant.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+from fricenv.envs import kernels as K
+from fricenv.envs.scenes import (
+    ACTION_MODES,
+    N_DRAWS,
+    Scene,
+    episode_from_draws,
+    get_scene,
+    new_episode_arrays,
+)
+from fricenv.layout import (
+    METHOD_EVENT,
+    METHOD_EXACT,
+    N_STATE,
+    N_STATS,
+    S_MODE,
+    S_PHI1,
+    S_PHI2,
+    S_T,
+    S_V,
+    S_X,
+    STATUS_EVENT_CAP,
+    STATUS_NONFINITE,
+)
+from fricenv.params import (
+    N_PARAMS,
+    P_B1,
+    P_B3,
+    P_LAM,
+    P_U1,
+    P_U2,
+    P_V,
+    P_W1,
+    P_XFK,
+    P_XFS,
+)
+
+_METHODS = {"auto": K.METHOD_AUTO, "exact": METHOD_EXACT, "event": METHOD_EVENT}
+_WEIGHT_KEYS = ("stick", "velocity", "effort")
+
+#: Solver settings of the environments: tight enough that integration error is far below
+#: anything a policy could exploit, loose enough to keep a step cheap.
+RTOL = 1e-8
+ATOL = 1e-10
+#: Events (stick/slip/reversal) allowed per control interval before the run is declared
+#: chattering (a Zeno-like plant; it raises rather than silently stalling).
+MAX_EVENTS = 10_000
+
+
+@dataclass(frozen=True)
+class EnvSetup:
+    """Everything the single and the vector environment derive from their ``make`` kwargs."""
+
+    scene: Scene
+    action_mode: str
+    incremental: bool
+    randomize: bool
+    cfg: np.ndarray
+    action_space: spaces.Box
+    observation_space: spaces.Box
+    draw_lo: np.ndarray
+    draw_hi: np.ndarray
+
+    @classmethod
+    def build(
+        cls,
+        scene: str | Scene = "paper",
+        action_mode: str | None = None,
+        incremental: bool = False,
+        control_dt: float | None = None,
+        randomize: bool = False,
+        reward_weights: Any = None,
+        params: dict | None = None,
+        method: str = "auto",
+    ) -> EnvSetup:
+        sc = get_scene(scene)
+        changes: dict[str, Any] = {}
+        if params:
+            changes["params"] = sc.params.replace(**params)
+        if action_mode is not None:
+            changes["action_mode"] = action_mode
+        if control_dt is not None:
+            changes["control_dt"] = float(control_dt)
+        if reward_weights is not None:
+            if isinstance(reward_weights, dict):
+                unknown = sorted(set(reward_weights) - set(_WEIGHT_KEYS))
+                if unknown:
+                    raise ValueError(f"unknown reward weight(s) {unknown}; expected {_WEIGHT_KEYS}")
+                base = dict(zip(_WEIGHT_KEYS, sc.reward_weights, strict=True))
+                base.update(reward_weights)
+                reward_weights = tuple(base[k] for k in _WEIGHT_KEYS)
+            changes["reward_weights"] = tuple(reward_weights)
+        if changes:
+            sc = sc.replace(**changes)
+        if method not in _METHODS:
+            raise ValueError(f"method must be one of {sorted(_METHODS)}, got {method!r}")
+        if method == "exact" and (not sc.params.is_coulomb or {"b1", "b3"} & set(sc.ranges)):
+            raise ValueError("method='exact' needs the Coulomb law (b1 = b3 = 0)")
+
+        cfg = K.empty_cfg()
+        (ulo, uhi), (nlo, nhi) = sc.u0_range, sc.nu_range
+        g1, g2 = sc.tone_gains
+        cfg[K.C_DT] = sc.control_dt
+        cfg[K.C_ACTION_MODE] = ACTION_MODES.index(sc.action_mode)
+        cfg[K.C_INCREMENTAL] = 1.0 if incremental else 0.0
+        cfg[K.C_U_LO], cfg[K.C_U_HI] = ulo, uhi
+        cfg[K.C_NU_LO], cfg[K.C_NU_HI] = nlo, nhi
+        cfg[K.C_DU] = sc.max_delta * (uhi - ulo)
+        cfg[K.C_DNU] = sc.max_delta * (nhi - nlo)
+        cfg[K.C_G1], cfg[K.C_G2] = g1, g2
+        cfg[K.C_W_STICK], cfg[K.C_W_VEL], cfg[K.C_W_EFFORT] = sc.reward_weights
+        cfg[K.C_EFFORT_NORM] = 1.0 / ((g1 * g1 + g2 * g2) * uhi * uhi)
+        cfg[K.C_X_LIM], cfg[K.C_V_LIM] = sc.x_limit, sc.v_limit
+        cfg[K.C_METHOD] = _METHODS[method]
+        cfg[K.C_RTOL], cfg[K.C_ATOL], cfg[K.C_MAX_EVENTS] = RTOL, ATOL, MAX_EVENTS
+
+        n_act = 2 if sc.action_mode == "both" else 1
+        action_space = spaces.Box(-1.0, 1.0, shape=(n_act,), dtype=np.float32)
+        high = np.array(
+            [sc.x_limit, sc.v_limit, 1.0, 1.0, 1.0, 1.0, 1.0, uhi, nhi], dtype=np.float32
+        )
+        low = np.array(
+            [-sc.x_limit, -sc.v_limit, 0.0, -1.0, -1.0, -1.0, -1.0, ulo, nlo], dtype=np.float32
+        )
+        observation_space = spaces.Box(low, high, dtype=np.float32)
+        draw_lo, draw_hi = sc.draw_bounds(randomize)
+        return cls(
+            sc,
+            sc.action_mode,
+            bool(incremental),
+            bool(randomize),
+            cfg,
+            action_space,
+            observation_space,
+            draw_lo,
+            draw_hi,
+        )
+
+    def draw(self, rng: np.random.Generator) -> np.ndarray:
+        """The uniforms of one episode, scaled; always N_DRAWS numbers from ``rng``."""
+        return self.draw_lo + (self.draw_hi - self.draw_lo) * rng.random(N_DRAWS)
+
+    def episode(self, values: np.ndarray, options: dict | None, P_out, init_out) -> None:
+        episode_from_draws(self.scene, values, options, P_out, init_out)
+        if self.cfg[K.C_METHOD] == METHOD_EXACT and (P_out[P_B1] != 0.0 or P_out[P_B3] != 0.0):
+            raise ValueError("method='exact' needs the Coulomb law (b1 = b3 = 0)")
+
+
+def raise_status(status: int, action: Any, where: str = "") -> None:
+    """Turn a kernel status into the exception a user can act on."""
+    if status == K.STATUS_BAD_ACTION:
+        raise ValueError(f"action{where} must be finite (no NaN or inf), got {action!r}")
+    if status == STATUS_EVENT_CAP:
+        raise RuntimeError(
+            f"plant{where} chattered: more than {MAX_EVENTS} stick/slip events in one control "
+            "interval; reset the environment (check the parameters passed at make/reset)"
+        )
+    if status == STATUS_NONFINITE:
+        raise RuntimeError(f"plant{where} state became NaN or infinite; reset the environment")
+    raise RuntimeError(f"plant{where}: integrator failed with status {status}")
+
+
+def coerce_action(action: Any, shape: tuple[int, ...]) -> np.ndarray:
+    """Slow path for actions that are not a float ndarray of the right shape."""
+    try:
+        a = np.asarray(action, dtype=np.float64)
+    except (TypeError, ValueError) as e:
+        raise ValueError(f"action must be a float array of shape {shape}, got {action!r}") from e
+    if a.size != int(np.prod(shape)):
+        raise ValueError(f"action must have shape {shape}, got {action!r}")
+    return np.ascontiguousarray(a.reshape(shape))
+
+
+class StickSlipEnv(gym.Env):
+    r"""
+    ## Description
+
+    A block on a belt moving at speed `V` is held by a spring and a damper and driven by
+    dry friction; a two-tone force `u0 cos(eta t) + u0 cos(nu eta t)` shakes it (the model of
+    "Dry Friction with Various Friction Laws", Modern Mechanical Engineering 5, 2015, Eq. 7,
+    in dimensionless time `t`; natural period `2 pi`). Left alone, such a block can
+    *stick-slip*: it is carried by the belt until the spring tears it loose, slips back, and
+    sticks again. The agent retunes the excitation, its amplitude `u0`, its frequency ratio
+    `nu`, or both, once per control interval, to keep the block slipping smoothly with
+    little effort.
+
+    The plant is integrated exactly (closed form between events for the Coulomb law, an
+    event-locating integrator otherwise), so sticking, which fixed-step schemes smear out,
+    is represented faithfully. A scene (``scene=``, see ``fricenv.envs.scenes.SCENES``)
+    fixes the plant, the action ranges, the reward weights, the starting state, the
+    randomisation ranges and the horizon:
+
+    - `paper` (`fricenv/StickSlip-v0`): the paper's plant (Coulomb law, `lambda = 1/2`,
+      `eta = 3/5`, `V = 1`, `x_fk = 2.5`, `x_fs = 4`). The process needs its vibration
+      (`u0 = 2`, where `nu = 0.1` makes the block stick about half the time); by default the
+      agent retunes `nu` only.
+    - `self_excited` (`fricenv/StickSlipSelfExcited-v0`): `lambda = 0.05`, `eta = 6`; the
+      block stick-slips with no excitation at all (about 37 % of the time stuck). Some
+      `(u0, nu)` quench it, others leave or worsen it; the agent drives both.
+
+    ## Action Space
+
+    A `Box(-1, 1, (n,), float32)`, scaled inside the environment to the scene's physical
+    ranges (out-of-range values are clipped; NaN or inf raises `ValueError`). `action_mode`
+    picks the columns:
+
+    | action_mode | Num | Action               | Min | Max | paper      | self_excited |
+    |-------------|-----|----------------------|-----|-----|------------|--------------|
+    | amplitude   | 0   | amplitude `u0`       | -1  | 1   | [0, 4]     | [0, 2]       |
+    | frequency   | 0   | frequency ratio `nu` | -1  | 1   | [0.1, 2]   | [0.5, 1.5]   |
+    | both        | 0   | amplitude `u0`       | -1  | 1   | [0, 4]     | [0, 2]       |
+    | both        | 1   | frequency ratio `nu` | -1  | 1   | [0.1, 2]   | [0.5, 1.5]   |
+
+    (The last two columns are the physical ranges the action is scaled to in the presets.)
+
+    Absolute (default): `-1..1` maps linearly onto the range. Incremental
+    (``incremental=True``): the action moves the current setting by up to `max_delta`
+    (a tenth) of its range per step, clipped to the range. The setting is held during the
+    interval (zero-order hold). Each tone's phase is carried over from one interval to the
+    next, so retuning `nu` never makes the force jump; a new `u0` scales the tones from the
+    current phase on (the state `x`, `v` stays continuous). The dimension not driven by the
+    action keeps the scene's starting value.
+
+    ## Observation Space
+
+    A `Box(low, high, (9,), float32)` at the end of each control interval:
+
+    | Num | Observation                                      | Min      | Max     |
+    |-----|--------------------------------------------------|----------|---------|
+    | 0   | displacement `x` (clipped)                       | -x_limit | x_limit |
+    | 1   | velocity relative to the belt `v - V` (clipped)  | -v_limit | v_limit |
+    | 2   | stick flag (1: carried by the belt)              | 0        | 1       |
+    | 3   | `cos` of tone 1's phase                          | -1       | 1       |
+    | 4   | `sin` of tone 1's phase                          | -1       | 1       |
+    | 5   | `cos` of tone 2's phase                          | -1       | 1       |
+    | 6   | `sin` of tone 2's phase                          | -1       | 1       |
+    | 7   | current amplitude `u0`                           | u0 min   | u0 max  |
+    | 8   | current frequency ratio `nu`                     | nu min   | nu max  |
+
+    The phases tell the policy where the periodic plant is in its cycle; the current
+    settings make incremental control observable. `x_limit = v_limit = 100` in the presets,
+    far beyond any bounded motion of the scenes' plants.
+
+    ## Rewards
+
+    Per control interval of length `dt`:
+
+    *r = -(w_stick * s + w_velocity * q / (q + V^2) + w_effort * e)*
+
+    - `s`: fraction of the interval spent stuck, in [0, 1];
+    - `q`: variance of the relative velocity `v - V` over the interval (exact: the integral of
+      `(v - V)^2` and the mean `(x_end - x_start) / dt - V`); `q / (q + V^2)` is in [0, 1),
+      zero for steady slip;
+    - `e = (u1^2 + u2^2) / ((g1^2 + g2^2) u0_max^2)`, the excitation power relative to the
+      strongest allowed, in [0, 1] (`u_i = g_i u0`, tone gains `g_i`, both 1 in the presets).
+
+    So `r` lies in `[-(w_stick + w_velocity + w_effort), 0]`; the presets' weights
+    `(1, 0.5, 0.1)` give `[-1.6, 0]`. Weights are set by the scene or by ``reward_weights``.
+    `info` carries `stick_fraction` (`s`), `effort` (`e`) and `velocity_variance` (`q`).
+
+    ## Starting State
+
+    Displacement `x ~ U(x0_range)` (presets: [-1, 1]), velocity `v ~ U(v0_range)` (presets:
+    [-0.5, 0.5], so the block starts slipping against the belt), tone phases `~ U[0, 2 pi)`,
+    excitation at the scene's `u0` and `nu` (paper: 2 and 0.1; self_excited: 0 and 1). With
+    ``randomize=True`` the plant parameters are drawn uniformly from the scene's ranges at
+    every reset. ``reset(options=...)`` overrides any of `lam, eta, V, xfk, xfs, b1, b3`,
+    `x0, v0, phi1, phi2, u0, nu` for that episode (e.g. ``{"x0": 0, "v0": 0, "phi1": 0,
+    "phi2": 0}`` is the paper's start from rest). Every reset draws the same number of
+    random numbers from `self.np_random`, whatever the options, so seeded runs replay.
+
+    ## Episode End
+
+    - Truncation: by the `TimeLimit` wrapper of `gymnasium.make` after `max_episode_steps`
+      (`fricenv/StickSlip-v0`: 200 steps, about 105 time units; `fricenv/StickSlipSelfExcited-v0`:
+      400). The environment itself never truncates.
+    - Termination: only if `|x| > x_limit` or `|v - V| > v_limit` (a diverging plant, e.g.
+      undamped and resonant through ``reset`` options); never in the presets' ranges.
+    - A chattering or non-finite integration raises `RuntimeError` instead of ending silently.
+
+    ## Arguments
+
+    ```python
+    >>> import gymnasium as gym, fricenv
+    >>> env = gym.make("fricenv/StickSlip-v0", scene="paper", action_mode="both")
+    ```
+
+    - `scene`: `"paper"` (default for `StickSlip-v0`), `"self_excited"`, or a `Scene`.
+      The horizon is the id's `max_episode_steps`: use the scene's own id (or pass
+      `max_episode_steps=`) when switching scenes.
+    - `action_mode`: `"amplitude"`, `"frequency"` or `"both"` (default: the scene's).
+    - `incremental`: actions change the settings instead of setting them (default False).
+    - `control_dt`: control interval in time units (default pi/6, a twelfth of the natural
+      period).
+    - `randomize`: draw the plant parameters per episode from the scene's ranges.
+    - `reward_weights`: `(w_stick, w_velocity, w_effort)` or a dict with those keys.
+    - `params`: overrides of the scene's nominal plant, e.g. `{"lam": 0.2}`.
+    - `method`: `"auto"` (closed form for Coulomb, event integrator otherwise), `"exact"`,
+      `"event"`.
+    - `render_mode`: `None`, `"rgb_array"` or `"human"`. Frames (block, belt, spring,
+      excitation force, velocity over the last 20 time units) are drawn with matplotlib on an
+      Agg canvas; `"human"` shows them in a pyplot window when an interactive backend is
+      available (headless, it draws off-screen only). With `None`, nothing is imported,
+      allocated or drawn.
+
+    `reset` returns `info = {}`; `step` returns the info described under Rewards.
+
+    ## Version History
+
+    * v0: Initial release.
+    """
+
+    metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 12}
+
+    def __init__(
+        self,
+        render_mode: str | None = None,
+        scene: str | Scene = "paper",
+        action_mode: str | None = None,
+        incremental: bool = False,
+        control_dt: float | None = None,
+        randomize: bool = False,
+        reward_weights: Any = None,
+        params: dict | None = None,
+        method: str = "auto",
+    ):
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(
+                f"render_mode must be one of {self.metadata['render_modes']} or None, "
+                f"got {render_mode!r}"
+            )
+        self.setup = EnvSetup.build(
+            scene,
+            action_mode,
+            incremental,
+            control_dt,
+            randomize,
+            reward_weights,
+            params,
+            method,
+        )
+        self.scene = self.setup.scene
+        self.render_mode = render_mode
+        self.action_space = self.setup.action_space
+        self.observation_space = self.setup.observation_space
+        self.dt = self.scene.control_dt
+
+        self._cfg = self.setup.cfg
+        self._P = np.zeros(N_PARAMS)
+        self._S = np.zeros(N_STATE)
+        self._ctrl = np.zeros(2)
+        self._stats = np.zeros(N_STATS)
+        self._obs = np.zeros(K.N_OBS, dtype=np.float32)
+        self._res = np.zeros(K.N_RES)
+        self._P_new, self._init = new_episode_arrays()
+        self._act_shape = self.action_space.shape
+        self._needs_reset = True
+
+        self._renderer = None
+        if render_mode is not None:
+            from fricenv.envs.rendering import Renderer  # lazy: no matplotlib unless asked
+
+            self._renderer = Renderer(render_mode, self.metadata["render_fps"], self.dt)
+
+    # -- Gymnasium API ------------------------------------------------------------------------
+    def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, float]]:
+        if self._needs_reset:
+            raise gym.error.ResetNeeded("Cannot call env.step() before calling env.reset()")
+        a = action
+        if (
+            type(a) is not np.ndarray
+            or a.shape != self._act_shape
+            or a.dtype.kind != "f"
+            or not a.flags.c_contiguous
+        ):
+            a = coerce_action(action, self._act_shape)
+        if self._renderer is not None:
+            self._record_trace(a)
+        status = K.step_single(
+            self._P, self._S, self._ctrl, self._cfg, a, self._stats, self._obs, self._res
+        )
+        if status != 0:
+            if status != K.STATUS_BAD_ACTION:
+                self._needs_reset = True
+            raise_status(status, action)
+        res = self._res
+        if self.render_mode == "human":
+            self.render()
+        # truncated=False: the time limit is the TimeLimit wrapper's job (max_episode_steps).
+        return (
+            self._obs.copy(),
+            float(res[K.R_REWARD]),
+            bool(res[K.R_TERM]),
+            False,
+            {
+                "stick_fraction": float(res[K.R_STICK]),
+                "effort": float(res[K.R_EFFORT]),
+                "velocity_variance": float(res[K.R_VAR]),
+            },
+        )
+
+    def reset(
+        self, *, seed: int | None = None, options: dict | None = None
+    ) -> tuple[np.ndarray, dict]:
+        super().reset(seed=seed)
+        values = self.setup.draw(self.np_random)
+        self.setup.episode(values, options, self._P_new, self._init)
+        K.start_episode(self._P, self._S, self._ctrl, self._cfg, self._P_new, self._init, self._obs)
+        self._needs_reset = False
+        if self._renderer is not None:
+            self._renderer.clear(self._S[S_T], self._S[S_V], self._S[S_MODE] == 0.0)
+            if self.render_mode == "human":
+                self.render()
+        return self._obs.copy(), {}
+
+    def render(self) -> np.ndarray | None:
+        if self.render_mode is None:
+            assert self.spec is not None
+            gym.logger.warn(
+                "You are calling render method without specifying any render mode. "
+                "You can specify the render_mode at initialization, "
+                f'e.g. gym.make("{self.spec.id}", render_mode="rgb_array")'
+            )
+            return None
+        return self._renderer.render(self.snapshot())
+
+    def close(self) -> None:
+        if self._renderer is not None:
+            self._renderer.close()
+
+    # -- helpers ------------------------------------------------------------------------------
+    @property
+    def params(self) -> dict[str, float]:
+        """The current episode's plant and excitation (after randomisation and options)."""
+        P = self._P
+        return {
+            "lam": float(P[P_LAM]),
+            "V": float(P[P_V]),
+            "xfk": float(P[P_XFK]),
+            "xfs": float(P[P_XFS]),
+            "b1": float(P[P_B1]),
+            "b3": float(P[P_B3]),
+            "eta": float(P[P_W1]),
+            "u0": float(self._ctrl[0]),
+            "nu": float(self._ctrl[1]),
+        }
+
+    def snapshot(self) -> dict[str, float]:
+        """What the renderer draws: state, excitation and force now."""
+        P, S = self._P, self._S
+        g = P[P_U1] * math.cos(S[S_PHI1]) + P[P_U2] * math.cos(S[S_PHI2])
+        return {
+            "t": float(S[S_T]),
+            "x": float(S[S_X]),
+            "v": float(S[S_V]),
+            "V": float(P[P_V]),
+            "stuck": bool(S[S_MODE] == 0.0),
+            "u0": float(self._ctrl[0]),
+            "nu": float(self._ctrl[1]),
+            "force": float(g),
+            "xfk": float(P[P_XFK]),
+            "x_limit": self.scene.x_limit,
+        }
+
+    def _record_trace(self, a: np.ndarray) -> None:
+        r = self._renderer
+        if not K.actions_finite(a):
+            return  # the step itself raises
+        status = K.sample_interval(
+            self._P, self._S, self._ctrl, self._cfg, a, self._stats, r.buf_t, r.buf_v, r.buf_s
+        )
+        if status == 0:
+            r.push()

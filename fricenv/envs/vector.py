@@ -1,0 +1,364 @@
+"""Native vector environment: N stick-slip plants stepped by one numba call, with autoreset.
+
+Built like Gymnasium's ``CartPoleVectorEnv`` but bit-compatible with
+``SyncVectorEnv`` over ``StickSlipEnv``: plant ``i`` owns its own random generator, seeded
+``seed + i`` as ``SyncVectorEnv`` seeds its sub-environments, and the random numbers of the
+*next* episode are drawn as soon as an episode starts, so the kernel can autoreset in place
+with exactly the numbers a single environment would draw at its next ``reset()``.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from gymnasium.utils import seeding
+from gymnasium.vector import AutoresetMode, VectorEnv
+from gymnasium.vector.utils import batch_space
+
+from fricenv.envs import kernels as K
+from fricenv.envs.scenes import N_DRAWS, N_INIT, Scene
+from fricenv.envs.stick_slip import EnvSetup, coerce_action, raise_status
+from fricenv.layout import N_STATE, N_STATS, S_MODE, S_PHI1, S_PHI2, S_T, S_V, S_X
+from fricenv.params import N_PARAMS, P_U1, P_U2, P_V, P_XFK
+
+_AUTORESET = {
+    AutoresetMode.NEXT_STEP: K.AUTORESET_NEXT_STEP,
+    AutoresetMode.SAME_STEP: K.AUTORESET_SAME_STEP,
+    AutoresetMode.DISABLED: K.AUTORESET_DISABLED,
+}
+_INFO_KEYS = (
+    ("stick_fraction", K.R_STICK),
+    ("effort", K.R_EFFORT),
+    ("velocity_variance", K.R_VAR),
+)
+
+
+class StickSlipVectorEnv(VectorEnv):
+    """``num_envs`` independent ``StickSlipEnv`` plants, stepped in one numba call.
+
+    Arguments are those of ``StickSlipEnv`` plus ``num_envs``, ``max_episode_steps`` (default:
+    the scene's horizon; ``gymnasium.make_vec`` passes the registered one) and
+    ``autoreset_mode`` (``AutoresetMode`` or its value; default next-step, as Gymnasium's).
+    Observations ``(num_envs, 9)`` float32, actions ``(num_envs, n)`` in [-1, 1], rewards
+    float64, and ``info`` keys ``stick_fraction``, ``effort``, ``velocity_variance`` with their
+    ``_key`` masks, exactly as ``SyncVectorEnv`` would batch them (same-step mode adds
+    ``final_obs`` and ``final_info``). ``render_mode="rgb_array"`` returns one frame per plant.
+    """
+
+    metadata = {
+        "render_modes": ["rgb_array"],
+        "render_fps": 12,
+        "autoreset_mode": AutoresetMode.NEXT_STEP,
+    }
+
+    def __init__(
+        self,
+        num_envs: int = 1,
+        max_episode_steps: int | None = None,
+        render_mode: str | None = None,
+        autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
+        scene: str | Scene = "paper",
+        action_mode: str | None = None,
+        incremental: bool = False,
+        control_dt: float | None = None,
+        randomize: bool = False,
+        reward_weights: Any = None,
+        params: dict | None = None,
+        method: str = "auto",
+    ):
+        if int(num_envs) < 1:
+            raise ValueError(f"num_envs must be >= 1, got {num_envs!r}")
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(
+                f"render_mode must be one of {self.metadata['render_modes']} or None, "
+                f"got {render_mode!r}"
+            )
+        self.autoreset_mode = AutoresetMode(autoreset_mode)
+        self.metadata = {**type(self).metadata, "autoreset_mode": self.autoreset_mode}
+        self.setup = EnvSetup.build(
+            scene,
+            action_mode,
+            incremental,
+            control_dt,
+            randomize,
+            reward_weights,
+            params,
+            method,
+        )
+        self.scene = self.setup.scene
+        self.num_envs = n = int(num_envs)
+        self.max_episode_steps = int(
+            self.scene.max_episode_steps if max_episode_steps is None else max_episode_steps
+        )
+        if self.max_episode_steps < 1:
+            raise ValueError(f"max_episode_steps must be >= 1, got {max_episode_steps!r}")
+        self.render_mode = render_mode
+        self.dt = self.scene.control_dt
+
+        self.single_action_space = self.setup.action_space
+        self.action_space = batch_space(self.single_action_space, n)
+        self.single_observation_space = self.setup.observation_space
+        self.observation_space = batch_space(self.single_observation_space, n)
+
+        self._cfg = self.setup.cfg
+        self._P = np.zeros((n, N_PARAMS))
+        self._S = np.zeros((n, N_STATE))
+        self._ctrl = np.zeros((n, 2))
+        self._stats = np.zeros((n, N_STATS))
+        self._obs = np.zeros((n, K.N_OBS), dtype=np.float32)
+        self._final_obs = np.zeros((n, K.N_OBS), dtype=np.float32)
+        self._res = np.zeros((n, K.N_RES))
+        self._terminated = np.zeros(n, dtype=np.bool_)
+        self._truncated = np.zeros(n, dtype=np.bool_)
+        self._steps = np.zeros(n, dtype=np.int64)
+        self._autoreset = np.zeros(n, dtype=np.bool_)
+        self._did_reset = np.zeros(n, dtype=np.bool_)
+        self._status = np.zeros(n, dtype=np.int64)
+        self._ivars = np.array([self.max_episode_steps, _AUTORESET[self.autoreset_mode]])
+
+        # Stash of each plant's next episode: its draws and what they make.
+        self._next_values = np.zeros((n, N_DRAWS))
+        self._next_P = np.zeros((n, N_PARAMS))
+        self._next_init = np.zeros((n, N_INIT))
+        self._rngs: list[np.random.Generator | None] = [None] * n
+        self._act_shape = self.action_space.shape
+        self._needs_reset = True
+
+        self._traces = None
+        self._painter = None
+        if render_mode is not None:
+            from fricenv.envs.rendering import Trace  # lazy: no matplotlib unless asked
+
+            self._traces = [Trace(self.dt) for _ in range(n)]
+
+    # -- Gymnasium VectorEnv API -----------------------------------------------------------
+    def reset(
+        self,
+        *,
+        seed: int | list[int | None] | None = None,
+        options: dict[str, Any] | None = None,
+    ) -> tuple[np.ndarray, dict[str, Any]]:
+        """Reset all plants (or those in ``options["reset_mask"]``), seeding plant i with
+        ``seed + i`` (or ``seed[i]``); other options apply to every reset plant."""
+        n = self.num_envs
+        if seed is None:
+            seeds: list[int | None] = [None] * n
+        elif isinstance(seed, (int, np.integer)) and not isinstance(seed, bool):
+            super().reset(seed=int(seed))
+            seeds = [int(seed) + i for i in range(n)]
+        else:
+            seeds = [None if s is None else int(s) for s in seed]
+            if len(seeds) != n:
+                raise ValueError(f"seed list must have length num_envs={n}, got {len(seeds)}")
+        options = dict(options) if options else {}
+        mask = options.pop("reset_mask", None)
+        if mask is None:
+            mask = np.ones(n, dtype=np.bool_)
+        else:
+            if not isinstance(mask, np.ndarray) or mask.dtype != np.bool_ or mask.shape != (n,):
+                raise ValueError(f"options['reset_mask'] must be a bool array of shape ({n},)")
+            if not mask.any():
+                raise ValueError("options['reset_mask'] must select at least one plant")
+            if self._needs_reset and not mask.all():
+                raise ValueError("the first reset must reset every plant")
+        self._reset_plants(
+            np.flatnonzero(mask),
+            [seeds[i] for i in np.flatnonzero(mask)],
+            [options] * int(mask.sum()),
+        )
+        return self._obs.copy(), {}
+
+    def _reset_plants(self, idx: np.ndarray, seeds: list, options: list[dict]) -> None:
+        """Start new episodes for plants ``idx``, then restock their stashes."""
+        P_new = np.zeros((self.num_envs, N_PARAMS))
+        init = np.zeros((self.num_envs, N_INIT))
+        mask = np.zeros(self.num_envs, dtype=np.bool_)
+        for i, s, opt in zip(idx.tolist(), seeds, options, strict=True):
+            rng = self._rngs[i]
+            if s is not None or rng is None:
+                rng = self._rngs[i] = seeding.np_random(s)[0]
+                values = self.setup.draw(rng)
+            else:
+                # Drawn when the previous episode started: what a single env draws now.
+                values = self._next_values[i]
+            self.setup.episode(values, opt or None, P_new[i], init[i])
+            mask[i] = True
+        K.start_batch(
+            self._P,
+            self._S,
+            self._ctrl,
+            self._cfg,
+            P_new,
+            init,
+            mask,
+            self._obs,
+            self._steps,
+            self._autoreset,
+        )
+        self._terminated[mask] = False
+        self._truncated[mask] = False
+        self._needs_reset = False
+        self._restock(idx)
+        if self._traces is not None:
+            for i in idx.tolist():
+                self._traces[i].clear(self._S[i, S_T], self._S[i, S_V], self._S[i, S_MODE] == 0)
+
+    def _restock(self, idx) -> None:
+        setup = self.setup
+        for i in idx:
+            vals = self._next_values[i] = setup.draw(self._rngs[i])
+            setup.episode(vals, None, self._next_P[i], self._next_init[i])
+
+    def step(
+        self, actions: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
+        if self._needs_reset:
+            raise RuntimeError("Cannot call step() before calling reset()")
+        a = actions
+        if (
+            type(a) is not np.ndarray
+            or a.shape != self._act_shape
+            or a.dtype.kind != "f"
+            or not a.flags.c_contiguous
+        ):
+            a = coerce_action(actions, self._act_shape)
+        if self._traces is not None:
+            self._record_traces(a)
+        n_failed = K.step_batch(
+            self._P,
+            self._S,
+            self._ctrl,
+            self._cfg,
+            a,
+            self._stats,
+            self._obs,
+            self._res,
+            self._terminated,
+            self._truncated,
+            self._steps,
+            self._autoreset,
+            self._next_P,
+            self._next_init,
+            self._did_reset,
+            self._final_obs,
+            self._status,
+            self._ivars,
+        )
+        if n_failed != 0:
+            if n_failed < 0:
+                i = -n_failed - 1
+                raise_status(K.STATUS_BAD_ACTION, actions[i], f" {i}")
+            self._needs_reset = True
+            i = int(np.flatnonzero(self._status)[0])
+            raise_status(int(self._status[i]), None, f" {i}")
+        reset_now = self._did_reset
+        if reset_now.any():
+            idx = np.flatnonzero(reset_now)
+            self._restock(idx)
+            if self._traces is not None:
+                S = self._S
+                for i in idx.tolist():
+                    self._traces[i].clear(S[i, S_T], S[i, S_V], S[i, S_MODE] == 0)
+        infos = self._infos()
+        return (
+            self._obs.copy(),
+            self._res[:, K.R_REWARD].copy(),
+            self._terminated.copy(),
+            self._truncated.copy(),
+            infos,
+        )
+
+    def _infos(self) -> dict[str, Any]:
+        """Batch the per-plant infos as SyncVectorEnv would: values plus ``_key`` masks."""
+        res = self._res
+        mode = self.autoreset_mode
+        if mode == AutoresetMode.DISABLED:
+            has = None
+        else:
+            # A plant reset in this call reports its (empty) reset info instead.
+            has = ~self._did_reset
+        infos: dict[str, Any] = {}
+        if has is None or has.all():
+            mask = np.ones(self.num_envs, dtype=np.bool_)
+            for key, col in _INFO_KEYS:
+                infos[key] = res[:, col].copy()
+                infos["_" + key] = mask.copy()
+        elif has.any():
+            for key, col in _INFO_KEYS:
+                infos[key] = np.where(has, res[:, col], 0.0)
+                infos["_" + key] = has.copy()
+        if mode == AutoresetMode.SAME_STEP and self._did_reset.any():
+            done = self._did_reset.copy()
+            final_obs = np.full(self.num_envs, None, dtype=object)
+            for i in np.flatnonzero(done).tolist():
+                final_obs[i] = self._final_obs[i].copy()
+            final_info: dict[str, Any] = {}
+            for key, col in _INFO_KEYS:
+                final_info[key] = np.where(done, res[:, col], 0.0)
+                final_info["_" + key] = done.copy()
+            infos["final_obs"] = final_obs
+            infos["_final_obs"] = done.copy()
+            infos["final_info"] = final_info
+            infos["_final_info"] = done.copy()
+        return infos
+
+    def render(self) -> tuple[np.ndarray, ...] | None:
+        if self.render_mode is None:
+            from gymnasium import logger
+
+            logger.warn(
+                "You are calling render method without specifying any render mode. "
+                "You can specify the render_mode at initialization, e.g. "
+                'gym.make_vec("fricenv/StickSlip-v0", render_mode="rgb_array")'
+            )
+            return None
+        if self._painter is None:
+            from fricenv.envs.rendering import Painter
+
+            self._painter = Painter()
+        return tuple(
+            self._painter.draw(self.snapshot(i), self._traces[i]) for i in range(self.num_envs)
+        )
+
+    def close_extras(self, **kwargs: Any) -> None:
+        if self._painter is not None:
+            self._painter.close()
+            self._painter = None
+
+    # -- helpers ------------------------------------------------------------------------------
+    def snapshot(self, i: int) -> dict[str, float]:
+        P, S = self._P[i], self._S[i]
+        g = P[P_U1] * np.cos(S[S_PHI1]) + P[P_U2] * np.cos(S[S_PHI2])
+        return {
+            "t": float(S[S_T]),
+            "x": float(S[S_X]),
+            "v": float(S[S_V]),
+            "V": float(P[P_V]),
+            "stuck": bool(S[S_MODE] == 0.0),
+            "u0": float(self._ctrl[i, 0]),
+            "nu": float(self._ctrl[i, 1]),
+            "force": float(g),
+            "xfk": float(P[P_XFK]),
+            "x_limit": self.scene.x_limit,
+        }
+
+    def _record_traces(self, a: np.ndarray) -> None:
+        for i, tr in enumerate(self._traces):
+            if (self.autoreset_mode == AutoresetMode.NEXT_STEP and self._autoreset[i]) or (
+                not K.actions_finite(a[i])
+            ):
+                continue
+            status = K.sample_interval(
+                self._P[i],
+                self._S[i],
+                self._ctrl[i],
+                self._cfg,
+                a[i],
+                self._stats[i],
+                tr.buf_t,
+                tr.buf_v,
+                tr.buf_s,
+            )
+            if status == 0:
+                tr.push()

@@ -1,0 +1,237 @@
+"""Benchmark the RL environments against the issue's targets, side by side in one process.
+
+Targets (ratios, so that machine speed cancels):
+
+1. unwrapped ``StickSlipEnv.step`` at the default control interval <= 1.0x the unwrapped
+   step of Gymnasium's ``Pendulum-v1``;
+2. native vector env with 256 plants >= 20x cheaper per plant-step than the single env;
+3. in PPO training, the environment's share of wall time < 10 %.
+
+Timings alternate between the contenders in rounds and report medians, because the machine
+may be shared. Every contender is warmed up first (numba compilation and cache loading are
+excluded). The physics floor (``core.advance`` alone, per control interval, in a numba loop)
+is printed too: no vector env can be cheaper per plant-step than that.
+
+Usage: ``python scripts/bench_env.py [--quick] [--no-ppo] [--json out.json]``
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import statistics
+import time
+from collections.abc import Callable
+
+import gymnasium as gym
+import numpy as np
+
+from fricenv.envs import ENV_IDS, register_envs
+
+
+def _per_call(fn: Callable[[], None], n: int) -> float:
+    t = time.perf_counter()
+    for _ in range(n):
+        fn()
+    return (time.perf_counter() - t) / n
+
+
+def _stepper(env, n_actions: int = 512, seed: int = 0) -> Callable[[], None]:
+    """A closure stepping ``env`` through pre-drawn actions (resetting when an episode ends)."""
+    rng = np.random.default_rng(seed)
+    acts = rng.uniform(-1, 1, (n_actions, *env.action_space.shape)).astype(np.float32)
+    env.reset(seed=seed)
+    state = {"k": 0}
+
+    def step() -> None:
+        k = state["k"]
+        out = env.step(acts[k % n_actions])
+        state["k"] = k + 1
+        if not isinstance(out[2], np.ndarray) and (out[2] or out[3]):
+            env.reset()
+
+    return step
+
+
+def _rounds(contenders: dict[str, tuple[Callable[[], None], int]], rounds: int) -> dict:
+    """Median seconds per call of each contender, alternating them ``rounds`` times."""
+    samples: dict[str, list[float]] = {k: [] for k in contenders}
+    for fn, n in contenders.values():
+        _per_call(fn, max(1, n // 10))  # warm-up: compilation, cache loading
+    for _ in range(rounds):
+        for name, (fn, n) in contenders.items():
+            samples[name].append(_per_call(fn, n))
+    return {k: statistics.median(v) for k, v in samples.items()}
+
+
+def physics_floor(env_id: str, snapshots: int) -> float:
+    """Seconds per plant-step of ``core.advance`` alone, on the vector env's own plants.
+
+    The 256 plants are stepped with random actions; after each step their parameters and
+    states are copied and advanced by one control interval in a bare numba loop (no action
+    scaling, reward, observation or Python): the floor any vector env on this core has.
+    """
+    from numba import njit
+
+    from fricenv.core import advance, reset_stats
+    from fricenv.envs.kernels import _method
+
+    @njit
+    def advance_all(P, S, stats, cfg, dt):
+        for i in range(P.shape[0]):
+            reset_stats(stats[i])
+            advance(P[i], S[i], dt, stats[i], _method(P[i], cfg), 1e-8, 1e-10, 10_000)
+
+    vec = gym.make_vec(env_id, num_envs=256)
+    step = _stepper(vec, seed=1)
+    total = 0.0
+    for k in range(snapshots + 1):
+        step()
+        P, S, stats = vec._P.copy(), vec._S.copy(), vec._stats.copy()
+        t = time.perf_counter()
+        advance_all(P, S, stats, vec._cfg, vec.dt)
+        if k:  # the first call compiles
+            total += time.perf_counter() - t
+    return total / snapshots / 256
+
+
+def bench_steps(quick: bool) -> dict:
+    rounds = 5 if quick else 15
+    n_single = 2_000 if quick else 5_000
+    n_vec = 20 if quick else 50
+    results = {}
+    pendulum = gym.make("Pendulum-v1").unwrapped
+    for env_id in ENV_IDS:
+        single = gym.make(env_id).unwrapped
+        made = gym.make(env_id)
+        vec = gym.make_vec(env_id, num_envs=256)
+        t = _rounds(
+            {
+                "pendulum": (_stepper(pendulum), n_single),
+                "single": (_stepper(single), n_single),
+                "made": (_stepper(made), n_single),
+                "vector": (_stepper(vec), n_vec),
+            },
+            rounds,
+        )
+        per_plant = t["vector"] / 256
+        floor = physics_floor(env_id, 50 if quick else 200)
+        results[env_id] = {
+            "pendulum_step_us": t["pendulum"] * 1e6,
+            "single_step_us": t["single"] * 1e6,
+            "made_step_us": t["made"] * 1e6,
+            "vector_per_plant_us": per_plant * 1e6,
+            "physics_floor_us": floor * 1e6,
+            "single_over_pendulum": t["single"] / t["pendulum"],
+            "single_over_vector_plant": t["single"] / per_plant,
+            "made_over_vector_plant": t["made"] / per_plant,
+            "single_over_physics_floor": t["single"] / floor,
+        }
+    return results
+
+
+def bench_ppo(quick: bool) -> dict:
+    """Share of PPO's wall time spent inside the VecEnv (env + adapter), after warm-up."""
+    from stable_baselines3 import PPO
+    from stable_baselines3.common.vec_env import DummyVecEnv, VecEnvWrapper, VecMonitor
+
+    from fricenv.envs.sb3 import StickSlipSB3VecEnv
+
+    class Timed(VecEnvWrapper):
+        def __init__(self, venv):
+            super().__init__(venv)
+            self.seconds = 0.0
+
+        def reset(self):
+            t = time.perf_counter()
+            obs = self.venv.reset()
+            self.seconds += time.perf_counter() - t
+            return obs
+
+        def step_wait(self):
+            t = time.perf_counter()
+            out = self.venv.step_wait()
+            self.seconds += time.perf_counter() - t
+            return out
+
+    env_id = "fricenv/StickSlip-v0"
+    cases = {
+        # SB3's default PPO hyperparameters on one environment.
+        "single (DummyVecEnv, SB3 defaults)": (
+            lambda: DummyVecEnv([lambda: gym.make(env_id)]),
+            {},
+            2048 * (1 if quick else 3),
+        ),
+        # 256 plants in one numba call; rollouts of 32 steps, minibatches of 2048.
+        "native x256 (SB3 adapter)": (
+            lambda: StickSlipSB3VecEnv(num_envs=256, scene="paper"),
+            {"n_steps": 32, "batch_size": 2048},
+            256 * 32 * (2 if quick else 6),
+        ),
+    }
+    out = {}
+    for name, (make, kwargs, steps) in cases.items():
+        venv = make()
+        venv.reset()  # warm-up outside the timed run
+        venv.step(np.zeros((venv.num_envs, *venv.action_space.shape), np.float32))
+        timed = Timed(VecMonitor(venv))
+        model = PPO("MlpPolicy", timed, seed=0, device="cpu", verbose=0, **kwargs)
+        t = time.perf_counter()
+        model.learn(steps)
+        wall = time.perf_counter() - t
+        out[name] = {
+            "wall_s": wall,
+            "env_s": timed.seconds,
+            "share": timed.seconds / wall,
+            "timesteps": int(model.num_timesteps),
+        }
+    return out
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--quick", action="store_true", help="fewer repetitions")
+    ap.add_argument("--no-ppo", action="store_true", help="skip the PPO share measurement")
+    ap.add_argument("--json", help="write the results to this file")
+    args = ap.parse_args()
+    register_envs()
+
+    steps = bench_steps(args.quick)
+    print("step costs (medians of alternating rounds)")
+    for env_id, r in steps.items():
+        print(f"  {env_id}")
+        print(f"    Pendulum-v1 unwrapped step     {r['pendulum_step_us']:8.2f} us")
+        print(f"    StickSlip unwrapped step       {r['single_step_us']:8.2f} us")
+        print(f"    StickSlip gym.make'd step      {r['made_step_us']:8.2f} us")
+        print(f"    native vector, per plant-step  {r['vector_per_plant_us']:8.3f} us (256 plants)")
+        print(f"    core.advance alone, per step   {r['physics_floor_us']:8.3f} us (floor)")
+        ok1 = r["single_over_pendulum"] <= 1.0
+        ok2 = r["single_over_vector_plant"] >= 20.0
+        print(
+            f"    target 1: single / Pendulum  = {r['single_over_pendulum']:6.2f}  (<= 1.0)  "
+            f"{'PASS' if ok1 else 'FAIL'}"
+        )
+        print(
+            f"    target 2: single / vector    = {r['single_over_vector_plant']:6.2f}  (>= 20)   "
+            f"{'PASS' if ok2 else 'FAIL'}  [made / vector = "
+            f"{r['made_over_vector_plant']:.1f}; bound single / floor = "
+            f"{r['single_over_physics_floor']:.1f}]"
+        )
+    results = {"steps": steps}
+    if not args.no_ppo:
+        ppo = bench_ppo(args.quick)
+        results["ppo"] = ppo
+        print("PPO training (env share of wall time, target < 10 %)")
+        for name, r in ppo.items():
+            verdict = "PASS" if r["share"] < 0.10 else "FAIL"
+            print(
+                f"  {name:36s} {r['share'] * 100:5.1f} %  ({r['env_s']:.2f} s of "
+                f"{r['wall_s']:.1f} s, {r['timesteps']} steps)  {verdict}"
+            )
+    if args.json:
+        with open(args.json, "w") as f:
+            json.dump(results, f, indent=2)
+
+
+if __name__ == "__main__":
+    main()
