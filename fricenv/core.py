@@ -61,8 +61,10 @@ from .layout import (
 from .params import P_B1, P_B3, P_LAM, P_U1, P_U2, P_V, P_W1, P_W2, P_XFK, P_XFS
 
 TWO_PI = 2.0 * math.pi
-DELTA_MAX = 0.25  # longest scan step in tau: 25 per natural period
-PHASE_PER_STEP = 0.2  # longest scan step in radians of the fastest active tone
+# Scan steps must hold at most one extremum of v (or of f in stick): a tone's extrema are
+# pi / omega apart, so half a radian per step leaves a wide margin (>= 12 steps a period).
+DELTA_MAX = 0.5  # longest scan step in tau
+PHASE_PER_STEP = 0.5  # longest scan step in radians of the fastest active tone
 MAX_ROOT_ITER = 200
 EVENT_REL_TOL = 4e-16  # switching instants: to rounding
 # An extremum's value is insensitive to its position (error ~ f'' dt^2), so 1e-9 in time
@@ -78,7 +80,18 @@ C_QV0 = 31
 C_PH1A, C_PH2A = 35, 36  # tone phases (angles) at the step start, for the RK method
 C_CP1, C_SP1, C_CP2, C_SP2 = 37, 38, 39, 40  # their cos/sin, carried from step to step
 C_CE1, C_SE1, C_CE2, C_SE2 = 41, 42, 43, 44  # cos/sin at the end of the last RK step
-N_CX = 45
+# Cache kept across calls when the caller passes the same workspace (``advance_ws``): the
+# regular scan step's transition constants, keyed on (lam, w1, w2, h), and each tone's
+# cos/sin, keyed on the phase angle last written to S. Keys start as NaN (never equal).
+W_KEY_LAM, W_KEY_W1, W_KEY_W2, W_KEY_H = 45, 46, 47, 48
+W_R11, W_R12, W_R21, W_R22, W_RC1, W_RS1, W_RC2, W_RS2 = range(49, 57)
+W_PH1, W_C1, W_S1, W_PH2, W_C2, W_S2 = range(57, 63)
+# 1.0: do not locate extrema of v and x for the statistics (a caller that never reads them,
+# such as an environment step). Contacts are still found: grazing detection locates the
+# extremum of v whenever it could reach V.
+W_SKIP_EXTREMA = 63
+N_CX = 64
+N_WORK = N_CX
 
 # What a root search evaluates.
 K_SLIP_H = 0  # slip (closed form): h = sd * (v - V)
@@ -390,7 +403,10 @@ def _bracket(cx, kind, deriv, offset, lo, hi, flo, fhi, rel_tol):
     if flo == 0.0:
         return lo, lo
     tol = rel_tol * (abs(lo) + abs(hi)) + 1e-300
-    t = 0.5 * (lo + hi)
+    # start at the secant point (kept off the ends): a step is short against the curvature,
+    # so this is already close and Newton needs few iterations
+    frac = flo / (flo - fhi)
+    t = lo + (hi - lo) * min(0.95, max(0.05, frac))
     pos_lo = flo > 0.0
     for _ in range(MAX_ROOT_ITER):
         f0, f1, f2 = _feval(cx, kind, t)
@@ -482,7 +498,7 @@ def _x_extrema_between(cx, kind, stats, a, b, va, vb, vabs):
 
 
 @njit(cache=True)
-def _extremum_matters(stats, sd, v0, v1, a0, a1, L, V):
+def _extremum_matters(cx, stats, sd, v0, v1, a0, a1, L, V):
     """Can the interior extremum of v on this step change v's extrema or touch v = V?
 
     acc goes from a0 to a1 through 0, so |v - v(end)| <= max(|a0|, |a1|) L on a step whose
@@ -492,7 +508,7 @@ def _extremum_matters(stats, sd, v0, v1, a0, a1, L, V):
     reach = 2.0 * max(abs(a0), abs(a1)) * L
     top = max(v0, v1) + reach
     bottom = min(v0, v1) - reach
-    if top > stats[ST_V_MAX] or bottom < stats[ST_V_MIN]:
+    if cx[W_SKIP_EXTREMA] != 1.0 and (top > stats[ST_V_MAX] or bottom < stats[ST_V_MIN]):
         return True
     return bottom <= V <= top
 
@@ -502,7 +518,9 @@ def _slip_stats(cx, kind, stats, tau_e, t_ext, v_ext, v0, a0, v1, a1, x1, V):
     """Extrema and the (v - V)^2 integral over a slip step [0, tau_e]."""
     _note_v(stats, v1)
     _note_x(stats, x1)
-    if 0.0 <= t_ext <= tau_e:
+    if cx[W_SKIP_EXTREMA] == 1.0:
+        pass
+    elif 0.0 <= t_ext <= tau_e:
         _note_v(stats, v_ext)
         vabs = max(abs(v0), abs(v_ext), abs(v1))
         _x_extrema_between(cx, kind, stats, 0.0, t_ext, v0, v_ext, vabs)
@@ -594,14 +612,13 @@ def _renorm(c, s):
 # ----------------------------------------------------------------------------------------
 @njit(cache=True)
 def _run_exact(P, S, t_span, out_t, stats, max_events, out_x, out_v, out_mode, ev_t, ev_kind,
-               ev_x, counts):
+               ev_x, counts, cx):
     """Advance S by t_span with the closed-form solver; see ``advance``.
 
     Steps are aligned with the output grid (``out_t``, or the single interval [t, t +
     t_span] when it is None), each output interval split into equal scan steps whose
     transition constants are computed once, so recording costs nothing extra.
     """
-    cx = np.empty(N_CX)
     _setup_context(P, cx)
     cap = _scan_cap(P)
     V = cx[C_V]
@@ -617,19 +634,33 @@ def _run_exact(P, S, t_span, out_t, stats, max_events, out_x, out_v, out_mode, e
         dt_reg = out_t[1] - out_t[0] if n_int > 0 else t_span
     m_reg = max(1, int(math.ceil(dt_reg / cap - 1e-9)))
     h_reg = dt_reg / m_reg
-    r11, r12, r21, r22 = _homog(h_reg, lam, cx[C_P2])
-    rc1 = math.cos(w1 * h_reg)
-    rs1 = math.sin(w1 * h_reg)
-    rc2 = math.cos(w2 * h_reg)
-    rs2 = math.sin(w2 * h_reg)
+    if (cx[W_KEY_LAM] == lam and cx[W_KEY_W1] == w1 and cx[W_KEY_W2] == w2
+            and cx[W_KEY_H] == h_reg):
+        r11, r12, r21, r22 = cx[W_R11], cx[W_R12], cx[W_R21], cx[W_R22]
+        rc1, rs1, rc2, rs2 = cx[W_RC1], cx[W_RS1], cx[W_RC2], cx[W_RS2]
+    else:
+        r11, r12, r21, r22 = _homog(h_reg, lam, cx[C_P2])
+        rc1 = math.cos(w1 * h_reg)
+        rs1 = math.sin(w1 * h_reg)
+        rc2 = math.cos(w2 * h_reg)
+        rs2 = math.sin(w2 * h_reg)
+        cx[W_R11], cx[W_R12], cx[W_R21], cx[W_R22] = r11, r12, r21, r22
+        cx[W_RC1], cx[W_RS1], cx[W_RC2], cx[W_RS2] = rc1, rs1, rc2, rs2
+        cx[W_KEY_LAM], cx[W_KEY_W1], cx[W_KEY_W2], cx[W_KEY_H] = lam, w1, w2, h_reg
 
     x = S[S_X]
     v = S[S_V]
     mode = S[S_MODE]
-    c1 = math.cos(S[S_PHI1])
-    s1 = math.sin(S[S_PHI1])
-    c2 = math.cos(S[S_PHI2])
-    s2 = math.sin(S[S_PHI2])
+    ph1 = S[S_PHI1]
+    ph2 = S[S_PHI2]
+    if ph1 == cx[W_PH1]:
+        c1, s1 = cx[W_C1], cx[W_S1]
+    else:
+        c1, s1 = math.cos(ph1), math.sin(ph1)
+    if ph2 == cx[W_PH2]:
+        c2, s2 = cx[W_C2], cx[W_S2]
+    else:
+        c2, s2 = math.cos(ph2), math.sin(ph2)
     t = t0
     n_events = 0
     status = STATUS_OK
@@ -640,12 +671,10 @@ def _run_exact(P, S, t_span, out_t, stats, max_events, out_x, out_v, out_mode, e
         out_x[0] = x
         out_v[0] = v
         out_mode[0] = mode
-    # acceleration at the step start (slip) or f' (stick), carried from step to step
+    # acceleration at the step start (slip), carried from step to step
+    acc = 0.0
     if mode != 0.0:
-        _slip_start(cx, x, v, c1, s1, c2, s2, mode)
-        _, _, acc, _ = _slip_at(cx, 0.0)
-    else:
-        acc = 0.0
+        acc = -lam * v - x - mode * cx[C_XFK] + cx[C_U1] * c1 + cx[C_U2] * c2
     for j in range(n_int):
         ta = out_t[j] if out_t is not None else t0
         tb = t_stop if j == n_int - 1 else (out_t[j + 1] if out_t is not None else t_stop)
@@ -687,7 +716,7 @@ def _run_exact(P, S, t_span, out_t, stats, max_events, out_x, out_v, out_mode, e
                     t_ext = -1.0
                     v_ext = 0.0
                     h_ext = 0.0
-                    if acc * a1 < 0.0 and _extremum_matters(stats, sd, v, v1, acc, a1, L, V):
+                    if acc * a1 < 0.0 and _extremum_matters(cx, stats, sd, v, v1, acc, a1, L, V):
                         t_ext = _extremum(cx, K_SLIP_V, 0.0, L, acc, a1)
                         _, v_ext, _, _ = _slip_at(cx, t_ext)
                         h_ext = sd * (v_ext - V)
@@ -699,16 +728,17 @@ def _run_exact(P, S, t_span, out_t, stats, max_events, out_x, out_v, out_mode, e
                         _slip_stats(cx, K_SLIP_V, stats, te, t_ext, v_ext, v, acc, V, ae, xe,
                                     V)
                         new_mode, kind = _contact_outcome(cx, stats, xe, ec1, ec2, sd)
+                        ph1 = _wrap(ph1 + w1 * te)
+                        ph2 = _wrap(ph2 + w2 * te)
                         t = t + te
                         x = xe
                         v = V
                         c1, s1, c2, s2 = ec1, es1, ec2, es2
                         mode = new_mode
+                        acc = 0.0
                         if mode != 0.0:
-                            _slip_start(cx, x, v, c1, s1, c2, s2, mode)
-                            _, _, acc, _ = _slip_at(cx, 0.0)
-                        else:
-                            acc = 0.0
+                            acc = (-lam * v - x - mode * cx[C_XFK] + cx[C_U1] * c1
+                                   + cx[C_U2] * c2)
                         fresh = True
                         on_grid = False
                         n_events += 1
@@ -725,6 +755,8 @@ def _run_exact(P, S, t_span, out_t, stats, max_events, out_x, out_v, out_mode, e
                     v = v1
                     acc = a1
                     c1, s1, c2, s2 = nc1, ns1, nc2, ns2
+                    ph1 = _wrap(ph1 + w1 * L)
+                    ph2 = _wrap(ph2 + w2 * L)
                 else:
                     # ---------------- stick step ----------------
                     cx[C_XA] = x
@@ -755,12 +787,13 @@ def _run_exact(P, S, t_span, out_t, stats, max_events, out_x, out_v, out_mode, e
                         ec1, es1, ec2, es2 = _rotate(cx, math.cos(w1 * te), math.sin(w1 * te),
                                                      math.cos(w2 * te), math.sin(w2 * te))
                         mode = _stick_outcome(cx, stats, xe, ec1, ec2)
+                        ph1 = _wrap(ph1 + w1 * te)
+                        ph2 = _wrap(ph2 + w2 * te)
                         t = t + te
                         x = xe
                         v = V
                         c1, s1, c2, s2 = ec1, es1, ec2, es2
-                        _slip_start(cx, x, v, c1, s1, c2, s2, mode)
-                        _, _, acc, _ = _slip_at(cx, 0.0)
+                        acc = -lam * v - x - mode * cx[C_XFK] + cx[C_U1] * c1 + cx[C_U2] * c2
                         fresh = True
                         on_grid = False
                         n_events += 1
@@ -777,6 +810,8 @@ def _run_exact(P, S, t_span, out_t, stats, max_events, out_x, out_v, out_mode, e
                     _note_v(stats, V)
                     x = x1
                     c1, s1, c2, s2 = nc1, ns1, nc2, ns2
+                    ph1 = _wrap(ph1 + w1 * L)
+                    ph2 = _wrap(ph2 + w2 * L)
                 t = tk
                 fresh = False
                 if not (math.isfinite(x) and math.isfinite(v)):
@@ -796,8 +831,10 @@ def _run_exact(P, S, t_span, out_t, stats, max_events, out_x, out_v, out_mode, e
     S[S_X] = x
     S[S_V] = v
     S[S_MODE] = mode
-    S[S_PHI1] = _wrap(math.atan2(s1, c1))
-    S[S_PHI2] = _wrap(math.atan2(s2, c2))
+    S[S_PHI1] = ph1
+    S[S_PHI2] = ph2
+    cx[W_PH1], cx[W_C1], cx[W_S1] = ph1, c1, s1
+    cx[W_PH2], cx[W_C2], cx[W_S2] = ph2, c2, s2
     return status
 
 
@@ -834,7 +871,7 @@ _S11, _S13, _S15 = -1.0 / 39916800.0, 1.0 / 6227020800.0, -1.0 / 1307674368000.0
 
 @njit(cache=True, inline="always")
 def _sincos_small(t):
-    """cos and sin of |t| <= 0.25 by their Taylor series (error < 1e-20).
+    """cos and sin of |t| <= 0.5 by their Taylor series (relative error < 1e-18).
 
     Scan steps keep every active tone's phase advance under PHASE_PER_STEP, so the stage
     phases of a Runge–Kutta step are the step-start phase plus such small angles; this
@@ -1027,9 +1064,8 @@ def _step_factor(err):
 
 @njit(cache=True)
 def _run_event(P, S, t_span, out_t, stats, max_events, rtol, atol, out_x, out_v, out_mode,
-               ev_t, ev_kind, ev_x, counts):
+               ev_t, ev_kind, ev_x, counts, cx):
     """Advance S by t_span: adaptive DP5(4) in slip, exact stick; see ``advance``."""
-    cx = np.empty(N_CX)
     _setup_context(P, cx)
     kx = np.empty(7)
     kv = np.empty(7)
@@ -1108,7 +1144,7 @@ def _run_event(P, S, t_span, out_t, stats, max_events, rtol, atol, out_x, out_v,
                         need_dense = True
             if need_dense:
                 _dp5_dense(cx, kx, kv)
-            if acc * a1 < 0.0 and _extremum_matters(stats, sd, v, v1, acc, a1, hstep, V):
+            if acc * a1 < 0.0 and _extremum_matters(cx, stats, sd, v, v1, acc, a1, hstep, V):
                 t_ext = _extremum(cx, K_DENSE_V, 0.0, hstep, acc, a1)
                 v_ext, _, _ = _dense_v(cx, t_ext)
                 h_ext = sd * (v_ext - V)
@@ -1352,6 +1388,41 @@ def run_rk4(P, S, t_span, dt, out_t, stats, out_x, out_v, out_mode):
 # ----------------------------------------------------------------------------------------
 # Public stats-only kernel
 # ----------------------------------------------------------------------------------------
+def new_workspace(n: int | None = None, *, extrema: bool = True) -> np.ndarray:
+    """Workspace for ``advance_ws``: one row per plant, caches marked empty (NaN).
+
+    ``extrema=False`` skips locating the extrema of v and x (ST_V_MAX ... ST_X_MIN then
+    only see step ends), for callers that do not read them.
+    """
+    shape = N_WORK if n is None else (n, N_WORK)
+    work = np.full(shape, np.nan)
+    work[..., W_SKIP_EXTREMA] = 0.0 if extrema else 1.0
+    return work
+
+
+@njit(cache=True)
+def _fresh_workspace():
+    work = np.empty(N_WORK)
+    for i in range(W_KEY_LAM, N_WORK):
+        work[i] = np.nan
+    return work
+
+
+@njit(cache=True)
+def advance_ws(P, S, t_span, stats, method, rtol, atol, max_events, work):
+    """``advance`` with a caller-owned workspace (see ``new_workspace``).
+
+    Reusing one workspace per plant across calls spares the allocation and, for the
+    closed-form method, the transition constants and the tone phases' cos/sin, which is
+    most of the cost of a short call such as one control interval of an environment.
+    """
+    if method == METHOD_EXACT:
+        return _run_exact(P, S, t_span, None, stats, max_events, None, None, None, None, None,
+                          None, None, work)
+    return _run_event(P, S, t_span, None, stats, max_events, rtol, atol, None, None, None,
+                      None, None, None, None, work)
+
+
 @njit(cache=True)
 def advance(P, S, t_span, stats, method, rtol, atol, max_events):
     """Advance the state ``S`` in place by ``t_span``, accumulating ``stats``; no trajectory.
@@ -1361,11 +1432,7 @@ def advance(P, S, t_span, stats, method, rtol, atol, max_events):
     calls without a jump in the force. Returns a STATUS_* code; at most ``max_events``
     switches are allowed in the call (STATUS_EVENT_CAP beyond).
     """
-    if method == METHOD_EXACT:
-        return _run_exact(P, S, t_span, None, stats, max_events, None, None, None, None, None,
-                          None, None)
-    return _run_event(P, S, t_span, None, stats, max_events, rtol, atol, None, None, None,
-                      None, None, None, None)
+    return advance_ws(P, S, t_span, stats, method, rtol, atol, max_events, _fresh_workspace())
 
 
 @njit(cache=True)
@@ -1374,8 +1441,9 @@ def record(P, S, out_t, stats, method, rtol, atol, max_events, out_x, out_v, out
     """Like ``advance`` over [out_t[0], out_t[-1]], recording the state at ``out_t`` and the
     events (time, kind, x); ``counts`` returns (events recorded, outputs written)."""
     t_span = out_t[out_t.shape[0] - 1] - out_t[0]
+    work = _fresh_workspace()
     if method == METHOD_EXACT:
         return _run_exact(P, S, t_span, out_t, stats, max_events, out_x, out_v, out_mode, ev_t,
-                          ev_kind, ev_x, counts)
+                          ev_kind, ev_x, counts, work)
     return _run_event(P, S, t_span, out_t, stats, max_events, rtol, atol, out_x, out_v,
-                      out_mode, ev_t, ev_kind, ev_x, counts)
+                      out_mode, ev_t, ev_kind, ev_x, counts, work)

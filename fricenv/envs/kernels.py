@@ -15,9 +15,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
-from fricenv.core import advance, initial_mode, initial_state, reset_stats
+from fricenv.core import advance, advance_ws, initial_mode, initial_state, reset_stats
 from fricenv.layout import (
     METHOD_EVENT,
     METHOD_EXACT,
@@ -137,7 +137,7 @@ def _method(P, cfg) -> int:
 
 
 @njit(cache=True)
-def control_interval(P, S, ctrl, cfg, a, stats, res) -> int:
+def control_interval(P, S, ctrl, cfg, a, stats, res, work) -> int:
     """Apply action ``a``, advance one control interval, fill the reward terms in ``res``.
 
     Returns the core's status (non-zero: the interval failed and ``res`` is meaningless).
@@ -147,8 +147,8 @@ def control_interval(P, S, ctrl, cfg, a, stats, res) -> int:
     dt = cfg[C_DT]
     x_start = S[S_X]
     reset_stats(stats)
-    status = advance(
-        P, S, dt, stats, _method(P, cfg), cfg[C_RTOL], cfg[C_ATOL], int(cfg[C_MAX_EVENTS])
+    status = advance_ws(
+        P, S, dt, stats, _method(P, cfg), cfg[C_RTOL], cfg[C_ATOL], int(cfg[C_MAX_EVENTS]), work
     )
     if status != 0:
         return status
@@ -204,11 +204,11 @@ def start_episode(P, S, ctrl, cfg, P_new, init, obs) -> None:
 
 
 @njit(cache=True)
-def step_single(P, S, ctrl, cfg, a, stats, obs, res) -> int:
+def step_single(P, S, ctrl, cfg, a, stats, obs, res, work) -> int:
     """One step of the single environment (one dispatch per step keeps it cheap)."""
     if not actions_finite(a):
         return STATUS_BAD_ACTION
-    status = control_interval(P, S, ctrl, cfg, a, stats, res)
+    status = control_interval(P, S, ctrl, cfg, a, stats, res, work)
     if status != 0:
         return status
     res[R_TERM] = 1.0 if write_obs(P, S, ctrl, cfg, obs) else 0.0
@@ -236,6 +236,7 @@ def _plant_step(
     final_obs,
     max_steps,
     mode,
+    work,
 ) -> int:
     """Body of the batch step for plant ``i`` (see ``step_batch``)."""
     did_reset[i] = False
@@ -249,7 +250,7 @@ def _plant_step(
         autoreset[i] = False
         did_reset[i] = True
         return 0
-    status = control_interval(P[i], S[i], ctrl[i], cfg, A[i], stats[i], res[i])
+    status = control_interval(P[i], S[i], ctrl[i], cfg, A[i], stats[i], res[i], work[i])
     if status != 0:
         return status
     term = write_obs(P[i], S[i], ctrl[i], cfg, obs[i])
@@ -300,6 +301,7 @@ def step_batch(
     final_obs,
     status,
     ivars,
+    work,
 ) -> int:
     """Step N plants with autoreset in one call.
 
@@ -337,7 +339,68 @@ def step_batch(
             final_obs,
             ivars[0],
             ivars[1],
+            work,
         )
+        if status[i] != 0:
+            n_failed += 1
+    return n_failed
+
+
+@njit(cache=True, parallel=True)
+def step_batch_parallel(
+    P,
+    S,
+    ctrl,
+    cfg,
+    A,
+    stats,
+    obs,
+    res,
+    terminated,
+    truncated,
+    steps,
+    autoreset,
+    next_P,
+    next_init,
+    did_reset,
+    final_obs,
+    status,
+    ivars,
+    work,
+) -> int:
+    """``step_batch`` with the plants spread over threads (numba ``prange``).
+
+    Each plant reads and writes only its own rows, so the result is identical to the
+    serial kernel whatever the thread count; worth it from a few dozen plants up.
+    """
+    bad = _first_bad_action(A, autoreset, ivars[1])
+    if bad >= 0:
+        return -(bad + 1)
+    for i in prange(P.shape[0]):
+        status[i] = _plant_step(
+            i,
+            P,
+            S,
+            ctrl,
+            cfg,
+            A,
+            stats,
+            obs,
+            res,
+            terminated,
+            truncated,
+            steps,
+            autoreset,
+            next_P,
+            next_init,
+            did_reset,
+            final_obs,
+            ivars[0],
+            ivars[1],
+            work,
+        )
+    n_failed = 0
+    for i in range(P.shape[0]):
         if status[i] != 0:
             n_failed += 1
     return n_failed

@@ -15,6 +15,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from fricenv.core import new_workspace
 from fricenv.envs import kernels as K
 from fricenv.envs.scenes import (
     ACTION_MODES,
@@ -368,6 +369,7 @@ class StickSlipEnv(gym.Env):
         self._stats = np.zeros(N_STATS)
         self._obs = np.zeros(K.N_OBS, dtype=np.float32)
         self._res = np.zeros(K.N_RES)
+        self._work = new_workspace(extrema=False)  # core cache kept across control intervals
         self._P_new, self._init = new_episode_arrays()
         self._act_shape = self.action_space.shape
         self._needs_reset = True
@@ -393,7 +395,8 @@ class StickSlipEnv(gym.Env):
         if self._renderer is not None:
             self._record_trace(a)
         status = K.step_single(
-            self._P, self._S, self._ctrl, self._cfg, a, self._stats, self._obs, self._res
+            self._P, self._S, self._ctrl, self._cfg, a, self._stats, self._obs, self._res,
+            self._work,
         )
         if status != 0:
             if status != K.STATUS_BAD_ACTION:

@@ -16,6 +16,7 @@ from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
+from fricenv.core import new_workspace
 from fricenv.envs import kernels as K
 from fricenv.envs.scenes import N_DRAWS, N_INIT, Scene
 from fricenv.envs.stick_slip import EnvSetup, coerce_action, raise_status
@@ -33,6 +34,9 @@ _INFO_KEYS = (
     ("velocity_variance", K.R_VAR),
 )
 
+
+#: From this many plants on, a step spreads them over threads (numba prange).
+PARALLEL_MIN_ENVS = 64
 
 class StickSlipVectorEnv(VectorEnv):
     """``num_envs`` independent ``StickSlipEnv`` plants, stepped in one numba call.
@@ -116,6 +120,9 @@ class StickSlipVectorEnv(VectorEnv):
         self._did_reset = np.zeros(n, dtype=np.bool_)
         self._status = np.zeros(n, dtype=np.int64)
         self._ivars = np.array([self.max_episode_steps, _AUTORESET[self.autoreset_mode]])
+        self._work = new_workspace(n, extrema=False)  # core cache kept across intervals
+        # Threads pay off from a few dozen plants; both kernels give identical results.
+        self._step_kernel = K.step_batch_parallel if n >= PARALLEL_MIN_ENVS else K.step_batch
 
         # Stash of each plant's next episode: its draws and what they make.
         self._next_values = np.zeros((n, N_DRAWS))
@@ -225,7 +232,7 @@ class StickSlipVectorEnv(VectorEnv):
             a = coerce_action(actions, self._act_shape)
         if self._traces is not None:
             self._record_traces(a)
-        n_failed = K.step_batch(
+        n_failed = self._step_kernel(
             self._P,
             self._S,
             self._ctrl,
@@ -244,6 +251,7 @@ class StickSlipVectorEnv(VectorEnv):
             self._final_obs,
             self._status,
             self._ivars,
+            self._work,
         )
         if n_failed != 0:
             if n_failed < 0:
