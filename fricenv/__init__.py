@@ -1,6 +1,7 @@
 """fricenv: exact event-driven simulation of a two-tone forced dry-friction oscillator."""
 
 from .params import FRICTION_LAWS, OscillatorParams
+from .regimes import Regime, classify, classify_stats, strobe_period
 from .simulate import (
     EVENT_NAMES,
     OscillatorState,
@@ -10,17 +11,26 @@ from .simulate import (
     run_stats,
     simulate,
 )
+from .sweep import RegimeMap, SweepSettings, cell_statistics, regime_map
 
 __all__ = [
     "EVENT_NAMES",
     "FRICTION_LAWS",
     "OscillatorParams",
     "OscillatorState",
+    "Regime",
+    "RegimeMap",
     "RunStats",
     "SimulationError",
+    "SweepSettings",
     "Trajectory",
+    "cell_statistics",
+    "classify",
+    "classify_stats",
+    "regime_map",
     "run_stats",
     "simulate",
+    "strobe_period",
 ]
 __version__ = "0.1.0"
 

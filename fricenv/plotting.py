@@ -1,0 +1,268 @@
+"""Matplotlib figures of the paper (Figs. 2-10). The simulation core never imports this.
+
+Functions draw on given data and return a ``matplotlib.figure.Figure``; :func:`save` writes
+it. Figures are built without ``pyplot``: no global state, no GUI backend, safe in threads and
+on headless machines.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+from matplotlib.axes import Axes
+from matplotlib.colors import BoundaryNorm, ListedColormap
+from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
+from matplotlib.patches import Patch
+
+from .params import FRICTION_LAWS, OscillatorParams
+from .regimes import Regime
+
+#: One colour per regime; UNRESOLVED is grey, not-computed cells are white.
+REGIME_COLORS: dict[Regime, str] = {
+    Regime.UNRESOLVED: "#9e9e9e",
+    Regime.WM1: "#bcd9f0",
+    Regime.WM2: "#b8e3b0",
+    Regime.SSM1: "#f5a35c",
+    Regime.SSM2: "#d9453d",
+    Regime.PERIODIC_STICK_SLIP: "#ffd400",
+    Regime.PERIODIC_OSCILLATION: "#1f4e9c",
+}
+REGIME_SHORT: dict[Regime, str] = {
+    Regime.UNRESOLVED: "unresolved",
+    Regime.WM1: "WM1: pure slip, no contact",
+    Regime.WM2: "WM2: reversals, no stick",
+    Regime.SSM1: "SSM1: stick-slip, ν ≤ 1",
+    Regime.SSM2: "SSM2: stick-slip, ν > 1",
+    Regime.PERIODIC_STICK_SLIP: "periodic stick-slip (integer ν)",
+    Regime.PERIODIC_OSCILLATION: "periodic oscillation (integer ν)",
+}
+LAW_TITLES = {"coulomb": "Coulomb", "viscous": "Coulomb + viscosity",
+              "stribeck": "complete (Stribeck)"}
+
+
+def save(fig: Figure, path: str | os.PathLike, dpi: int = 130) -> Path:
+    """Write ``fig`` (format from the suffix), create the folder, close the figure."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=dpi, bbox_inches="tight")
+    return path
+
+
+def _subplots(nrows: int, ncols: int, figsize: tuple[float, float], **kw: object
+              ) -> tuple[Figure, np.ndarray]:
+    fig = Figure(figsize=figsize, layout="constrained")
+    kw.setdefault("squeeze", False)
+    return fig, fig.subplots(nrows, ncols, **kw)
+
+
+# -- Fig. 2 --------------------------------------------------------------------------------
+def friction_laws_figure(xfk: float = 2.5, xfs: float = 4.0, vr_max: float = 3.0) -> Figure:
+    """Fig. 2: ``F(v_r) = x_f sgn(v_r) - b1 v_r + b3 v_r^3`` for the three laws.
+
+    At ``v_r = 0`` the force is set-valued, ``[-x_fs, x_fs]`` (stick), drawn as a bar.
+    """
+    fig, axes = _subplots(1, 3, figsize=(11, 3.4), sharey=True)
+    axes = axes[0]
+    vr = np.linspace(-vr_max, vr_max, 801)
+    for ax, (name, (b1, b3)), tag in zip(axes, FRICTION_LAWS.items(), "abc", strict=True):
+        for side in (vr < 0, vr > 0):
+            v = vr[side]
+            ax.plot(v, xfk * np.sign(v) - b1 * v + b3 * v**3, color="C0", lw=2,
+                    label="slip, $x_{fk}$ sgn$(v_r) - b_1 v_r + b_3 v_r^3$"
+                    if side[0] else None)
+        ax.plot([0, 0], [-xfs, xfs], color="C3", lw=3, label="stick: $|F| \\leq x_{fs}$")
+        ax.axhline(0, color="k", lw=0.5)
+        ax.axvline(0, color="k", lw=0.5)
+        ax.set_title(f"({tag}) {LAW_TITLES[name]}: $b_1$={b1}, $b_3$={b3}")
+        ax.set_xlabel("relative velocity $v_r = v - V$")
+        ax.set_ylabel("friction force $F(v_r)$")
+        ax.grid(alpha=0.3)
+    axes[0].legend(loc="upper left", fontsize=8)
+    return fig
+
+
+# -- Fig. 3 --------------------------------------------------------------------------------
+def amplitude_figure(panels: Sequence[dict]) -> Figure:
+    """Fig. 3: steady-state amplitude versus eta.
+
+    Each panel dict has ``lam``, ``nu``, ``eta`` (curve grid), ``curves`` {u0: amplitude},
+    and optionally ``sim`` {u0: (eta, amplitude, contact_bool)}: simulated half peak-to-peak
+    of x, filled where the window was pure slip, open where the block touched v = V.
+    """
+    n = len(panels)
+    ncol = 2 if n > 1 else 1
+    nrow = (n + ncol - 1) // ncol
+    fig, axes = _subplots(nrow, ncol, figsize=(5.6 * ncol, 3.9 * nrow))
+    for k, (ax, pan) in enumerate(zip(axes.flat, panels, strict=False)):
+        for i, (u0, amp) in enumerate(sorted(pan["curves"].items())):
+            ax.plot(pan["eta"], amp, color=f"C{i}", lw=1.6, label=f"$u_0$ = {u0:g} (theory)")
+            if "sim" in pan and u0 in pan["sim"]:
+                e, a, contact = pan["sim"][u0]
+                e, a, contact = np.asarray(e), np.asarray(a), np.asarray(contact, bool)
+                ax.plot(e[~contact], a[~contact], "o", ms=4, color=f"C{i}")
+                ax.plot(e[contact], a[contact], "o", ms=4, mfc="none", color=f"C{i}")
+        ax.set_title(f"({'abcd'[k] if k < 4 else k}) λ = {pan['lam']:g}, ν = {pan['nu']:g}")
+        ax.set_xlabel("frequency ratio η = ω₁/ω₀")
+        ax.set_ylabel("steady-state amplitude of x")
+        ax.grid(alpha=0.3)
+    for ax in list(axes.flat)[n:]:
+        ax.set_visible(False)
+    handles, labels = axes.flat[0].get_legend_handles_labels()
+    handles += [Line2D([], [], ls="", marker="o", color="k", ms=4),
+                Line2D([], [], ls="", marker="o", mfc="none", color="k", ms=4)]
+    labels += ["simulated, pure slip", "simulated, with contact (stick / reversal)"]
+    axes.flat[0].legend(handles, labels, fontsize=7, loc="upper right")
+    return fig
+
+
+# -- Figs. 4-7 -----------------------------------------------------------------------------
+def time_history_figure(runs: Sequence[dict], suptitle: str | None = None) -> Figure:
+    """Figs. 4-7: displacement (top) and velocity (bottom) per run, one column each.
+
+    Each run dict has ``t, x, v, mode`` arrays, ``title`` and ``V``; stick intervals
+    (``mode == 0``) are shaded in the velocity panel and ``v = V`` is dashed.
+    """
+    n = len(runs)
+    fig, axes = _subplots(2, n, figsize=(5.6 * n, 5.6), sharex="col")
+    for j, run in enumerate(runs):
+        ax_x, ax_v = axes[0, j], axes[1, j]
+        t, x, v, mode = (np.asarray(run[k]) for k in ("t", "x", "v", "mode"))
+        ax_x.plot(t, x, color="C0", lw=0.9)
+        ax_x.set_ylabel("displacement x")
+        ax_x.set_xlabel("dimensionless time τ")
+        ax_x.set_title(run.get("title", ""), fontsize=10)
+        ax_v.plot(t, v, color="C1", lw=0.9, label="velocity v")
+        ax_v.axhline(run.get("V", 1.0), color="k", ls="--", lw=0.8, label="belt speed V")
+        stuck = mode == 0
+        if stuck.any():
+            ax_v.fill_between(t, 0, 1, where=stuck, transform=ax_v.get_xaxis_transform(),
+                              color="C3", alpha=0.18, lw=0, label="stick")
+        ax_v.set_ylabel("velocity v")
+        ax_v.set_xlabel("dimensionless time τ")
+        ax_v.legend(fontsize=7, loc="lower right")
+        for ax in (ax_x, ax_v):
+            ax.grid(alpha=0.3)
+    if suptitle:
+        fig.suptitle(suptitle)
+    return fig
+
+
+# -- Figs. 8-10 ----------------------------------------------------------------------------
+def _edges(c: np.ndarray, log: bool) -> np.ndarray:
+    c = np.asarray(c, dtype=float)
+    if c.size == 1:
+        d = 0.5 * (abs(c[0]) if c[0] else 1.0)
+        return np.array([c[0] - d, c[0] + d])
+    z = np.log(c) if log else c
+    mid = 0.5 * (z[1:] + z[:-1])
+    e = np.concatenate([[z[0] - (mid[0] - z[0])], mid, [z[-1] + (z[-1] - mid[-1])]])
+    return np.exp(e) if log else e
+
+
+def _is_log(u0: np.ndarray) -> bool:
+    u0 = np.asarray(u0, dtype=float)
+    if u0.size < 3 or np.any(u0 <= 0):
+        return False
+    r = u0[1:] / u0[:-1]
+    return bool(np.allclose(r, r[0], rtol=1e-6) and r[0] > 1.0 + 1e-9)
+
+
+def _band_edge(stick: np.ndarray, ue: np.ndarray, ne: np.ndarray, which: str
+               ) -> tuple[np.ndarray, np.ndarray]:
+    """Step curve through cell edges: left edge of the first stick cell of each nu row
+    (``"first"``) or right edge of the last one (``"last"``); NaN breaks rows without stick."""
+    xs, ys = [], []
+    for j in range(stick.shape[1]):
+        i = np.flatnonzero(stick[:, j])
+        if i.size == 0:
+            xs.append(np.nan)
+            ys.append(np.nan)
+            continue
+        x = ue[i[0]] if which == "first" else ue[i[-1] + 1]
+        xs += [x, x]
+        ys += [ne[j], ne[j + 1]]
+    return np.array(xs), np.array(ys)
+
+
+def regime_cmap() -> tuple[ListedColormap, BoundaryNorm]:
+    colors = ["#ffffff"] + [REGIME_COLORS[r] for r in Regime]  # index 0: not computed
+    cmap = ListedColormap(colors)
+    norm = BoundaryNorm(np.arange(-1.5, len(Regime) + 0.5), cmap.N)
+    return cmap, norm
+
+
+def draw_regime_map(ax: Axes, rmap: object, boundaries: bool = True,
+                    title: str | None = None) -> None:
+    """One (u0, nu) panel: u0 on x (log if the grid is geometric), nu on y.
+
+    Cells are coloured by regime. The solid black line is the first boundary (smallest u0
+    with stick phases, per nu row), the dashed one the second (largest u0 with stick phases;
+    beyond it only reversals). The first contact with v = V as u0 grows is always a stick in
+    our maps (grazing contacts stick), so the first boundary is also the onset of contact.
+    Rows at integer nu, where the periodic labels live, are redrawn as thick strips so that a
+    single grid row stays visible.
+    """
+    u0, nu, labels = np.asarray(rmap.u0), np.asarray(rmap.nu), np.asarray(rmap.labels)
+    log = _is_log(u0)
+    cmap, norm = regime_cmap()
+    ax.pcolormesh(_edges(u0, log), _edges(nu, False), labels.T.astype(float), cmap=cmap,
+                  norm=norm, shading="flat", rasterized=True)
+    if log:
+        ax.set_xscale("log")
+    if boundaries:
+        stick = np.isin(labels, [Regime.SSM1, Regime.SSM2, Regime.PERIODIC_STICK_SLIP])
+        ue, ne = _edges(u0, log), _edges(nu, False)
+        for which in ("first", "last"):
+            xs, ys = _band_edge(stick, ue, ne, which)
+            ax.plot(xs, ys, color="k", lw=1.2 if which == "first" else 1.0,
+                    ls="-" if which == "first" else "--")
+    ints = np.flatnonzero(np.isclose(nu, np.round(nu), atol=1e-9) & (nu > 0))
+    if nu.size > 40:
+        ue = _edges(u0, log)
+        for j in ints:
+            for i in range(u0.size):
+                lab = int(labels[i, j])
+                if lab in (Regime.PERIODIC_OSCILLATION, Regime.PERIODIC_STICK_SLIP):
+                    ax.plot([ue[i], ue[i + 1]], [nu[j], nu[j]], color=REGIME_COLORS[lab],
+                            lw=3.0, solid_capstyle="butt")
+    ax.set_xlabel("tone amplitude $u_0$" + (" (log scale)" if log else ""))
+    ax.set_ylabel("frequency ratio ν = ω₂/ω₁")
+    if title:
+        ax.set_title(title, fontsize=10)
+
+
+def regime_legend_handles(include_unresolved: bool = True) -> list:
+    hs = [Patch(facecolor=REGIME_COLORS[r], edgecolor="k", lw=0.4, label=REGIME_SHORT[r])
+          for r in Regime if include_unresolved or r != Regime.UNRESOLVED]
+    hs.append(Line2D([], [], color="k", lw=1.2, label="1st boundary: stick begins"))
+    hs.append(Line2D([], [], color="k", lw=1.0, ls="--",
+                     label="2nd boundary: last stick (only reversals beyond)"))
+    return hs
+
+
+def regime_maps_figure(maps: Sequence[object], titles: Sequence[str] | None = None,
+                       suptitle: str | None = None) -> Figure:
+    """Figs. 8-10: up to four regime maps in a 2 x 2 grid with one shared legend."""
+    n = len(maps)
+    ncol = 2 if n > 1 else 1
+    nrow = (n + ncol - 1) // ncol
+    fig, axes = _subplots(nrow, ncol, figsize=(6.0 * ncol, 4.6 * nrow + 1.0))
+    for k, (ax, m) in enumerate(zip(axes.flat, maps, strict=False)):
+        draw_regime_map(ax, m, title=titles[k] if titles else None)
+    for ax in list(axes.flat)[n:]:
+        ax.set_visible(False)
+    unresolved = any(np.any(np.asarray(m.labels) == Regime.UNRESOLVED) for m in maps)
+    fig.legend(handles=regime_legend_handles(True), loc="outside lower center",
+               ncol=3, fontsize=8, title=None if not unresolved else
+               "grey cells: solver stopped (event cap)")
+    if suptitle:
+        fig.suptitle(suptitle)
+    return fig
+
+
+def params_title(p: OscillatorParams) -> str:
+    return f"{LAW_TITLES.get(p.law, p.law)}, η = {p.eta:.4g}, λ = {p.lam:g}, V = {p.V:g}"

@@ -1,0 +1,213 @@
+"""Regime taxonomy of the paper (WM, SSM, periodic) as measurable criteria.
+
+Everything here is a pure function of statistics measured over a *measurement window* that
+starts after a transient (see :mod:`fricenv.sweep` for how the window is chosen), so the
+rules can be tested on hand-made inputs.
+
+Measured per run (window only)
+------------------------------
+``n_stick``      slip -> stick transitions (stick phases entered)
+``stick_time``   time spent stuck; ``stick_fraction = stick_time / duration``
+``n_reversal``   slip -> opposite slip through ``v = V`` without sticking
+``v_min, v_max`` exact velocity extrema
+``q``            denominator of ``nu = p/q`` when ``nu`` is rational with ``q <= q_max``
+                 (0: not tested). The forcing then has period ``T_c = 2 pi q / eta``.
+``period``       smallest ``m <= m_max`` with ``(x, v)(t + m T_c) = (x, v)(t)`` at every
+                 stroboscopic sample of the window (0: none found or not tested); see
+                 :func:`strobe_period`.
+``status``       kernel status (``layout.STATUS_*``); anything but OK means no label.
+
+Labels (:class:`Regime`), checked in this order
+-----------------------------------------------
+``UNRESOLVED``            the kernel stopped (event cap, non-finite state).
+``PERIODIC_STICK_SLIP``   stick phases, ``nu`` an integer (``q == 1``) and ``period >= 1``.
+``PERIODIC_OSCILLATION``  no stick, ``nu`` an integer and ``period >= 1``.
+``SSM1``                  stick phases (``n_stick > 0`` or ``stick_time > 0``), ``nu <= 1``.
+``SSM2``                  stick phases, ``nu > 1``.
+``WM1``                   no stick and no reversal: ``v - V`` keeps one sign (pure slip, no
+                          contact with the belt speed). Friction is a constant force here.
+``WM2``                   no stick but at least one reversal: ``v`` crosses ``V`` only in
+                          direct reversals (large forcing, friction a square-wave force).
+
+Choices where the paper is ambiguous (see MODEL.md)
+---------------------------------------------------
+* WM1/WM2 follow the *maps* (WM1 below the first boundary in ``u0``, WM2 beyond the
+  second), not the waveform names of Fig. 4 ("angular" vs "amplitude" modulation), because
+  only the map reading is a property of the friction contact. Fig. 4b (pure slip, beats at
+  ``nu = 0.95``) is therefore WM1 here.
+* SSM requires real stick phases; SSM1/SSM2 split at ``nu = 1`` (``nu = 1`` belongs to
+  SSM1, as the paper's SSM1 "ends at" ``nu = 1``).
+* "Periodic" is reserved for integer ``nu``: only then is the forcing unmodulated (its
+  period is the first tone's, ``2 pi / eta``). For other rational ``nu`` the forcing itself
+  is a beat, so the motion is called modulated even when it repeats with the long common
+  period; that repetition is still reported in ``period``. Subharmonic locking
+  (``period = m > 1``) counts as periodic.
+"""
+
+from __future__ import annotations
+
+import math
+from enum import IntEnum
+from fractions import Fraction
+
+import numpy as np
+from numba import njit
+
+from .layout import (
+    N_STATS,
+    ST_DURATION,
+    ST_N_REVERSAL,
+    ST_N_SLIP,
+    ST_N_STICK,
+    ST_STICK_TIME,
+    ST_V_MAX,
+    ST_V_MIN,
+    STATUS_OK,
+)
+
+#: Default largest denominator of nu for which periodicity is tested.
+Q_MAX = 4
+#: Default largest response period, in forcing periods, that is searched.
+M_MAX = 4
+#: Default relative tolerance of the stroboscopic comparison.
+STROBE_TOL = 1e-6
+
+
+class Regime(IntEnum):
+    """Regime labels; the criteria are in this module's docstring."""
+
+    UNRESOLVED = 0
+    WM1 = 1
+    WM2 = 2
+    SSM1 = 3
+    SSM2 = 4
+    PERIODIC_STICK_SLIP = 5
+    PERIODIC_OSCILLATION = 6
+
+    @property
+    def description(self) -> str:
+        return _DESCRIPTIONS[self]
+
+    @property
+    def has_stick(self) -> bool:
+        return self in (Regime.SSM1, Regime.SSM2, Regime.PERIODIC_STICK_SLIP)
+
+
+_DESCRIPTIONS = {
+    Regime.UNRESOLVED: "unresolved (solver stopped: event cap or non-finite state)",
+    Regime.WM1: "wave modulated 1: pure slip, no contact with v = V",
+    Regime.WM2: "wave modulated 2: direct reversals through v = V, no stick",
+    Regime.SSM1: "stick-slip modulated 1: stick phases, nu <= 1",
+    Regime.SSM2: "stick-slip modulated 2: stick phases, nu > 1",
+    Regime.PERIODIC_STICK_SLIP: "periodic stick-slip: integer nu, locked response with stick",
+    Regime.PERIODIC_OSCILLATION: "periodic oscillation: integer nu, locked response, no stick",
+}
+
+
+def rational_denominator(nu: float, q_max: int = Q_MAX, tol: float = 1e-9) -> int:
+    """``q`` if ``nu`` equals ``p/q`` (lowest terms, ``q <= q_max``) within ``tol``, else 0.
+
+    ``tol`` is relative to ``max(1, nu)`` so that grid values such as ``0.1 * 3`` count.
+    """
+    if not math.isfinite(nu) or nu < 0.0:
+        raise ValueError(f"nu must be finite and >= 0, got {nu!r}")
+    if q_max < 1:
+        return 0
+    frac = Fraction(nu).limit_denominator(q_max)
+    if abs(float(frac) - nu) <= tol * max(1.0, nu):
+        return frac.denominator
+    return 0
+
+
+def exact_rational(nu: float, q: int) -> float:
+    """``p/q`` nearest to ``nu`` (used so a sweep's forcing is exactly periodic)."""
+    if q <= 0:
+        return float(nu)
+    return round(nu * q) / q
+
+
+@njit(cache=True)
+def _strobe_period(xs: np.ndarray, vs: np.ndarray, m_max: int, tol: float) -> int:
+    n = xs.shape[0]
+    scale = 1.0
+    for k in range(n):
+        scale = max(scale, abs(xs[k]), abs(vs[k]))
+    lim = tol * scale
+    for m in range(1, m_max + 1):
+        # at least m comparisons, so that a full candidate period is seen twice
+        if n - m < m or n - m < 2:
+            return 0
+        ok = True
+        for k in range(m, n):
+            if abs(xs[k] - xs[k - m]) > lim or abs(vs[k] - vs[k - m]) > lim:
+                ok = False
+                break
+        if ok:
+            return m
+    return 0
+
+
+def strobe_period(xs: np.ndarray, vs: np.ndarray, m_max: int = M_MAX,
+                  tol: float = STROBE_TOL) -> int:
+    """Smallest period ``m`` (in samples) of stroboscopic samples ``(x_k, v_k)``, or 0.
+
+    Period ``m`` holds when ``|x_k - x_{k-m}|`` and ``|v_k - v_{k-m}|`` are at most
+    ``tol * max(1, max_k |x_k|, max_k |v_k|)`` for every ``k >= m``. It is only accepted if
+    the samples cover the candidate period at least twice (``n - m >= max(m, 2)``), so a
+    short record cannot look periodic by accident.
+    """
+    xs = np.ascontiguousarray(xs, dtype=np.float64)
+    vs = np.ascontiguousarray(vs, dtype=np.float64)
+    if xs.shape != vs.shape or xs.ndim != 1:
+        raise ValueError("xs and vs must be 1-d arrays of the same length")
+    return int(_strobe_period(xs, vs, int(m_max), float(tol)))
+
+
+def classify(n_stick: np.ndarray | float, stick_time: np.ndarray | float,
+             n_reversal: np.ndarray | float, nu: np.ndarray | float,
+             q: np.ndarray | int = 0, period: np.ndarray | int = 0,
+             status: np.ndarray | int = STATUS_OK) -> np.ndarray:
+    """Regime label(s) from window statistics (broadcasting; returns int8 array or scalar).
+
+    The rules are listed in the module docstring. ``q`` is the tested denominator of ``nu``
+    (0: not tested) and ``period`` the stroboscopic period found (0: none).
+    """
+    n_stick, stick_time, n_reversal, nu, q, period, status = np.broadcast_arrays(
+        *(np.asarray(a) for a in (n_stick, stick_time, n_reversal, nu, q, period, status))
+    )
+    if np.any(~np.isfinite(nu.astype(float))):
+        raise ValueError("nu must be finite")
+    stick = (n_stick > 0) | (stick_time > 0)
+    periodic = (q == 1) & (period >= 1)
+    out = np.where(n_reversal > 0, Regime.WM2, Regime.WM1).astype(np.int8)
+    out = np.where(stick, np.where(nu <= 1.0, Regime.SSM1, Regime.SSM2), out)
+    out = np.where(periodic & stick, Regime.PERIODIC_STICK_SLIP, out)
+    out = np.where(periodic & ~stick, Regime.PERIODIC_OSCILLATION, out)
+    out = np.where(status != STATUS_OK, Regime.UNRESOLVED, out).astype(np.int8)
+    return out if out.ndim else out[()]
+
+
+def classify_stats(stats: np.ndarray, nu: np.ndarray | float, q: np.ndarray | int = 0,
+                   period: np.ndarray | int = 0,
+                   status: np.ndarray | int = STATUS_OK) -> np.ndarray:
+    """:func:`classify` on statistics arrays of layout ``ST_*`` (last axis ``N_STATS``)."""
+    stats = np.asarray(stats, dtype=float)
+    if stats.shape[-1] != N_STATS:
+        raise ValueError(f"stats must have last axis {N_STATS}, got shape {stats.shape}")
+    return classify(stats[..., ST_N_STICK], stats[..., ST_STICK_TIME],
+                    stats[..., ST_N_REVERSAL], nu, q, period, status)
+
+
+def summarize(stats: np.ndarray) -> dict[str, float]:
+    """Readable dict of one window's statistics (for reports and debugging)."""
+    s = np.asarray(stats, dtype=float)
+    dur = s[ST_DURATION]
+    return {
+        "duration": float(dur),
+        "stick_fraction": float(s[ST_STICK_TIME] / dur) if dur > 0 else math.nan,
+        "n_stick": int(s[ST_N_STICK]),
+        "n_slip": int(s[ST_N_SLIP]),
+        "n_reversal": int(s[ST_N_REVERSAL]),
+        "v_min": float(s[ST_V_MIN]),
+        "v_max": float(s[ST_V_MAX]),
+    }

@@ -1,0 +1,647 @@
+"""Parallel, resumable regime maps over the (u0, nu) plane.
+
+Each grid cell is one independent run from the same initial state: a transient, then a
+measurement window split into stroboscopic segments, all through the stats-only kernel
+``core.advance`` (no trajectory is stored, so memory is O(grid) whatever the horizon). Cells
+run in a numba ``prange`` loop; a cell depends only on its own parameters, so the result is
+bit-identical for any thread count, chunking, order or resumption.
+
+Time spans per cell (defaults of :class:`SweepSettings`)
+---------------------------------------------------------
+``T1 = 2 pi / eta`` (first tone) and the modulation period ``T_mod = T1 / dist(nu, Z)``
+(:func:`modulation_period`: the slow tone's period for small ``nu``, the beat period near
+``nu = 1``, ``T1`` for integer ``nu``; capped at ``100 T1``).
+
+* transient = ``max(transient_min, transient_efolds * 2 / (lambda - b1), transient_periods
+  * T_mod)`` = ``max(100, 50 / (lambda - b1), T_mod)``: a full modulation cycle and at least
+  25 e-foldings of free slip near ``v = V`` (``lambda - b1`` is its damping; the term is
+  dropped if it is not positive). 100 time units at the paper's ``lambda = 1/2``, Coulomb.
+* window = ``max(window_min, window_periods * T_mod)`` = ``max(100, T_mod)``: every phase
+  of the modulation is seen once. When ``nu`` is rational with denominator ``q <= q_max``
+  the window is rounded up to whole common periods ``T_c = 2 pi q / eta`` and to at least
+  ``n_strobe = 12`` of them, and the state is sampled after each one for
+  :func:`fricenv.regimes.strobe_period`.
+* integer ``nu`` (where the label depends on periodicity): a window that shows no period
+  while its stroboscopic mismatch still shrinks (by half or more within the window) is
+  repeated, up to ``lock_extensions = 3`` times, the failed ones counting as transient; the
+  statistics are those of the last window. Quasi-periodic or chaotic cells stop at once.
+
+``dist(nu, Z)`` is the distance from ``nu`` to the nearest integer.
+
+Storage: ``RegimeMap.save`` writes one ``.npz`` holding the arrays and a JSON metadata
+string (parameters, settings, layout, regime names). With ``path=`` a sweep saves after
+every chunk (atomically: temporary file + ``os.replace``) and, when started again with the
+same arguments, computes only the cells not yet marked done. A file made with other
+parameters, grid, settings, time spans or measurement code (``ALGORITHM``) is refused.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import time
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, field, fields
+from pathlib import Path
+
+import numba
+import numpy as np
+from numba import njit, prange
+
+from . import core
+from .layout import (
+    METHOD_EVENT,
+    METHOD_EXACT,
+    METHODS,
+    N_STATE,
+    N_STATS,
+    S_V,
+    S_X,
+    ST_DURATION,
+    ST_N_REVERSAL,
+    ST_N_STICK,
+    ST_STICK_TIME,
+    ST_V_MAX,
+    ST_V_MIN,
+    ST_X_MAX,
+    ST_X_MIN,
+    STATUS_OK,
+)
+from .params import P_U1, P_U2, P_W1, P_W2, OscillatorParams, resolve_law
+from .regimes import Regime, _strobe_period, classify, exact_rational, rational_denominator
+
+FORMAT = "fricenv.regime_map"
+FORMAT_VERSION = 1
+#: Version of the per-cell measurement; a stored map is resumed only if it matches.
+ALGORITHM = 3
+#: Label of a cell that has not been computed yet (not a :class:`Regime`).
+NOT_COMPUTED = -1
+
+STAT_NAMES = ("duration", "stick_time", "n_stick", "n_slip", "n_reversal", "v_max", "v_min",
+              "x_max", "x_min", "vr2_int", "n_steps")
+assert len(STAT_NAMES) == N_STATS
+
+
+@dataclass(frozen=True)
+class SweepSettings:
+    """How each cell is run and measured (see the module docstring for the formulas).
+
+    ``x0, v0``: initial state, at rest by default (so the block starts slipping backwards
+    relative to the belt). ``method``: ``"auto"`` (closed form for Coulomb, event-driven
+    otherwise), ``"exact"`` or ``"event"``. ``rtol, atol``: tolerances of the event-driven
+    integrator (the closed form ignores them); 1e-6 / 1e-8 gave labels identical to 1e-9 on
+    every cell checked (scripts/bench_sweep.py repeats the check) at half the cost.
+    ``max_event_rate``: events allowed per unit time before a cell is declared UNRESOLVED
+    (chattering); ``q_max, m_max, n_strobe, strobe_tol, lock_extensions``: periodicity test.
+    """
+
+    x0: float = 0.0
+    v0: float = 0.0
+    transient_min: float = 100.0
+    transient_periods: float = 1.0
+    transient_efolds: float = 25.0
+    window_min: float = 100.0
+    window_periods: float = 1.0
+    modulation_cap: float = 100.0
+    q_max: int = 4
+    m_max: int = 4
+    lock_extensions: int = 3
+    n_strobe: int = 12
+    strobe_tol: float = 1e-6
+    method: str = "auto"
+    rtol: float = 1e-6
+    atol: float = 1e-8
+    max_event_rate: float = 200.0
+
+    def __post_init__(self) -> None:
+        for f in fields(self):
+            v = getattr(self, f.name)
+            if f.name == "method":
+                if v not in ("auto", *METHODS):
+                    raise ValueError(f"method must be 'auto', 'exact' or 'event', got {v!r}")
+                continue
+            if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)):
+                raise ValueError(f"{f.name} must be a number, got {v!r}")
+            if not math.isfinite(float(v)):
+                raise ValueError(f"{f.name} must be finite, got {v!r}")
+            if f.name in ("q_max", "m_max", "n_strobe", "lock_extensions"):
+                if int(v) != v or v < 0:
+                    raise ValueError(f"{f.name} must be a non-negative integer, got {v!r}")
+                object.__setattr__(self, f.name, int(v))
+            else:
+                object.__setattr__(self, f.name, float(v))
+        for name in ("transient_min", "transient_periods", "transient_efolds",
+                     "window_periods", "rtol", "atol"):
+            if getattr(self, name) < 0:
+                raise ValueError(f"{name} must be >= 0, got {getattr(self, name)!r}")
+        for name in ("window_min", "max_event_rate", "strobe_tol", "modulation_cap"):
+            if getattr(self, name) <= 0:
+                raise ValueError(f"{name} must be > 0, got {getattr(self, name)!r}")
+
+    def method_code(self, params: OscillatorParams) -> int:
+        if self.method == "auto":
+            return METHOD_EXACT if params.is_coulomb else METHOD_EVENT
+        if self.method == "exact" and not params.is_coulomb:
+            raise ValueError("method 'exact' needs the Coulomb law (b1 = b3 = 0)")
+        return METHODS[self.method]
+
+
+@dataclass(frozen=True)
+class CellPlan:
+    """Per-nu time spans of a sweep (arrays of the nu grid's length)."""
+
+    nu_exact: np.ndarray  # p/q when rational with small q, else nu
+    q: np.ndarray  # tested denominator, 0 if not tested
+    t_transient: np.ndarray
+    t_segment: np.ndarray  # window = n_segment * t_segment
+    n_segment: np.ndarray
+    tries: np.ndarray  # windows allowed until the response locks (0: no periodicity test)
+
+
+def modulation_period(eta: float, nu: np.ndarray, cap: float) -> np.ndarray:
+    """Slowest time scale of the two-tone forcing, ``2 pi / (eta dist(nu, Z))``.
+
+    The second tone's phase drifts against the nearest harmonic ``n`` of the first one at the
+    rate ``eta |nu - n|``; over that period the forcing's waveform runs through all its
+    shapes (for ``nu < 1/2`` it is the slow tone's period, near ``nu = 1`` the beat period).
+    Integer ``nu`` gives an unmodulated forcing: ``T1 = 2 pi / eta``. Capped at ``cap * T1``.
+    """
+    nu = np.asarray(nu, dtype=float)
+    t1 = 2.0 * math.pi / eta
+    d = np.abs(nu - np.round(nu))
+    with np.errstate(divide="ignore"):
+        t_mod = np.where(d > 1e-12, t1 / np.where(d > 1e-12, d, 1.0), t1)
+    return np.minimum(t_mod, cap * t1)
+
+
+def plan_cells(params: OscillatorParams, nu: np.ndarray, settings: SweepSettings) -> CellPlan:
+    """Transient, window and stroboscopic segments for each nu (module docstring)."""
+    nu = np.asarray(nu, dtype=float)
+    q = np.array([rational_denominator(float(n), settings.q_max) for n in nu], dtype=np.int64)
+    if settings.n_strobe < 2 * max(settings.m_max, 1) + 1:
+        q[:] = 0  # too few samples to test any period: do not pretend
+    nu_exact = np.array([exact_rational(float(n), int(k)) for n, k in zip(nu, q, strict=True)])
+    t1 = 2.0 * math.pi / params.eta
+    t_mod = modulation_period(params.eta, nu_exact, settings.modulation_cap)
+    lam_eff = params.lam - params.b1  # damping of slip near v = V (b1 pumps energy in)
+    decay = settings.transient_efolds * 2.0 / lam_eff if lam_eff > 0 else 0.0
+    t_tr = np.maximum(max(settings.transient_min, decay), settings.transient_periods * t_mod)
+    win = np.maximum(settings.window_min, settings.window_periods * t_mod)
+    tc = q * t1
+    n_seg = np.where(q > 0, np.maximum(np.ceil(win / np.where(q > 0, tc, 1.0) - 1e-9),
+                                        settings.n_strobe), 1).astype(np.int64)
+    t_seg = np.where(q > 0, tc, win)
+    tries = np.where(q == 1, 1 + settings.lock_extensions, np.where(q > 0, 1, 0))
+    return CellPlan(nu_exact, q, t_tr, t_seg, n_seg, tries.astype(np.int64))
+
+
+@njit(cache=True)
+def _event_cap(t_span: float, rate: float) -> int:
+    return int(min(rate * t_span + 1000.0, 2.0e9))
+
+
+@njit(cache=True)
+def _run_cell(P: np.ndarray, x0: float, v0: float, t_trans: float, t_seg: float,
+              n_seg: int, tries: int, method: int, rtol: float, atol: float, rate: float,
+              m_max: int, tol: float, stats: np.ndarray) -> tuple[int, int]:
+    """One cell: transient, then a window of ``n_seg`` segments measured into ``stats``.
+
+    ``tries`` = 0: no periodicity test. Otherwise the window is tested and, while no period
+    is found but the strobe mismatch is still shrinking (:func:`_converging`), repeated up
+    to ``tries - 1`` more times, each failed window becoming part of the transient (slowly
+    converging orbits still lock; the stats are the last window's).
+    """
+    S = np.empty(N_STATE)
+    core.initial_state(P, x0, v0, S)
+    core.reset_stats(stats)
+    status = STATUS_OK
+    if t_trans > 0.0:
+        status = core.advance(P, S, t_trans, stats, method, rtol, atol,
+                              _event_cap(t_trans, rate))
+    xs = np.empty(n_seg)
+    vs = np.empty(n_seg)
+    period = 0
+    for _ in range(max(tries, 1)):
+        core.reset_stats(stats)
+        k = 0
+        while status == STATUS_OK and k < n_seg:
+            status = core.advance(P, S, t_seg, stats, method, rtol, atol,
+                                  _event_cap(t_seg, rate))
+            xs[k] = S[S_X]
+            vs[k] = S[S_V]
+            k += 1
+        if status != STATUS_OK or tries == 0:
+            break
+        period = _strobe_period(xs, vs, m_max, tol)
+        if period > 0 or not _converging(xs, vs, m_max):
+            break
+    return status, period
+
+
+@njit(cache=True)
+def _converging(xs: np.ndarray, vs: np.ndarray, m_max: int) -> bool:
+    """True if, for some candidate period m, the strobe mismatch |z_k - z_{k-m}| shrinks by
+    half or more from the first to the second half of the window: an orbit still
+    converging (worth another window), unlike a quasi-periodic or chaotic one."""
+    n = xs.shape[0]
+    for m in range(1, m_max + 1):
+        if n - m < 4:
+            break
+        half = m + (n - m) // 2
+        r1 = 0.0
+        r2 = 0.0
+        for k in range(m, n):
+            d = max(abs(xs[k] - xs[k - m]), abs(vs[k] - vs[k - m]))
+            if k < half:
+                r1 = max(r1, d)
+            else:
+                r2 = max(r2, d)
+        if r2 < 0.5 * r1:
+            return True
+    return False
+
+
+@njit(parallel=True, cache=True)
+def _cells_kernel(P_cells: np.ndarray, t_trans: np.ndarray, t_seg: np.ndarray,
+                  n_seg: np.ndarray, tries: np.ndarray, x0: float, v0: float, method: int,
+                  rtol: float, atol: float, rate: float, m_max: int, tol: float,
+                  out_stats: np.ndarray, out_status: np.ndarray,
+                  out_period: np.ndarray) -> None:
+    for c in prange(P_cells.shape[0]):
+        P = P_cells[c].copy()
+        stats = np.empty(N_STATS)
+        st, per = _run_cell(P, x0, v0, t_trans[c], t_seg[c], n_seg[c], tries[c], method,
+                            rtol, atol, rate, m_max, tol, stats)
+        out_stats[c, :] = stats
+        out_status[c] = st
+        out_period[c] = per
+
+
+class _Threads:
+    """Temporarily set numba's thread count (None: leave it)."""
+
+    def __init__(self, n: int | None) -> None:
+        self.n = n
+        self.old = None
+
+    def __enter__(self) -> None:
+        if self.n is not None:
+            n = int(self.n)
+            if not 1 <= n <= numba.config.NUMBA_NUM_THREADS:
+                raise ValueError(
+                    f"n_threads must be in [1, {numba.config.NUMBA_NUM_THREADS}], got {n}")
+            self.old = numba.get_num_threads()
+            numba.set_num_threads(n)
+
+    def __exit__(self, *exc: object) -> None:
+        if self.old is not None:
+            numba.set_num_threads(self.old)
+
+
+def run_cells(P_cells: np.ndarray, t_transient: np.ndarray, t_segment: np.ndarray,
+              n_segment: np.ndarray, tries: np.ndarray, settings: SweepSettings,
+              method: int, n_threads: int | None = None
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Run independent cells in parallel: returns (stats[n, N_STATS], status[n], period[n]).
+
+    ``P_cells`` holds one parameter vector per row (layout ``params.P_*``). This is the
+    engine under :func:`regime_map`; it is public so that other scans (e.g. amplitude versus
+    eta) reuse the same measured quantities.
+    """
+    P_cells = np.ascontiguousarray(P_cells, dtype=np.float64)
+    n = P_cells.shape[0]
+    out_stats = np.empty((n, N_STATS))
+    out_status = np.empty(n, dtype=np.int64)
+    out_period = np.empty(n, dtype=np.int64)
+    if n == 0:
+        return out_stats, out_status, out_period
+    with _Threads(n_threads), numba.parallel_chunksize(1):
+        _cells_kernel(P_cells,
+                      np.ascontiguousarray(t_transient, dtype=np.float64),
+                      np.ascontiguousarray(t_segment, dtype=np.float64),
+                      np.ascontiguousarray(n_segment, dtype=np.int64),
+                      np.ascontiguousarray(tries, dtype=np.int64),
+                      float(settings.x0), float(settings.v0), int(method),
+                      float(settings.rtol), float(settings.atol),
+                      float(settings.max_event_rate), int(settings.m_max),
+                      float(settings.strobe_tol), out_stats, out_status, out_period)
+    return out_stats, out_status, out_period
+
+
+# ------------------------------------------------------------------------------------------
+@dataclass
+class RegimeMap:
+    """Labels and window statistics on a (u0, nu) grid; axis 0 is u0, axis 1 is nu."""
+
+    params: OscillatorParams
+    u0: np.ndarray
+    nu: np.ndarray
+    settings: SweepSettings
+    labels: np.ndarray  # int8 (n_u0, n_nu), Regime values, NOT_COMPUTED if not done
+    stats: np.ndarray  # float64 (n_u0, n_nu, N_STATS), layout ST_*
+    period: np.ndarray  # int16: response period in common forcing periods, 0 none/untested
+    status: np.ndarray  # int8: kernel status
+    done: np.ndarray  # bool
+    q: np.ndarray  # int16 (n_nu,): tested denominator of nu, 0 if untested
+    elapsed: float = 0.0  # compute time spent so far, seconds (all sessions)
+    meta: dict = field(default_factory=dict)
+    plan: CellPlan | None = None  # per-nu time spans used (checked when resuming)
+
+    # -- derived -----------------------------------------------------------------------
+    @property
+    def shape(self) -> tuple[int, int]:
+        return (self.u0.size, self.nu.size)
+
+    @property
+    def complete(self) -> bool:
+        return bool(self.done.all())
+
+    @property
+    def stick_fraction(self) -> np.ndarray:
+        d = self.stats[..., ST_DURATION]
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return np.where(d > 0, self.stats[..., ST_STICK_TIME] / np.where(d > 0, d, 1),
+                            np.nan)
+
+    @property
+    def n_stick(self) -> np.ndarray:
+        return self.stats[..., ST_N_STICK]
+
+    @property
+    def n_reversal(self) -> np.ndarray:
+        return self.stats[..., ST_N_REVERSAL]
+
+    @property
+    def v_max(self) -> np.ndarray:
+        return self.stats[..., ST_V_MAX]
+
+    @property
+    def v_min(self) -> np.ndarray:
+        return self.stats[..., ST_V_MIN]
+
+    @property
+    def x_amplitude(self) -> np.ndarray:
+        """Half the peak-to-peak displacement in the window."""
+        return 0.5 * (self.stats[..., ST_X_MAX] - self.stats[..., ST_X_MIN])
+
+    def counts(self) -> dict[str, int]:
+        """Number of computed cells per regime name."""
+        return {r.name: int(np.sum(self.labels == r)) for r in Regime}
+
+    # -- storage -----------------------------------------------------------------------
+    def metadata(self) -> dict:
+        return {
+            "format": FORMAT,
+            "version": FORMAT_VERSION,
+            "algorithm": int(self.meta.get("algorithm", ALGORITHM)),
+            "params": _params_key(self.params),
+            "settings": asdict(self.settings),
+            "stats_layout": list(STAT_NAMES),
+            "regimes": {r.name: int(r) for r in Regime},
+            "not_computed": NOT_COMPUTED,
+            "axes": ["u0", "nu"],
+            "elapsed_s": float(self.elapsed),
+            "n_done": int(self.done.sum()),
+            **{k: v for k, v in self.meta.items()
+           if k not in ("params", "settings", "algorithm")},
+        }
+
+    def save(self, path: str | os.PathLike) -> Path:
+        """Write atomically to ``path`` (``.npz``; arrays plus a JSON ``meta`` entry)."""
+        path = Path(path)
+        if path.suffix != ".npz":
+            path = path.with_name(path.name + ".npz")
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_name(path.name + f".tmp{os.getpid()}")
+        plan = {} if self.plan is None else {
+            f"plan_{f.name}": getattr(self.plan, f.name) for f in fields(CellPlan)}
+        with open(tmp, "wb") as fh:
+            np.savez(fh, u0=self.u0, nu=self.nu, labels=self.labels, stats=self.stats,
+                     period=self.period, status=self.status, done=self.done, q=self.q,
+                     meta=np.array(json.dumps(self.metadata(), sort_keys=True)), **plan)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+        return path
+
+    @classmethod
+    def load(cls, path: str | os.PathLike) -> RegimeMap:
+        """Read a map written by :meth:`save` (``ValueError`` if it is not one)."""
+        with np.load(Path(path), allow_pickle=False) as z:
+            try:
+                meta = json.loads(str(z["meta"][()]))
+            except KeyError as exc:
+                raise ValueError(f"{path} is not a fricenv regime map (no metadata)") from exc
+            if meta.get("format") != FORMAT or meta.get("version") != FORMAT_VERSION:
+                raise ValueError(f"{path}: unsupported format {meta.get('format')!r} "
+                                 f"version {meta.get('version')!r}")
+            arrays = {k: z[k] for k in ("u0", "nu", "labels", "stats", "period", "status",
+                                        "done", "q")}
+            names = [f"plan_{f.name}" for f in fields(CellPlan)]
+            plan = (CellPlan(*(z[n] for n in names)) if all(n in z.files for n in names)
+                    else None)
+        params = OscillatorParams(**meta["params"])
+        settings = SweepSettings(**meta["settings"])
+        extra = {k: v for k, v in meta.items()
+                 if k not in ("format", "version", "params", "settings", "stats_layout",
+                              "algorithm",
+                              "regimes", "not_computed", "axes", "elapsed_s", "n_done")}
+        extra["algorithm"] = int(meta.get("algorithm", 0))
+        return cls(params=params, settings=settings, elapsed=float(meta["elapsed_s"]),
+                   meta=extra, plan=plan, **arrays)
+
+
+def _params_key(params: OscillatorParams) -> dict:
+    """Parameters that define a map (the grid replaces u0, u1, u2 and nu)."""
+    d = params.to_dict()
+    d.update(u0=0.0, nu=1.0, u1=None, u2=None)
+    return d
+
+
+def _check_axis(name: str, a: object) -> np.ndarray:
+    try:
+        arr = np.asarray(a, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"{name} must be an array of real numbers") from exc
+    if arr.ndim == 0:
+        arr = arr.reshape(1)
+    if arr.ndim != 1:
+        raise ValueError(f"{name} must be 1-d, got shape {arr.shape}")
+    if arr.size == 0:
+        raise ValueError(f"{name} grid is empty")
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"{name} grid contains NaN or infinite values")
+    if np.any(arr < 0):
+        raise ValueError(f"{name} grid must be >= 0")
+    return arr
+
+
+def _check_overrides(overrides: dict) -> None:
+    known = {f.name for f in fields(SweepSettings)}
+    unknown = sorted(set(overrides) - known)
+    if unknown:
+        raise ValueError(f"unknown setting(s) {unknown}; expected some of {sorted(known)}")
+
+
+def _as_params(params: OscillatorParams | str) -> OscillatorParams:
+    if isinstance(params, OscillatorParams):
+        return params
+    if isinstance(params, str):
+        return OscillatorParams.preset(resolve_law(params))
+    raise ValueError(f"params must be OscillatorParams or a friction-law name, got {params!r}")
+
+
+def _empty_map(params: OscillatorParams, u0: np.ndarray, nu: np.ndarray,
+               settings: SweepSettings, q: np.ndarray, meta: dict) -> RegimeMap:
+    shape = (u0.size, nu.size)
+    return RegimeMap(
+        params=params, u0=u0, nu=nu, settings=settings,
+        labels=np.full(shape, NOT_COMPUTED, dtype=np.int8),
+        stats=np.full(shape + (N_STATS,), np.nan),
+        period=np.zeros(shape, dtype=np.int16),
+        status=np.zeros(shape, dtype=np.int8),
+        done=np.zeros(shape, dtype=bool),
+        q=q.astype(np.int16), meta={**meta, "algorithm": ALGORITHM},
+    )
+
+
+def regime_map(params: OscillatorParams | str, u0: object, nu: object, *,
+               settings: SweepSettings | None = None, path: str | os.PathLike | None = None,
+               resume: bool = True, chunk_size: int | None = None,
+               n_threads: int | None = None, progress: bool | None = None,
+               callback: Callable[[RegimeMap, int], None] | None = None,
+               meta: dict | None = None, **overrides: object) -> RegimeMap:
+    """Classify every cell of the ``u0 x nu`` grid (axis 0: u0, axis 1: nu).
+
+    ``params`` (or a friction-law name for the paper's defaults) fixes everything but the
+    grid; both tones get amplitude ``u0`` and the second tone frequency ``nu * eta``.
+    ``settings`` / keyword ``overrides`` set the transient, window and periodicity test
+    (:class:`SweepSettings`). With ``path`` the map is saved after every chunk and a run with
+    the same arguments resumes from the file (``resume=False`` starts over; a file made with
+    other arguments raises ``ValueError``). ``n_threads`` sets numba's thread count for the
+    call; ``progress`` shows a tqdm bar (default: when there are more than 2000 cells);
+    ``callback(map, n_new)`` is called after each chunk is stored. ``meta`` adds free-form
+    JSON-able entries to the metadata.
+    """
+    params = _as_params(params)
+    u0 = _check_axis("u0", u0)
+    nu = _check_axis("nu", nu)
+    _check_overrides(overrides)
+    if settings is None:
+        settings = SweepSettings(**overrides)  # type: ignore[arg-type]
+    elif overrides:
+        settings = SweepSettings(**{**asdict(settings), **overrides})  # type: ignore[arg-type]
+    method = settings.method_code(params)
+    if chunk_size is not None and (int(chunk_size) != chunk_size or chunk_size < 1):
+        raise ValueError(f"chunk_size must be a positive integer, got {chunk_size!r}")
+    plan = plan_cells(params, nu, settings)
+
+    rmap = None
+    if path is not None:
+        path = Path(path)
+        if path.suffix != ".npz":
+            path = path.with_name(path.name + ".npz")
+        if resume and path.exists():
+            rmap = RegimeMap.load(path)
+            same = (rmap.meta.get("algorithm") == ALGORITHM
+                    and _params_key(rmap.params) == _params_key(params)
+                    and rmap.settings == settings
+                    and np.array_equal(rmap.u0, u0) and np.array_equal(rmap.nu, nu)
+                    and rmap.plan is not None
+                    and all(np.array_equal(getattr(rmap.plan, f.name), getattr(plan, f.name))
+                            for f in fields(CellPlan)))
+            if not same:
+                raise ValueError(f"{path} holds a map made with other parameters, grid or "
+                                 "settings; remove it or pass resume=False")
+    if rmap is None:
+        rmap = _empty_map(params, u0, nu, settings, plan.q, meta or {})
+        rmap.plan = plan
+    elif meta:
+        rmap.meta.update(meta)
+
+    todo = np.flatnonzero(~rmap.done.ravel())
+    n_nu = nu.size
+    if chunk_size is None:
+        chunk_size = int(min(2048, max(64, todo.size // 100)))
+    show = (todo.size > 2000) if progress is None else bool(progress)
+    base = params.to_array()
+    bar = None
+    if show:
+        from tqdm.auto import tqdm
+
+        bar = tqdm(total=rmap.done.size, initial=int(rmap.done.sum()), unit="cell",
+                   desc=f"regime map eta={params.eta:.4g} {params.law}", smoothing=0.1)
+    try:
+        for start in range(0, todo.size, chunk_size):
+            idx = todo[start:start + chunk_size]
+            iu, jn = np.divmod(idx, n_nu)
+            P = np.repeat(base[None, :], idx.size, axis=0)
+            P[:, P_U1] = u0[iu]
+            P[:, P_U2] = u0[iu]
+            P[:, P_W2] = plan.nu_exact[jn] * P[:, P_W1]
+            t0 = time.perf_counter()
+            st, status, period = run_cells(P, plan.t_transient[jn], plan.t_segment[jn],
+                                           plan.n_segment[jn], plan.tries[jn], settings,
+                                           method, n_threads)
+            rmap.elapsed += time.perf_counter() - t0
+            rmap.stats[iu, jn] = st
+            rmap.status[iu, jn] = status
+            rmap.period[iu, jn] = period
+            rmap.labels[iu, jn] = classify(st[:, ST_N_STICK], st[:, ST_STICK_TIME],
+                                           st[:, ST_N_REVERSAL], nu[jn], plan.q[jn], period,
+                                           status)
+            rmap.done[iu, jn] = True
+            if path is not None:
+                rmap.save(path)
+            if bar is not None:
+                bar.update(idx.size)
+            if callback is not None:
+                callback(rmap, int(idx.size))
+    finally:
+        if bar is not None:
+            bar.close()
+    if path is not None and todo.size == 0 and not path.exists():
+        rmap.save(path)
+    return rmap
+
+
+def cell_statistics(params: list[OscillatorParams], settings: SweepSettings | None = None,
+                    n_threads: int | None = None, **overrides: object
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Measure arbitrary parameter sets the way a map cell is measured.
+
+    Returns ``(labels, stats, period, status)`` with one row per entry of ``params``; each
+    entry's own ``eta``, ``nu`` and amplitudes are used. All entries must share one friction
+    law family for ``method="auto"`` (Coulomb or not); mixed lists run ``"event"``.
+    """
+    if not params:
+        raise ValueError("params is empty")
+    _check_overrides(overrides)
+    if settings is None:
+        settings = SweepSettings(**overrides)  # type: ignore[arg-type]
+    elif overrides:
+        settings = SweepSettings(**{**asdict(settings), **overrides})  # type: ignore[arg-type]
+    coul = {p.is_coulomb for p in params}
+    if settings.method == "auto":
+        method = METHOD_EXACT if coul == {True} else METHOD_EVENT
+    else:
+        method = settings.method_code(params[0]) if coul == {True} else METHOD_EVENT
+    rows, tt, ts, ns, qs, nus, tr = [], [], [], [], [], [], []
+    for p in params:
+        plan = plan_cells(p, np.array([p.nu]), settings)
+        P = p.to_array()
+        P[P_W2] = plan.nu_exact[0] * P[P_W1]
+        rows.append(P)
+        tt.append(plan.t_transient[0])
+        ts.append(plan.t_segment[0])
+        ns.append(plan.n_segment[0])
+        qs.append(plan.q[0])
+        tr.append(plan.tries[0])
+        nus.append(p.nu)
+    qs_a = np.array(qs)
+    st, status, period = run_cells(np.array(rows), np.array(tt), np.array(ts), np.array(ns),
+                                   np.array(tr), settings, method, n_threads)
+    labels = classify(st[:, ST_N_STICK], st[:, ST_STICK_TIME], st[:, ST_N_REVERSAL],
+                      np.array(nus), qs_a, period, status)
+    return np.asarray(labels), st, period, status

@@ -1,0 +1,184 @@
+#!/usr/bin/env python
+"""Benchmark of the regime-map sweep (issue "Open-loop mode"); all ratios from one run.
+
+1. Per-cell throughput against an event-driven SciPy ``solve_ivp`` loop
+   (``tests/scipy_reference.py``, written independently of the kernels) on the same cells
+   (same transient + window), with the accuracy of both measured against a tight reference.
+2. Wall time of one full 200 x 200 map panel (default: Fig. 8a, Coulomb, eta = 1/9) and,
+   with ``--all-panels``, of all 12 panels of Figs. 8-10.
+3. The regime labels of a Stribeck panel at the sweep's default tolerance against rtol 1e-9.
+
+Usage: ``python scripts/bench_sweep.py [--threads N] [--all-panels] [--json PATH]``.
+Timings depend on the machine's load; never assert on them in tests.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+import numba
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "tests"))  # the SciPy reference lives with the tests
+
+from fricenv import core  # noqa: E402
+from fricenv.layout import METHOD_EVENT, METHOD_EXACT, N_STATE, N_STATS, S_V, S_X  # noqa: E402
+from fricenv.params import P_W2, OscillatorParams  # noqa: E402
+from fricenv.reproduce import FULL, MAP_FIGURES, eta_name, map_grid  # noqa: E402
+from fricenv.sweep import SweepSettings, plan_cells, regime_map, run_cells  # noqa: E402
+
+#: Cells of the comparison: (nu, u0) at the paper's defaults, one per regime family.
+CELLS = [(0.5, 0.3), (0.5, 2.0), (1.5, 2.0), (0.5, 30.0), (2.0, 1.0), (0.25, 5.0)]
+
+
+def _cell_setup(law: str, settings: SweepSettings) -> tuple[list, np.ndarray, np.ndarray]:
+    params, spans, rows = [], [], []
+    for nu, u0 in CELLS:
+        p = OscillatorParams.preset(law, nu=nu, u0=u0)
+        plan = plan_cells(p, np.array([nu]), settings)
+        P = p.to_array()
+        P[P_W2] = plan.nu_exact[0] * p.eta
+        params.append(p)
+        spans.append(plan.t_transient[0] + plan.n_segment[0] * plan.t_segment[0])
+        rows.append(P)
+    return params, np.array(spans), np.array(rows)
+
+
+def _final_state(P: np.ndarray, t_end: float, method: int, rtol: float, atol: float
+                 ) -> tuple[float, float]:
+    S = np.empty(N_STATE)
+    st = np.empty(N_STATS)
+    core.initial_state(P, 0.0, 0.0, S)
+    core.reset_stats(st)
+    core.advance(P, S, t_end, st, method, rtol, atol, 10**8)
+    return S[S_X], S[S_V]
+
+
+def _scipy_final(p: OscillatorParams, t_end: float, rtol: float, atol: float,
+                 max_step: float) -> tuple[tuple[float, float], float]:
+    from scipy_reference import reference_run
+
+    t0 = time.perf_counter()
+    run = reference_run(p, t_end, rtol=rtol, atol=atol, max_step=max_step)
+    el = time.perf_counter() - t0
+    x, v, _ = run.evaluate(np.array([t_end]))
+    return (float(x[0]), float(v[0])), el
+
+
+def compare_with_scipy(law: str, ours_rtol: float, scipy_rtols: list[float], reps: int,
+                       n_threads: int | None) -> dict:
+    """Per-cell time of the sweep kernel and of SciPy, and both errors at the run's end."""
+    settings = SweepSettings(rtol=ours_rtol, atol=ours_rtol * 1e-2)
+    method = METHOD_EXACT if law == "coulomb" else METHOD_EVENT
+    params, spans, rows = _cell_setup(law, settings)
+    # tight reference (SciPy DOP853, rtol = atol = 1e-12, steps <= 0.05)
+    ref = [_scipy_final(p, T, 1e-12, 1e-12, 0.05)[0] for p, T in zip(params, spans, strict=True)]
+    ours = [_final_state(P, T, method, settings.rtol, settings.atol)
+            for P, T in zip(rows, spans, strict=True)]
+    err_ours = max(max(abs(a[0] - b[0]), abs(a[1] - b[1])) for a, b in zip(ours, ref,
+                                                                          strict=True))
+    # our throughput: the same cells through the parallel sweep kernel, many times over
+    P_all = np.repeat(rows, reps, axis=0)
+    plans = [plan_cells(p, np.array([p.nu]), settings) for p in params]
+    tt = np.repeat([pl.t_transient[0] for pl in plans], reps)
+    ts = np.repeat([pl.t_segment[0] for pl in plans], reps)
+    ns = np.repeat([pl.n_segment[0] for pl in plans], reps)
+    tr = np.repeat([pl.tries[0] for pl in plans], reps)
+    run_cells(P_all[:len(CELLS)], tt[:len(CELLS)], ts[:len(CELLS)], ns[:len(CELLS)],
+              tr[:len(CELLS)], settings, method, 1)  # compile
+    res = {"law": law, "cells": CELLS, "span": spans.tolist(), "ours_rtol": ours_rtol,
+           "ours_max_error": err_ours}
+    for n in sorted({1, n_threads or numba.config.NUMBA_NUM_THREADS}):
+        t0 = time.perf_counter()
+        run_cells(P_all, tt, ts, ns, tr, settings, method, n)
+        res[f"ours_s_per_cell_{n}threads"] = (time.perf_counter() - t0) / P_all.shape[0]
+    for rt in scipy_rtols:
+        tot, err = 0.0, 0.0
+        for p, T, r in zip(params, spans, ref, strict=True):
+            (x, v), el = _scipy_final(p, T, rt, rt * 1e-2, 0.25)
+            tot += el
+            err = max(err, abs(x - r[0]), abs(v - r[1]))
+        res[f"scipy_rtol{rt:g}"] = {"s_per_cell": tot / len(CELLS), "max_error": err}
+    return res
+
+
+def time_panel(law: str, eta: float, u_range: tuple[float, float], n_threads: int | None
+               ) -> tuple[float, dict]:
+    u0, nu = map_grid(u_range, FULL)
+    p = OscillatorParams.preset(law, eta=eta)
+    t0 = time.perf_counter()
+    m = regime_map(p, u0, nu, n_threads=n_threads, progress=True)
+    return time.perf_counter() - t0, m.counts()
+
+
+def label_agreement(n_threads: int | None) -> dict:
+    u0 = np.geomspace(0.1, 1000, 24)
+    nu = np.linspace(0.1, 4.0, 40)
+    p = OscillatorParams.preset("stribeck", eta=0.6)
+    default = SweepSettings()
+    a = regime_map(p, u0, nu, settings=default, n_threads=n_threads, progress=False)
+    b = regime_map(p, u0, nu, rtol=1e-9, atol=1e-11, n_threads=n_threads, progress=False)
+    return {"cells": int(a.labels.size), "differ": int(np.sum(a.labels != b.labels)),
+            "default_rtol": default.rtol, "elapsed_default": a.elapsed,
+            "elapsed_1e-9": b.elapsed}
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--threads", type=int, default=None)
+    ap.add_argument("--reps", type=int, default=300, help="replicas of each cell (ours)")
+    ap.add_argument("--all-panels", action="store_true", help="time all 12 panels")
+    ap.add_argument("--skip-panel", action="store_true", help="skip the 200x200 panel")
+    ap.add_argument("--json", type=Path, default=Path("out/bench_sweep.json"))
+    a = ap.parse_args(argv)
+    out: dict = {"threads": a.threads or numba.config.NUMBA_NUM_THREADS}
+
+    print("== per-cell throughput vs SciPy solve_ivp (DOP853, event-driven) ==", flush=True)
+    for law, ours_rtol, sc in (("coulomb", 1e-10, [1e-10, 1e-8]),
+                               ("stribeck", 1e-10, [1e-8, 1e-10])):
+        r = compare_with_scipy(law, ours_rtol, sc, a.reps, a.threads)
+        out[f"cells_{law}"] = r
+        keys = [k for k in r if k.startswith("ours_s_per_cell")]
+        for k in keys:
+            print(f"{law:8s} fricenv ({k[16:]}): {r[k] * 1e3:8.3f} ms/cell, "
+                  f"max end-state error {r['ours_max_error']:.1e}")
+        for rt in sc:
+            s = r[f"scipy_rtol{rt:g}"]
+            ratios = ", ".join(f"{s['s_per_cell'] / r[k]:.0f}x ({k[16:]})" for k in keys)
+            print(f"{law:8s} SciPy rtol={rt:g}: {s['s_per_cell'] * 1e3:8.1f} ms/cell, "
+                  f"max error {s['max_error']:.1e} -> fricenv is {ratios} faster", flush=True)
+
+    print("== regime labels: default tolerance vs rtol 1e-9 (Stribeck, eta = 3/5) ==")
+    out["label_agreement"] = la = label_agreement(a.threads)
+    print(f"{la['differ']} of {la['cells']} labels differ (rtol {la['default_rtol']:g}: "
+          f"{la['elapsed_default']:.1f} s, 1e-9: {la['elapsed_1e-9']:.1f} s)", flush=True)
+
+    panels = []
+    if a.all_panels:
+        panels = [(f, law, eta, r) for f, (law, ps) in MAP_FIGURES.items() for eta, r in ps]
+    elif not a.skip_panel:
+        law, ps = MAP_FIGURES[8]
+        panels = [(8, law, ps[0][0], ps[0][1])]
+    if panels:
+        print("== 200 x 200 panels (wall time) ==")
+        total = 0.0
+        for fig, law, eta, rng in panels:
+            el, counts = time_panel(law, eta, rng, a.threads)
+            total += el
+            out[f"panel_fig{fig}_eta{eta_name(eta)}"] = {"seconds": el, "counts": counts}
+            print(f"Fig. {fig} {law:8s} eta={eta_name(eta):5s}: {el:6.1f} s", flush=True)
+        out["panels_total_s"] = total
+        print(f"total {total:.1f} s for {len(panels)} panel(s)")
+    a.json.parent.mkdir(parents=True, exist_ok=True)
+    a.json.write_text(json.dumps(out, indent=1, default=float))
+    print(f"wrote {a.json}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,131 @@
+"""Figures are written, with labelled axes and a legend entry for every regime."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from matplotlib.figure import Figure
+
+from fricenv import plotting
+from fricenv.params import OscillatorParams
+from fricenv.regimes import Regime
+from fricenv.sweep import regime_map
+
+
+def _check_written(fig: Figure, path: Path) -> None:
+    for ax in fig.axes:
+        if ax.get_visible() and ax.has_data():
+            assert ax.get_xlabel().strip(), "x axis without label"
+            assert ax.get_ylabel().strip(), "y axis without label"
+    out = plotting.save(fig, path)
+    assert out.exists() and out.stat().st_size > 5_000
+    with open(out, "rb") as fh:
+        assert fh.read(8) == b"\x89PNG\r\n\x1a\n"
+
+
+def test_core_does_not_import_plotting() -> None:
+    import subprocess
+
+    code = ("import sys, fricenv, fricenv.sweep, fricenv.regimes, fricenv.core; "
+            "print('matplotlib' in sys.modules)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True)
+    assert out.stdout.strip() == "False"
+
+
+def test_friction_laws_figure(tmp_path) -> None:
+    fig = plotting.friction_laws_figure()
+    assert len(fig.axes) == 3
+    _check_written(fig, tmp_path / "fig2.png")
+
+
+def test_amplitude_figure(tmp_path) -> None:
+    from fricenv.reproduce import linear_amplitude
+
+    eta = np.linspace(0.1, 3, 50)
+    pan = dict(lam=0.5, nu=2.5, eta=eta, curves={0.1: linear_amplitude(eta, 2.5, 0.5, 0.1)},
+               sim={0.1: (eta[::10], linear_amplitude(eta[::10], 2.5, 0.5, 0.1),
+                          np.arange(5) > 2)})
+    fig = plotting.amplitude_figure([pan, pan])
+    _check_written(fig, tmp_path / "fig3.png")
+
+
+def test_linear_amplitude_matches_closed_form() -> None:
+    from fricenv.reproduce import linear_amplitude
+
+    eta = np.array([0.3, 0.9, 1.7])
+    a1 = 0.2 / np.sqrt((1 - eta**2) ** 2 + (0.5 * eta) ** 2)
+    a2 = 0.2 / np.sqrt((1 - (np.sqrt(2) * eta) ** 2) ** 2 + (0.5 * np.sqrt(2) * eta) ** 2)
+    # incommensurate: the envelope maximum A1 + A2
+    np.testing.assert_allclose(linear_amplitude(eta, np.sqrt(2), 0.5, 0.2), a1 + a2)
+    # nu = 1: one tone of amplitude 2 u0
+    np.testing.assert_allclose(linear_amplitude(eta, 1.0, 0.5, 0.2), 2 * a1, rtol=1e-4)
+
+
+def test_time_history_figure(tmp_path) -> None:
+    t = np.linspace(0, 50, 501)
+    run = dict(t=t, x=np.sin(t), v=np.cos(t), mode=np.where(np.cos(t) > 0.9, 0, -1), V=1.0,
+               title="test")
+    fig = plotting.time_history_figure([run, run], suptitle="Fig. x")
+    assert len(fig.axes) == 4
+    _check_written(fig, tmp_path / "fig4.png")
+
+
+@pytest.fixture(scope="module")
+def small_maps() -> list:
+    nu = np.linspace(0.1, 4.0, 40)  # integers on the grid
+    u0 = np.geomspace(0.2, 40, 12)
+    return [regime_map(OscillatorParams.preset("coulomb", eta=eta), u0, nu, progress=False)
+            for eta in (0.6, 7 / 3)]
+
+
+def test_regime_maps_figure(tmp_path, small_maps: list) -> None:
+    fig = plotting.regime_maps_figure(small_maps, ["(a)", "(b)"], suptitle="maps")
+    legend_texts = {t.get_text() for lg in fig.legends for t in lg.get_texts()}
+    for r in Regime:
+        assert plotting.REGIME_SHORT[r] in legend_texts
+    axes = [ax for ax in fig.axes if ax.get_visible()]
+    assert len(axes) == 2
+    assert all(ax.get_xscale() == "log" for ax in axes)  # geometric u0 grid
+    assert "u_0" in axes[0].get_xlabel() and "ν" in axes[0].get_ylabel()
+    # both regime boundaries are drawn (solid: stick begins, dashed: last stick)
+    for ax in axes:
+        styles = {ln.get_linestyle() for ln in ax.lines if ln.get_color() == "k"}
+        assert {"-", "--"} <= styles
+    _check_written(fig, tmp_path / "fig8.png")
+
+
+def test_partial_map_can_be_drawn(tmp_path, small_maps: list) -> None:
+    m = small_maps[0]
+    m.labels = m.labels.copy()
+    m.done = m.done.copy()
+    m.labels[5:] = -1
+    m.done[5:] = False
+    fig = plotting.regime_maps_figure([m])
+    _check_written(fig, tmp_path / "partial.png")
+
+
+def test_reproduce_cli_small_parts(tmp_path) -> None:
+    from fricenv.reproduce import main
+
+    assert main(["--only", "2,4-7", "--out", str(tmp_path), "--no-progress"]) == 0
+    for name in ("fig2_friction_laws.png", "fig4_time_history.png", "fig7_time_history.png",
+                 "report.md"):
+        assert (tmp_path / name).exists(), name
+    text = (tmp_path / "report.md").read_text()
+    assert "Fig. 7" in text and "PERIODIC_OSCILLATION" in text
+    with pytest.raises(SystemExit):
+        main(["--only", "11"])
+
+
+@pytest.mark.slow
+def test_reproduce_quick_end_to_end(tmp_path) -> None:
+    from fricenv.reproduce import main
+
+    assert main(["--quick", "--out", str(tmp_path), "--no-progress"]) == 0
+    for k in (2, 3, 8, 9, 10):
+        assert list(tmp_path.glob(f"fig{k}_*.png")), k
+    assert "| verdict |" in (tmp_path / "report.md").read_text()

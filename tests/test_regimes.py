@@ -1,0 +1,167 @@
+"""Regime classifier: constructed statistics, stroboscopic periodicity, and real runs."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from fricenv.layout import (
+    N_STATS,
+    ST_DURATION,
+    ST_N_REVERSAL,
+    ST_N_STICK,
+    ST_STICK_TIME,
+    ST_V_MAX,
+    ST_V_MIN,
+    STATUS_EVENT_CAP,
+    STATUS_NONFINITE,
+    STATUS_OK,
+)
+from fricenv.params import OscillatorParams
+from fricenv.regimes import (
+    Regime,
+    classify,
+    classify_stats,
+    exact_rational,
+    rational_denominator,
+    strobe_period,
+    summarize,
+)
+
+
+def _stats(n_stick: int = 0, stick_time: float = 0.0, n_rev: int = 0,
+           v: tuple[float, float] = (0.2, 0.8)) -> np.ndarray:
+    s = np.zeros(N_STATS)
+    s[ST_DURATION] = 100.0
+    s[ST_N_STICK] = n_stick
+    s[ST_STICK_TIME] = stick_time
+    s[ST_N_REVERSAL] = n_rev
+    s[ST_V_MIN], s[ST_V_MAX] = v
+    return s
+
+
+# -- constructed statistics ---------------------------------------------------------------
+def test_no_contact_is_wm1() -> None:
+    assert classify_stats(_stats(), nu=0.1) == Regime.WM1
+    assert classify_stats(_stats(v=(1.2, 3.0)), nu=2.3) == Regime.WM1  # slip above V
+
+
+def test_reversals_without_stick_is_wm2() -> None:
+    assert classify_stats(_stats(n_rev=7, v=(-3.0, 5.0)), nu=0.4) == Regime.WM2
+    assert classify_stats(_stats(n_rev=1, v=(-3.0, 5.0)), nu=3.7) == Regime.WM2
+
+
+@pytest.mark.parametrize(("nu", "expected"), [(0.1, Regime.SSM1), (1.0, Regime.SSM1),
+                                              (1.0001, Regime.SSM2), (3.5, Regime.SSM2)])
+def test_stick_slip_split_at_nu_one(nu: float, expected: Regime) -> None:
+    assert classify_stats(_stats(n_stick=3, stick_time=12.0, n_rev=2), nu=nu) == expected
+
+
+def test_stick_counts_even_without_a_new_stick_phase() -> None:
+    # the window may start inside a stick phase that lasts all of it
+    assert classify_stats(_stats(n_stick=0, stick_time=100.0), nu=0.5) == Regime.SSM1
+
+
+def test_periodic_only_for_integer_nu() -> None:
+    stick = _stats(n_stick=2, stick_time=5.0)
+    free = _stats()
+    assert classify_stats(stick, nu=2.0, q=1, period=1) == Regime.PERIODIC_STICK_SLIP
+    assert classify_stats(stick, nu=2.0, q=1, period=3) == Regime.PERIODIC_STICK_SLIP
+    assert classify_stats(free, nu=1.0, q=1, period=1) == Regime.PERIODIC_OSCILLATION
+    assert classify_stats(_stats(n_rev=4), nu=3.0, q=1, period=2) == \
+        Regime.PERIODIC_OSCILLATION
+    # not locked: modulated labels even at integer nu
+    assert classify_stats(stick, nu=2.0, q=1, period=0) == Regime.SSM2
+    # rational but not integer: the forcing is a beat, so no periodic label
+    assert classify_stats(stick, nu=0.5, q=2, period=1) == Regime.SSM1
+    assert classify_stats(free, nu=1.5, q=2, period=1) == Regime.WM1
+
+
+def test_failed_run_is_unresolved() -> None:
+    for status in (STATUS_EVENT_CAP, STATUS_NONFINITE):
+        assert classify_stats(_stats(n_stick=2, stick_time=1.0), 0.3, status=status) == \
+            Regime.UNRESOLVED
+
+
+def test_classify_broadcasts() -> None:
+    stats = np.stack([_stats(), _stats(n_rev=3), _stats(n_stick=1, stick_time=1.0),
+                      _stats(n_stick=1, stick_time=1.0)])
+    nu = np.array([0.5, 0.5, 0.5, 2.5])
+    out = classify_stats(stats, nu, status=np.array([STATUS_OK] * 4))
+    assert out.dtype == np.int8
+    assert list(out) == [Regime.WM1, Regime.WM2, Regime.SSM1, Regime.SSM2]
+    grid = classify(np.zeros((3, 4)), 0.0, np.ones((3, 4)), nu[None, :])
+    assert grid.shape == (3, 4) and np.all(grid == Regime.WM2)
+
+
+def test_bad_inputs() -> None:
+    with pytest.raises(ValueError):
+        classify_stats(np.zeros(3), 0.5)
+    with pytest.raises(ValueError):
+        classify_stats(_stats(), np.nan)
+    with pytest.raises(ValueError):
+        rational_denominator(float("nan"))
+    with pytest.raises(ValueError):
+        strobe_period(np.zeros(4), np.zeros(5))
+
+
+def test_summary() -> None:
+    d = summarize(_stats(n_stick=2, stick_time=25.0, n_rev=1, v=(-1.0, 2.0)))
+    assert d["stick_fraction"] == pytest.approx(0.25)
+    assert (d["n_stick"], d["n_reversal"], d["v_min"], d["v_max"]) == (2, 1, -1.0, 2.0)
+
+
+# -- rational frequency ratios and stroboscopic periods -----------------------------------
+def test_rational_denominator() -> None:
+    assert rational_denominator(0.0) == 1
+    assert rational_denominator(3.0) == 1
+    assert rational_denominator(0.1 * 3 * 10 / 2) == 2  # 1.5 with rounding noise
+    assert rational_denominator(0.75) == 4
+    assert rational_denominator(0.1) == 0  # denominator 10 > q_max = 4
+    assert rational_denominator(0.1, q_max=10) == 10
+    assert rational_denominator(np.sqrt(2.0)) == 0
+    assert exact_rational(1.4999999999, 2) == 1.5
+    assert exact_rational(0.123, 0) == 0.123
+
+
+def test_strobe_period_of_constructed_sequences() -> None:
+    k = np.arange(12)
+    assert strobe_period(np.full(12, 2.5), np.full(12, 1.0)) == 1
+    two = np.where(k % 2 == 0, 1.0, -1.0)
+    assert strobe_period(two, 0.5 * two) == 2
+    three = np.array([0.0, 1.0, 3.0] * 4)
+    assert strobe_period(three, three) == 3
+    # quasi-periodic (irrational rotation): no period up to m_max
+    qp = np.cos(2 * np.pi * np.sqrt(2) * k)
+    assert strobe_period(qp, np.sin(2 * np.pi * np.sqrt(2) * k)) == 0
+    # within / beyond the tolerance (relative to max(1, |x|, |v|))
+    noisy = 1.0 + 1e-8 * np.sin(k)
+    assert strobe_period(noisy, noisy) == 1
+    assert strobe_period(noisy, noisy, tol=1e-10) == 0
+    # a decaying transient is not periodic
+    assert strobe_period(np.exp(-k), np.exp(-k)) == 0
+    # a record too short to see a period twice is never called periodic
+    assert strobe_period(np.array([1.0, 2.0, 1.0]), np.array([1.0, 2.0, 1.0])) == 0
+    assert strobe_period(three, three, m_max=2) == 0
+
+
+# -- real runs through the kernel ---------------------------------------------------------
+def test_classifier_on_simulated_cases() -> None:
+    from fricenv.sweep import cell_statistics
+
+    cases = [
+        (dict(nu=0.1, u0=0.2), Regime.WM1),  # Fig. 4a: far from v = V
+        (dict(nu=0.1, u0=2.0), Regime.SSM1),  # stick phases (MODEL.md: u0 = 2...8)
+        (dict(nu=1.15, u0=0.7), Regime.SSM2),  # Fig. 6 as parametrised: sticks
+        (dict(nu=0.1, u0=30.0), Regime.WM2),  # only reversals (MODEL.md: u0 >= 16)
+        (dict(nu=1.0, u0=1.65, eta=0.2), Regime.PERIODIC_OSCILLATION),  # Fig. 7
+        (dict(nu=2.0, u0=0.1), Regime.PERIODIC_OSCILLATION),  # pure slip, locked
+    ]
+    params = [OscillatorParams.preset("coulomb", **kw) for kw, _ in cases]
+    labels, stats, period, status = cell_statistics(params)
+    assert np.all(status == STATUS_OK)
+    for (kw, want), got, st in zip(cases, labels, stats, strict=True):
+        assert Regime(int(got)) == want, (kw, summarize(st))
+    # Fig. 7: velocity stays below the belt speed (MODEL.md: amplitude ~0.68)
+    assert stats[4, ST_V_MAX] < 1.0
+    assert period[4] == 1 and period[5] == 1

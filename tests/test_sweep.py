@@ -1,0 +1,221 @@
+"""Regime-map sweeps: determinism across chunking and threads, resume, storage, bad input."""
+
+from __future__ import annotations
+
+import json
+
+import numba
+import numpy as np
+import pytest
+
+from fricenv.layout import N_STATS, STATUS_OK
+from fricenv.params import OscillatorParams
+from fricenv.regimes import Regime
+from fricenv.sweep import (
+    NOT_COMPUTED,
+    RegimeMap,
+    SweepSettings,
+    cell_statistics,
+    modulation_period,
+    plan_cells,
+    regime_map,
+)
+
+PARAMS = OscillatorParams.preset("coulomb")  # eta = 3/5
+U0 = np.array([0.3, 1.5, 4.0, 30.0])
+NU = np.array([0.25, 0.5, 1.0, 1.3, 2.0])
+
+
+def _same(a: RegimeMap, b: RegimeMap) -> None:
+    for name in ("labels", "stats", "period", "status", "done", "q"):
+        np.testing.assert_array_equal(getattr(a, name), getattr(b, name), err_msg=name)
+
+
+@pytest.fixture(scope="module")
+def reference() -> RegimeMap:
+    return regime_map(PARAMS, U0, NU, progress=False)
+
+
+def test_map_contents(reference: RegimeMap) -> None:
+    m = reference
+    assert m.labels.shape == (4, 5) and m.stats.shape == (4, 5, N_STATS)
+    assert m.complete and np.all(m.status == STATUS_OK)
+    assert np.all(m.labels != NOT_COMPUTED)
+    # the u0 pattern of MODEL.md: no contact -> stick phases -> reversals only
+    assert m.labels[0, 0] == Regime.WM1 and m.labels[0, 3] == Regime.WM1
+    assert m.labels[2, 0] == Regime.SSM1 and m.labels[2, 3] == Regime.SSM2
+    assert m.labels[3, 0] == Regime.WM2
+    # integer nu gets the periodic labels, with stick inside the band
+    assert m.labels[0, 2] == Regime.PERIODIC_OSCILLATION
+    assert m.labels[2, 2] == Regime.PERIODIC_STICK_SLIP
+    assert list(m.q) == [4, 2, 1, 0, 1]
+    # the window covers whole common periods of the forcing when periodicity is tested
+    dur = m.stats[0, :, 0]
+    t1 = 2 * np.pi / PARAMS.eta
+    for j in (0, 1, 2, 4):
+        k = dur[j] / (m.q[j] * t1)
+        assert k == pytest.approx(round(k), rel=1e-9) and round(k) >= 12
+
+
+def test_cells_equal_single_runs(reference: RegimeMap) -> None:
+    ps = [PARAMS.replace(u0=float(U0[i]), nu=float(NU[j])) for i in (1, 2) for j in (0, 3)]
+    labels, stats, period, status = cell_statistics(ps)
+    got = reference.labels[np.ix_([1, 2], [0, 3])].ravel()
+    np.testing.assert_array_equal(labels, got)
+    np.testing.assert_array_equal(stats, reference.stats[np.ix_([1, 2], [0, 3])].reshape(4, -1))
+
+
+@pytest.mark.parametrize("chunk_size", [1, 3, 7])
+def test_identical_for_any_chunking(reference: RegimeMap, chunk_size: int) -> None:
+    _same(reference, regime_map(PARAMS, U0, NU, chunk_size=chunk_size, progress=False))
+
+
+def test_identical_for_any_thread_count(reference: RegimeMap) -> None:
+    before = numba.get_num_threads()
+    for n in range(1, numba.config.NUMBA_NUM_THREADS + 1):
+        _same(reference, regime_map(PARAMS, U0, NU, n_threads=n, chunk_size=5,
+                                    progress=False))
+    assert numba.get_num_threads() == before  # restored
+
+
+def test_identical_for_reordered_grid(reference: RegimeMap) -> None:
+    m = regime_map(PARAMS, U0[::-1], NU[::-1], progress=False)
+    np.testing.assert_array_equal(m.labels[::-1, ::-1], reference.labels)
+    np.testing.assert_array_equal(m.stats[::-1, ::-1], reference.stats)
+
+
+class _Interrupt(Exception):
+    pass
+
+
+def test_resume_after_interrupt(tmp_path, reference: RegimeMap) -> None:
+    path = tmp_path / "map.npz"
+    seen: list[int] = []
+
+    def stop_after_two(m: RegimeMap, n_new: int) -> None:
+        seen.append(n_new)
+        if len(seen) == 2:
+            raise _Interrupt
+
+    with pytest.raises(_Interrupt):
+        regime_map(PARAMS, U0, NU, path=path, chunk_size=3, callback=stop_after_two,
+                   progress=False)
+    part = RegimeMap.load(path)
+    assert part.done.sum() == 6 and not part.complete
+    np.testing.assert_array_equal(part.labels[part.done], reference.labels[part.done])
+    assert np.all(part.labels[~part.done] == NOT_COMPUTED)
+
+    new: list[int] = []
+    full = regime_map(PARAMS, U0, NU, path=path, chunk_size=3,
+                      callback=lambda m, n: new.append(n), progress=False)
+    assert sum(new) == U0.size * NU.size - 6  # finished cells are not recomputed
+    _same(reference, full)
+    _same(reference, RegimeMap.load(path))
+    # a finished map resumes without any work
+    again: list[int] = []
+    regime_map(PARAMS, U0, NU, path=path, callback=lambda m, n: again.append(n),
+               progress=False)
+    assert again == []
+
+
+def test_resume_refuses_other_arguments(tmp_path) -> None:
+    path = tmp_path / "m.npz"
+    regime_map(PARAMS, U0[:2], NU[:2], path=path, progress=False)
+    with pytest.raises(ValueError, match="other parameters"):
+        regime_map(PARAMS.replace(eta=0.7), U0[:2], NU[:2], path=path, progress=False)
+    with pytest.raises(ValueError, match="other parameters"):
+        regime_map(PARAMS, U0[:2], NU[:2], path=path, progress=False, window_min=150.0)
+    with pytest.raises(ValueError, match="other parameters"):
+        regime_map(PARAMS, U0[:3], NU[:2], path=path, progress=False)
+    m = regime_map(PARAMS, U0[:3], NU[:2], path=path, resume=False, progress=False)
+    assert m.complete and RegimeMap.load(path).labels.shape == (3, 2)
+
+
+def test_storage_roundtrip_and_metadata(tmp_path, reference: RegimeMap) -> None:
+    path = reference.save(tmp_path / "r")  # suffix added
+    assert path.name == "r.npz"
+    back = RegimeMap.load(path)
+    _same(reference, back)
+    assert back.params == PARAMS.replace(u0=0.0)  # the grid replaces u0 and nu
+    assert back.settings == reference.settings
+    np.testing.assert_array_equal(back.u0, U0)
+    np.testing.assert_array_equal(back.plan.t_transient, reference.plan.t_transient)
+    np.testing.assert_array_equal(back.plan.tries, [1, 1, 4, 0, 4])  # nu = 1/4, 1/2, 1, ., 2
+    with np.load(path) as z:
+        meta = json.loads(str(z["meta"][()]))
+    assert meta["format"] == "fricenv.regime_map"
+    assert meta["regimes"]["SSM2"] == int(Regime.SSM2)
+    assert meta["settings"]["x0"] == 0.0 and meta["params"]["eta"] == PARAMS.eta
+    assert len(meta["stats_layout"]) == N_STATS
+    np.savez(tmp_path / "other.npz", a=np.zeros(2))
+    with pytest.raises(ValueError, match="not a fricenv regime map"):
+        RegimeMap.load(tmp_path / "other.npz")
+
+
+def test_other_friction_laws_run() -> None:
+    for law in ("viscous", "stribeck"):
+        m = regime_map(law, [0.2, 3.0], [0.5, 1.5], progress=False)
+        assert m.complete and np.all(m.status == STATUS_OK)
+        assert m.labels[0, 0] == Regime.WM1 and m.labels[1, 1] == Regime.SSM2
+
+
+def test_progress_bar(capsys) -> None:
+    regime_map(PARAMS, U0[:2], NU[:2], progress=True)
+    assert "cell" in capsys.readouterr().err
+
+
+def test_plan_uses_modulation_period() -> None:
+    s = SweepSettings()
+    t1 = 2 * np.pi / 0.6
+    tm = modulation_period(0.6, np.array([0.1, 0.5, 0.98, 1.0, 2.25, 0.0]), s.modulation_cap)
+    np.testing.assert_allclose(tm, t1 * np.array([10, 2, 50, 1, 4, 1]), rtol=1e-9)
+    assert modulation_period(0.6, np.array([1 + 1e-9]), 100.0)[0] == pytest.approx(100 * t1)
+    plan = plan_cells(PARAMS, np.array([0.1, 0.98, 3.0]), s)
+    assert plan.t_transient[1] == pytest.approx(50 * t1)  # a full beat period
+    assert plan.t_transient[2] == pytest.approx(100.0)  # 25 e-foldings at lambda = 1/2
+    assert plan.n_segment[2] * plan.t_segment[2] >= 100.0
+
+
+@pytest.mark.parametrize("kwargs", [
+    dict(u0=[], nu=[0.5]),
+    dict(u0=[1.0], nu=np.array([])),
+    dict(u0=[1.0, np.nan], nu=[0.5]),
+    dict(u0=[1.0], nu=[0.5, np.inf]),
+    dict(u0=[-1.0], nu=[0.5]),
+    dict(u0=[[1.0, 2.0]], nu=[0.5]),
+    dict(u0=["a"], nu=[0.5]),
+])
+def test_bad_grid_raises(kwargs: dict) -> None:
+    with pytest.raises(ValueError):
+        regime_map(PARAMS, progress=False, **kwargs)
+
+
+def test_bad_law_and_settings_raise() -> None:
+    with pytest.raises(ValueError, match="unknown friction law"):
+        regime_map("dry-ice", [1.0], [0.5])
+    with pytest.raises(ValueError):
+        regime_map(42, [1.0], [0.5])  # type: ignore[arg-type]
+    with pytest.raises(ValueError, match="Coulomb"):
+        regime_map("stribeck", [1.0], [0.5], method="exact")
+    with pytest.raises(ValueError):
+        regime_map(PARAMS, [1.0], [0.5], method="magic")
+    with pytest.raises(ValueError):
+        regime_map(PARAMS, [1.0], [0.5], window_min=0.0)
+    with pytest.raises(ValueError, match="unknown setting"):
+        regime_map(PARAMS, [1.0], [0.5], no_such_setting=1.0)
+    with pytest.raises(ValueError):
+        regime_map(PARAMS, [1.0], [0.5], chunk_size=0)
+    with pytest.raises(ValueError):
+        regime_map(PARAMS, [1.0], [0.5], n_threads=numba.config.NUMBA_NUM_THREADS + 1)
+
+
+def test_slowly_converging_orbit_locks_with_extensions() -> None:
+    # Coulomb + viscosity slips with damping lam - b1 = 0.3: one transient is not enough to
+    # reach the 1e-6 strobe tolerance here, repeated windows are
+    p = OscillatorParams.preset("viscous", eta=5 / 3)
+    lock = regime_map(p, [0.137], [1.0], progress=False, transient_min=60.0,
+                      transient_efolds=0.0)
+    once = regime_map(p, [0.137], [1.0], progress=False, transient_min=60.0,
+                      transient_efolds=0.0, lock_extensions=0)
+    assert lock.labels[0, 0] == Regime.PERIODIC_OSCILLATION and lock.period[0, 0] == 1
+    assert once.labels[0, 0] == Regime.WM1 and once.period[0, 0] == 0
