@@ -213,9 +213,10 @@ def run(quick: bool, out_dir: Path) -> list[Row]:
 def _uniform_setting(rows: list[Row], fam: str, emax: float, rmax: float) -> str:
     """The cheapest single setting of a method family that meets the error on every case."""
     best = None
+    fam_cases = {r.case for r in rows if r.method.split()[0] == fam}  # where it applies
     for m in dict.fromkeys(r.method for r in rows if r.method.split()[0] == fam):
         rs = [r for r in rows if r.method == m]
-        if len(rs) == len({r.case for r in rows}) and all(r.err <= emax for r in rs):
+        if {r.case for r in rs} == fam_cases and all(r.err <= emax for r in rs):
             worst = max(r.ratio for r in rs)
             if best is None or worst < best[1]:
                 best = (m, worst, max(r.err for r in rs))
