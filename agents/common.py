@@ -1,0 +1,384 @@
+"""Shared pieces of training and evaluation: names, seeds, hyperparameters, rollouts.
+
+Training and evaluation must agree on how an environment is built, how seeds are laid out
+(evaluation episodes must never be ones the agent trained on) and how an episode is scored,
+so all of that lives here once.
+"""
+
+from __future__ import annotations
+
+import ast
+import math
+import pickle
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Protocol
+
+import numpy as np
+import yaml
+
+import fricenv  # noqa: F401  (registers the environments)
+from fricenv.envs import ENV_IDS
+from fricenv.envs.scenes import SCENES, Scene
+
+#: Scene name -> registered Gymnasium id (the key of the hyperparameter files).
+SCENE_ENV_IDS: dict[str, str] = {scene: env_id for env_id, scene in ENV_IDS.items()}
+ALGOS = ("ppo", "sac")
+HYPERPARAMS_DIR = Path(__file__).resolve().parent / "hyperparams"
+
+# -- seed layout ----------------------------------------------------------------------------
+# Plant i of a vector environment seeded s draws from seed s + i. The blocks below never
+# overlap, so no evaluation episode is one a policy (or the best-constant search) saw.
+SEED_STRIDE = 1000  #: seeds reserved per training seed / evaluation seed
+MAX_PLANTS = SEED_STRIDE // 2  #: plants per block (training and in-training evaluation)
+EVAL_SEED_BASE = 10_000_000  #: final evaluation: seed k, episode j -> base + 1000 k + j
+SEARCH_SEED_BASE = 20_000_000  #: best-constant search episodes
+MAX_TRAIN_SEED = EVAL_SEED_BASE // SEED_STRIDE  # training seeds stay below the eval block
+
+
+def train_env_seed(seed: int) -> int:
+    """First plant seed of the training environment of run ``seed``."""
+    return SEED_STRIDE * seed
+
+
+def callback_env_seed(seed: int) -> int:
+    """First plant seed of the periodic evaluation during training (not the final one)."""
+    return SEED_STRIDE * seed + MAX_PLANTS
+
+
+def eval_env_seed(k: int) -> int:
+    """First plant seed of final-evaluation seed ``k``."""
+    return EVAL_SEED_BASE + SEED_STRIDE * k
+
+
+def check_seed(seed: int) -> int:
+    if isinstance(seed, bool) or int(seed) != seed or not 0 <= seed < MAX_TRAIN_SEED:
+        raise ValueError(f"seed must be an integer in [0, {MAX_TRAIN_SEED}), got {seed!r}")
+    return int(seed)
+
+
+# -- names ----------------------------------------------------------------------------------
+def check_scene(scene: str) -> str:
+    if scene not in SCENES:
+        raise ValueError(f"unknown scene {scene!r}; expected one of {sorted(SCENES)}")
+    return scene
+
+
+def check_algo(algo: str) -> str:
+    if algo not in ALGOS:
+        raise ValueError(f"unknown algorithm {algo!r}; expected one of {list(ALGOS)}")
+    return algo
+
+
+def algo_class(algo: str) -> type:
+    from stable_baselines3 import PPO, SAC
+
+    return {"ppo": PPO, "sac": SAC}[check_algo(algo)]
+
+
+# -- hyperparameters (rl-baselines3-zoo style) ----------------------------------------------
+#: Keys that configure the run rather than the algorithm's constructor.
+RUN_KEYS = ("n_timesteps", "n_envs", "normalize", "env_kwargs", "policy")
+
+
+def load_hyperparams(algo: str, scene: str, path: str | Path | None = None) -> dict[str, Any]:
+    """The entry of ``scene``'s environment id in ``<algo>.yml`` (or the file ``path``)."""
+    check_algo(algo)
+    check_scene(scene)
+    path = Path(path) if path is not None else HYPERPARAMS_DIR / f"{algo}.yml"
+    with open(path) as fh:
+        table = yaml.safe_load(fh) or {}
+    env_id = SCENE_ENV_IDS[scene]
+    if env_id not in table:
+        raise ValueError(f"{path} has no entry for {env_id!r} (scene {scene!r}); "
+                         f"entries: {sorted(table)}")
+    return dict(table[env_id])
+
+
+def parse_value(text: str) -> Any:
+    """``KEY:VALUE`` override value: a YAML scalar, list or mapping (``0.99``, ``[64, 64]``)."""
+    return yaml.safe_load(text)
+
+
+def apply_overrides(hp: dict[str, Any], overrides: Sequence[str]) -> dict[str, Any]:
+    """Zoo-style ``-params key:value ...`` overrides."""
+    hp = dict(hp)
+    for item in overrides:
+        key, sep, value = item.partition(":")
+        if not sep or not key:
+            raise ValueError(f"hyperparameter override must be KEY:VALUE, got {item!r}")
+        hp[key.strip()] = parse_value(value)
+    return hp
+
+
+def _schedule(value: Any) -> Any:
+    """``lin_3e-4`` -> a linear decay to 0 (as in the zoo); numbers pass through."""
+    if isinstance(value, str) and value.startswith("lin_"):
+        start = float(value[4:])
+
+        def linear(progress_remaining: float) -> float:
+            return progress_remaining * start
+
+        return linear
+    if isinstance(value, str):
+        return float(value)
+    return value
+
+
+_ACTIVATIONS = {"tanh": "Tanh", "relu": "ReLU", "elu": "ELU", "leaky_relu": "LeakyReLU"}
+
+
+def _policy_kwargs(value: Any) -> dict[str, Any]:
+    """A mapping, or the zoo's string form ``"dict(net_arch=[64, 64])"`` (literals only)."""
+    import torch.nn as nn
+
+    if isinstance(value, str):
+        tree = ast.parse(value, mode="eval").body
+        if not (isinstance(tree, ast.Call) and getattr(tree.func, "id", None) == "dict"
+                and not tree.args):
+            raise ValueError(f"policy_kwargs string must be dict(...), got {value!r}")
+        kw = {}
+        for k in tree.keywords:
+            if isinstance(k.value, ast.Attribute) and getattr(k.value.value, "id", "") == "nn":
+                kw[k.arg] = k.value.attr.lower().replace("leakyrelu", "leaky_relu")
+            else:
+                kw[k.arg] = ast.literal_eval(k.value)
+        value = kw
+    if not isinstance(value, dict):
+        raise ValueError(f"policy_kwargs must be a mapping, got {value!r}")
+    out = dict(value)
+    act = out.get("activation_fn")
+    if isinstance(act, str):
+        name = _ACTIVATIONS.get(act.lower())
+        if name is None:
+            raise ValueError(f"activation_fn must be one of {sorted(_ACTIVATIONS)}, got {act!r}")
+        out["activation_fn"] = getattr(nn, name)
+    return out
+
+
+@dataclass(frozen=True)
+class RunSpec:
+    """A hyperparameter entry split into run settings and constructor arguments."""
+
+    n_timesteps: int
+    n_envs: int
+    normalize: dict[str, Any] | None
+    env_kwargs: dict[str, Any]
+    policy: str
+    algo_kwargs: dict[str, Any]
+
+
+def split_hyperparams(algo: str, hp: dict[str, Any]) -> RunSpec:
+    """Validate an entry and turn it into what ``train`` needs (``ValueError`` if bad)."""
+    import inspect
+
+    hp = dict(hp)
+    n_timesteps = int(float(hp.pop("n_timesteps", 100_000)))
+    n_envs = int(hp.pop("n_envs", 1))
+    if n_timesteps < 1 or not 1 <= n_envs <= MAX_PLANTS:
+        raise ValueError(f"need n_timesteps >= 1 and 1 <= n_envs <= {MAX_PLANTS}")
+    norm = hp.pop("normalize", False)
+    if isinstance(norm, str):
+        norm = ast.literal_eval(norm)
+    if norm is True:
+        norm = {}
+    elif norm is False or norm is None:
+        norm = None
+    elif not isinstance(norm, dict):
+        raise ValueError(f"normalize must be a bool or a mapping, got {norm!r}")
+    env_kwargs = dict(hp.pop("env_kwargs", None) or {})
+    policy = str(hp.pop("policy", "MlpPolicy"))
+    for key in ("learning_rate", "clip_range"):
+        if key in hp:
+            hp[key] = _schedule(hp[key])
+    if "policy_kwargs" in hp:
+        hp["policy_kwargs"] = _policy_kwargs(hp["policy_kwargs"])
+    if "train_freq" in hp and isinstance(hp["train_freq"], list):
+        hp["train_freq"] = tuple(hp["train_freq"])
+    allowed = set(inspect.signature(algo_class(algo).__init__).parameters) - {
+        "self", "policy", "env", "seed", "device", "verbose", "tensorboard_log"}
+    unknown = sorted(set(hp) - allowed)
+    if unknown:
+        raise ValueError(f"unknown {algo} hyperparameter(s) {unknown}")
+    return RunSpec(n_timesteps, n_envs, norm, env_kwargs, policy, hp)
+
+
+# -- environments ---------------------------------------------------------------------------
+def make_sb3_env(scene: str, n_envs: int, seed: int, env_kwargs: dict | None = None,
+                 monitor_file: str | Path | None = None) -> Any:
+    """The native SB3 vector env (one numba call per step), monitored, seeded ``seed + i``."""
+    from stable_baselines3.common.vec_env import VecMonitor
+
+    from fricenv.envs.sb3 import StickSlipSB3VecEnv
+
+    venv = StickSlipSB3VecEnv(num_envs=n_envs, scene=scene, **(env_kwargs or {}))
+    venv.seed(seed)
+    return VecMonitor(venv, filename=None if monitor_file is None else str(monitor_file),
+                      info_keywords=("stick_fraction",))
+
+
+# -- controllers ----------------------------------------------------------------------------
+class Controller(Protocol):
+    """What a trained model and every baseline offer: SB3's ``predict``."""
+
+    def predict(self, observation: np.ndarray, state: Any = None,
+                episode_start: np.ndarray | None = None,
+                deterministic: bool = True) -> tuple[np.ndarray, Any]: ...
+
+
+class TrainedController:
+    """A trained SB3 model plus its observation normalisation, as one ``predict``.
+
+    The model was trained on normalised observations; evaluating it on raw ones would be
+    silently wrong, so the statistics travel with it. They are used read-only.
+    """
+
+    def __init__(self, model: Any, vecnormalize: Any | None = None, name: str = "agent"):
+        self.model = model
+        self.vecnormalize = vecnormalize
+        self.name = name
+        self.action_space = model.action_space
+
+    def predict(self, observation: np.ndarray, state: Any = None,
+                episode_start: np.ndarray | None = None,
+                deterministic: bool = True) -> tuple[np.ndarray, Any]:
+        obs = np.asarray(observation, dtype=np.float32)
+        if self.vecnormalize is not None and self.vecnormalize.norm_obs:
+            obs = self.vecnormalize.normalize_obs(obs).astype(np.float32)
+        action, state = self.model.predict(obs, state, episode_start, deterministic)
+        return np.asarray(action, dtype=np.float32), state
+
+
+def find_vecnormalize(model_path: Path) -> Path | None:
+    """``<stem>_vecnormalize.pkl`` next to the model, else ``vecnormalize.pkl`` (run folder)."""
+    for cand in (model_path.with_name(model_path.stem + "_vecnormalize.pkl"),
+                 model_path.with_name("vecnormalize.pkl")):
+        if cand.exists():
+            return cand
+    return None
+
+
+def load_controller(path: str | Path, algo: str | None = None) -> tuple[TrainedController, dict]:
+    """Load a run folder (``config.yml`` + ``model.zip``) or a model file.
+
+    The algorithm comes from the run's config, else ``algo``, else the file name's prefix
+    (``ppo_...zip``). Returns the controller and the run config (empty for a bare file).
+    """
+    path = Path(path)
+    config: dict = {}
+    if path.is_dir():
+        cfg_file = path / "config.yml"
+        if not cfg_file.exists():
+            raise ValueError(f"{path} is not a run folder (no config.yml)")
+        config = yaml.safe_load(cfg_file.read_text())
+        model_path = path / "model.zip"
+    else:
+        model_path = path
+        side = path.with_suffix(".yml")
+        if side.exists():
+            config = yaml.safe_load(side.read_text())
+    if not model_path.exists():
+        raise ValueError(f"no model at {model_path}")
+    algo = config.get("algo") or algo or model_path.stem.split("_")[0]
+    check_algo(algo)
+    model = algo_class(algo).load(model_path, device="cpu")
+    vn = None
+    vn_path = find_vecnormalize(model_path)
+    if vn_path is not None:
+        with open(vn_path, "rb") as fh:
+            vn = pickle.load(fh)
+        vn.training = False
+    return TrainedController(model, vn, name=algo), config
+
+
+# -- rollouts -------------------------------------------------------------------------------
+@dataclass
+class EpisodeMetrics:
+    """Per-episode scores (arrays over episodes)."""
+
+    stick_fraction: np.ndarray
+    rms_vr: np.ndarray  #: RMS of v - V over the episode
+    rms_vr_fluct: np.ndarray  #: RMS of v - V about its episode mean (vibration)
+    effort: np.ndarray
+    ret: np.ndarray
+    length: np.ndarray
+
+    FIELDS = ("stick_fraction", "rms_vr", "rms_vr_fluct", "effort", "ret", "length")
+
+    @classmethod
+    def concat(cls, parts: Iterable[EpisodeMetrics]) -> EpisodeMetrics:
+        parts = list(parts)
+        return cls(*(np.concatenate([getattr(p, f) for p in parts]) for f in cls.FIELDS))
+
+    def as_dict(self) -> dict[str, list[float]]:
+        return {f: getattr(self, f).tolist() for f in self.FIELDS}
+
+
+def rollout(controller: Controller, scene: str | Scene, seed: int | Sequence[int],
+            n_episodes: int,
+            env_kwargs: dict | None = None) -> EpisodeMetrics:
+    """Run ``n_episodes`` episodes side by side to the horizon.
+
+    Plant j is seeded ``seed + j`` (or ``seed[j]`` for a list), so two controllers run with
+    the same seed face the same episodes.
+
+    Metrics are exact integrals over the episode: the kernel reports, per control interval,
+    the stuck time and the variance of ``v - V``; the interval mean of ``v - V`` is
+    ``dx / dt - V`` (x from the observation, float32: ~1e-6 error), so ``int (v - V)^2``
+    follows without sampling.
+    """
+    from gymnasium.vector import AutoresetMode
+
+    from fricenv.envs.vector import StickSlipVectorEnv
+
+    venv = StickSlipVectorEnv(num_envs=n_episodes, scene=scene,
+                              autoreset_mode=AutoresetMode.DISABLED, **(env_kwargs or {}))
+    try:
+        obs, _ = venv.reset(seed=seed if isinstance(seed, int) else [int(s) for s in seed])
+        dt = venv.dt
+        V = np.array([venv.snapshot(i)["V"] for i in range(n_episodes)])
+        alive = np.ones(n_episodes, dtype=bool)
+        n = np.zeros(n_episodes)
+        ret = np.zeros(n_episodes)
+        stick = np.zeros(n_episodes)
+        effort = np.zeros(n_episodes)
+        vr1 = np.zeros(n_episodes)  # sum over intervals of mean(v - V)
+        vr2 = np.zeros(n_episodes)  # sum over intervals of mean((v - V)^2)
+        start = np.ones(n_episodes, dtype=bool)
+        state = None
+        for _ in range(venv.max_episode_steps):
+            action, state = controller.predict(obs, state, start, deterministic=True)
+            start[:] = False
+            x_prev = obs[:, 0].astype(np.float64)
+            obs, r, term, trunc, info = venv.step(np.asarray(action, dtype=np.float32))
+            mean_vr = (obs[:, 0] - x_prev) / dt - V
+            w = alive.astype(float)
+            n += w
+            ret += w * r
+            stick += w * info["stick_fraction"]
+            effort += w * info["effort"]
+            vr1 += w * mean_vr
+            vr2 += w * (info["velocity_variance"] + mean_vr**2)
+            alive &= ~(term | trunc)
+            if not alive.any():
+                break
+    finally:
+        venv.close()
+    m1 = vr1 / n
+    m2 = vr2 / n
+    return EpisodeMetrics(stick / n, np.sqrt(m2), np.sqrt(np.maximum(m2 - m1**2, 0.0)),
+                          effort / n, ret, n)
+
+
+def summarize(values: np.ndarray) -> tuple[float, float]:
+    """Mean and sample standard deviation (0 for a single value)."""
+    values = np.asarray(values, dtype=float)
+    std = float(values.std(ddof=1)) if values.size > 1 else 0.0
+    return float(values.mean()), std
+
+
+def fmt_pm(mean: float, std: float, digits: int = 3) -> str:
+    if not math.isfinite(mean):
+        return "n/a"
+    return f"{mean:.{digits}f} ± {std:.{digits}f}"

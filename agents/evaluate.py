@@ -1,0 +1,511 @@
+"""Evaluate trained agents against the baselines; write a markdown table and plots.
+
+    python -m agents.evaluate --scene self_excited --runs runs/ppo_self_excited_s* \\
+        --seeds 5 --episodes 10 --out docs/results
+
+Every controller runs the same episodes: evaluation seed k (k < ``--seeds``) starts
+``--episodes`` episodes, episode j from plant seed ``10_000_000 + 1000 k + j`` (never a
+training or best-constant-search seed; this is checked against each run's config). A group
+of trained runs (same algorithm and scene, one run per training seed) runs every model on
+every episode. The table reports mean ± std over all evaluated episodes (models x seeds x
+episodes) per controller and scene:
+
+- stick-time fraction: time stuck / episode time (exact, from the event-driven plant);
+- RMS relative velocity: sqrt of the time mean of (v - V)^2 (steady sliding gives V);
+- RMS fluctuation: the same about the episode's mean relative velocity (vibration);
+- actuation effort: mean excitation power relative to the strongest allowed, in [0, 1];
+- return: the scene's reward summed over the episode.
+
+Outputs in ``--out``: ``<scene>.md``, ``<scene>_results.json`` (per-episode values),
+``<scene>_time_history.png`` (one episode, uncontrolled against controlled),
+``<scene>_learning_curves.png`` (if runs are given) and the cached best-constant search
+(``best_constant_<scene>.json``, ``regime_map_<scene>.npz``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+from agents.baselines import BASELINES, ZeroExcitation, make_baseline, search_best_constant
+from agents.common import (
+    MAX_PLANTS,
+    SCENE_ENV_IDS,
+    SEARCH_SEED_BASE,
+    SEED_STRIDE,
+    Controller,
+    EpisodeMetrics,
+    eval_env_seed,
+    fmt_pm,
+    load_controller,
+    rollout,
+    summarize,
+)
+from fricenv.envs.scenes import SCENES
+
+LABELS = {"ppo": "PPO", "sac": "SAC"}
+COLUMNS = (
+    ("stick_fraction", "stick-time fraction", 4),
+    ("rms_vr", "RMS relative velocity", 3),
+    ("rms_vr_fluct", "RMS fluctuation", 3),
+    ("effort", "actuation effort", 4),
+    ("ret", "return", 2),
+)
+
+
+@dataclass
+class Entry:
+    """One row of the table: a controller (or a group of trained models) and its scores."""
+
+    key: str
+    label: str
+    kind: str  # "baseline" or "trained"
+    factories: list[Callable[[int], Controller]]  # controller for evaluation seed k
+    info: dict[str, Any] = field(default_factory=dict)
+    metrics: EpisodeMetrics | None = None
+    seed_means: dict[str, list[float]] = field(default_factory=dict)
+
+
+# -- seeds ----------------------------------------------------------------------------------
+def eval_seeds(n_seeds: int, episodes: int) -> list[int]:
+    """All plant seeds of the final evaluation."""
+    return [eval_env_seed(k) + j for k in range(n_seeds) for j in range(episodes)]
+
+
+def check_disjoint(config: dict, n_seeds: int, episodes: int, where: str) -> None:
+    """Refuse to evaluate on any episode the run trained or was monitored on."""
+    used: list[tuple[int, int]] = []
+    for key in ("train_env_seeds", "eval_callback_seeds"):
+        if key in config:
+            lo, hi = config[key]
+            used.append((int(lo), int(hi)))
+    for s in eval_seeds(n_seeds, episodes):
+        for lo, hi in used:
+            if lo <= s <= hi:
+                raise ValueError(f"{where}: evaluation seed {s} was used in training ({lo}-{hi})")
+
+
+# -- building the controllers -----------------------------------------------------------------
+def trained_entries(paths: list[Path], scene: str) -> tuple[list[Entry], dict]:
+    """Group run folders of ``scene`` by algorithm (model files stay on their own rows);
+    also return the runs' common env kwargs."""
+    from agents.baselines import ActionMap
+
+    groups: dict[str, list[tuple[Any, dict, Path]]] = {}
+    env_kwargs: dict | None = None
+    for p in paths:
+        ctrl, cfg = load_controller(p)
+        if cfg.get("scene", scene) != scene:
+            continue
+        kw = cfg.get("env_kwargs") or {}
+        if env_kwargs is None:
+            env_kwargs = kw
+        elif kw != env_kwargs:
+            raise ValueError(f"{p}: env_kwargs {kw} differ from other runs' {env_kwargs}")
+        want = ActionMap(scene, kw).action_space.shape
+        if ctrl.action_space.shape != want:
+            raise ValueError(f"{p}: the model's actions have shape {ctrl.action_space.shape}, "
+                             f"scene {scene!r} needs {want}")
+        key = ctrl.name if p.is_dir() else f"{ctrl.name}:{p.name}"
+        groups.setdefault(key, []).append((ctrl, cfg, p))
+    entries = []
+    for key, members in groups.items():
+        algo, _, fname = key.partition(":")
+        label = LABELS.get(algo, algo.upper())
+        n = len(members)
+        label += f" ({fname})" if fname else f" ({n} training seed{'s' if n > 1 else ''})"
+        secs = [m[1]["train_seconds"] for m in members if m[1].get("train_seconds")]
+        steps = [m[1]["timesteps_done"] for m in members if m[1].get("timesteps_done")]
+        info = {"paths": [str(m[2]) for m in members],
+                "train_seconds": secs, "timesteps": steps,
+                "seeds": [m[1].get("seed") for m in members]}
+        factories = [(lambda k, c=m[0]: c) for m in members]
+        entries.append(Entry(key, label, "trained", factories, info))
+    return entries, env_kwargs or {}
+
+
+def baseline_entries(names: list[str], scene: str, env_kwargs: dict, out: Path,
+                     search: dict[str, Any]) -> list[Entry]:
+    entries = []
+    for name in names:
+        if name == "best_constant":
+            res = search_best_constant(scene, env_kwargs, cache_dir=out, **search)
+            b = res["best"]
+            ctrl = make_baseline(name, scene, env_kwargs, search_kwargs={**search,
+                                                                          "cache_dir": out})
+            info = {"u0": b["u0"], "nu": b["nu"], "search_return": b["return_mean"],
+                    "n_candidates": res["n_candidates"], "n_grid_cells": res["n_grid_cells"],
+                    "search_seeds": [res["key"]["seed"],
+                                     res["key"]["seed"] + res["key"]["episodes"] - 1]}
+            entries.append(Entry(name, ctrl.label, "baseline", [lambda k, c=ctrl: c], info))
+        elif name == "random":
+            def factory(k: int, name: str = name) -> Controller:
+                return make_baseline(name, scene, env_kwargs, seed=k)
+
+            ctrl = factory(0)
+            entries.append(Entry(name, ctrl.label, "baseline", [factory], {"seed": "k"}))
+        else:
+            ctrl = make_baseline(name, scene, env_kwargs)
+            entries.append(Entry(name, ctrl.label, "baseline", [lambda k, c=ctrl: c],
+                                 ctrl.describe()))
+    return entries
+
+
+# -- running ----------------------------------------------------------------------------------
+def run_entry(entry: Entry, scene: str, env_kwargs: dict, n_seeds: int, episodes: int) -> None:
+    parts = []
+    per_seed: dict[str, list[float]] = {f: [] for f, _, _ in COLUMNS}
+    for factory in entry.factories:
+        for k in range(n_seeds):
+            m = rollout(factory(k), scene, eval_env_seed(k), episodes, env_kwargs)
+            parts.append(m)
+            for f, _, _ in COLUMNS:
+                per_seed[f].append(float(getattr(m, f).mean()))
+    entry.metrics = EpisodeMetrics.concat(parts)
+    entry.seed_means = per_seed
+
+
+def _summary(entry: Entry) -> dict[str, Any]:
+    m = entry.metrics
+    out: dict[str, Any] = {"label": entry.label, "kind": entry.kind, "n": int(m.ret.size)}
+    for f, _, _ in COLUMNS:
+        mean, std = summarize(getattr(m, f))
+        out[f] = {"mean": mean, "std": std,
+                  "std_of_seed_means": summarize(np.array(entry.seed_means[f]))[1]}
+    return out
+
+
+# -- writing ----------------------------------------------------------------------------------
+def markdown(scene: str, entries: list[Entry], n_seeds: int, episodes: int,
+             plots: list[str]) -> str:
+    sc = SCENES[scene]
+    zero = next((e for e in entries if e.key == "zero"), None)
+    best = next((e for e in entries if e.key == "best_constant"), None)
+    z_stick = float(zero.metrics.stick_fraction.mean()) if zero else float("nan")
+    ref = zero.label.split(" (")[0] if zero else "zero excitation"
+    head = ["controller", "n"] + [name for _, name, _ in COLUMNS] + [f"stick cut vs {ref}"]
+    lines = [
+        f"# Stick-slip suppression: scene `{scene}` ({SCENE_ENV_IDS[scene]})",
+        "",
+        f"{sc.description}",
+        "",
+        f"Mean ± std over n episodes of {sc.max_episode_steps} control steps "
+        f"(dt = {sc.control_dt:.4f}): {n_seeds} evaluation seeds x {episodes} episodes, "
+        "times the number of trained models for an agent. All controllers face the same "
+        "episodes; none was trained or tuned on them.",
+        "",
+        "| " + " | ".join(head) + " |",
+        "|" + "|".join(["---"] + ["---:"] * (len(head) - 1)) + "|",
+    ]
+    for e in entries:
+        m = e.metrics
+        cells = [e.label, str(m.ret.size)]
+        for f, _, d in COLUMNS:
+            cells.append(fmt_pm(*summarize(getattr(m, f)), digits=d))
+        cut = 1.0 - float(m.stick_fraction.mean()) / z_stick if zero and z_stick > 0 else None
+        cells.append("—" if cut is None or e.key == "zero" else f"{100 * cut:.1f} %")
+        lines.append("| " + " | ".join(cells) + " |")
+    lines += [
+        "",
+        "Columns: stick-time fraction = time stuck / episode time (exact, event-driven "
+        "plant); RMS relative velocity = sqrt of the time mean of (v − V)², which is V = "
+        f"{sc.params.V:g} for steady sliding with the block at rest; RMS fluctuation = the "
+        "same about the episode's mean of v − V (how much the block vibrates); actuation "
+        "effort = mean excitation power relative to the strongest allowed (0 to 1); return "
+        f"= the scene's reward summed over the episode (weights stick, velocity, effort = "
+        f"{', '.join(f'{w:g}' for w in sc.reward_weights)}).",
+        "",
+    ]
+    if best is not None:
+        lines.append(f"Best constant excitation: u0 = {best.info['u0']:.3f}, "
+                     f"nu = {best.info['nu']:.3f}, chosen by return among "
+                     f"{best.info['n_candidates']} of {best.info['n_grid_cells']} grid cells "
+                     "(cells whose steady-state stick fraction, from `fricenv.sweep."
+                     "regime_map`, is within 0.05 of the lowest), on search episodes "
+                     f"(plant seeds {best.info['search_seeds'][0]}–"
+                     f"{best.info['search_seeds'][1]}).")
+        lines.append("")
+    for e in entries:
+        if e.kind != "trained":
+            continue
+        secs = e.info.get("train_seconds") or []
+        steps = e.info.get("timesteps") or []
+        if secs:
+            lines.append(f"- {e.label}: training wall time {min(secs):.0f}–{max(secs):.0f} s "
+                         f"per run ({steps[0] if steps else '?'} steps, 2-core CPU).")
+        paired = []
+        for b in entries:
+            if b.kind != "baseline" or b.key == "zero":
+                continue
+            n_ep = b.metrics.ret.size
+            agent = e.metrics.ret.reshape(-1, n_ep).mean(axis=0)  # average over its models
+            d = agent - b.metrics.ret
+            se = d.std(ddof=1) / np.sqrt(n_ep) if n_ep > 1 else 0.0
+            paired.append(f"{b.label}: {d.mean():+.2f} ± {se:.2f} "
+                          f"(better in {(d > 0).sum()} of {n_ep})")
+        if paired:
+            lines.append(f"- {e.label}, return minus baseline's on the same episodes (mean ± "
+                         "standard error; the agent averaged over its models): "
+                         + "; ".join(paired) + ".")
+        if zero is not None and best is not None:
+            cut = 1.0 - float(e.metrics.stick_fraction.mean()) / z_stick
+            r_e, r_b = float(e.metrics.ret.mean()), float(best.metrics.ret.mean())
+            ok_time = bool(secs) and max(secs) <= 15 * 60
+            ok = cut >= 0.9 and r_e > r_b and ok_time
+            took = f"max training time {max(secs):.0f} s" if secs else "training time unknown"
+            lines.append(
+                f"- Bar (trained in <= 15 min, stick-time fraction cut >= 90 % against {ref}, "
+                f"return above the best constant): stick cut {100 * cut:.1f} %, "
+                f"return {r_e:.2f} vs {r_b:.2f}, {took} -> **{'met' if ok else 'not met'}**.")
+        lines.append("")
+    for p in plots:
+        lines.append(f"![{p}]({p})")
+        lines.append("")
+    return "\n".join(lines)
+
+
+# -- plots ------------------------------------------------------------------------------------
+def time_history(controllers: list[tuple[str, Controller]], scene: str, env_kwargs: dict,
+                 seed: int, path: Path, samples: int = 16, zoom: float = 20.0) -> None:
+    """One episode under each controller: v - V (fine samples, stuck shaded), u0 and nu.
+
+    Left: the whole episode; right: its first ``zoom`` time units, where control acts.
+    """
+    import gymnasium as gym
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from fricenv.envs import kernels as K
+    from fricenv.layout import N_STATS
+
+    n = len(controllers)
+    fig, axes = plt.subplots(n, 2, figsize=(11, 1.6 * n + 0.7), sharex="col", squeeze=False,
+                             gridspec_kw={"width_ratios": [3, 1.2]})
+    top = max(SCENES[scene].u0_range[1], SCENES[scene].nu_range[1])
+    for row, (label, ctrl) in enumerate(controllers):
+        env = gym.make(SCENE_ENV_IDS[scene], scene=scene, **env_kwargs)
+        u = env.unwrapped
+        obs, _ = env.reset(seed=seed)
+        stats = np.zeros(N_STATS)
+        tb, vb = np.zeros(samples), np.zeros(samples)
+        sb = np.zeros(samples, dtype=np.bool_)
+        ts, vs, ss, tu, us, ns = [], [], [], [], [], []
+        total, stuck, done = 0.0, 0.0, False
+        while not done:
+            a, _ = ctrl.predict(obs, deterministic=True)
+            a = np.asarray(a, dtype=np.float32)
+            # Sample the coming interval on copies of the plant (as the renderer does):
+            # exact, and without effect on the real step.
+            K.sample_interval(u._P, u._S, u._ctrl, u._cfg, a, stats, tb, vb, sb)
+            snap = u.snapshot()
+            obs, r, term, trunc, info = env.step(a)
+            ts.append(tb.copy())
+            vs.append(vb - snap["V"])
+            ss.append(sb.copy())
+            tu.append(snap["t"])
+            us.append(float(obs[K.O_U0]))
+            ns.append(float(obs[K.O_NU]))
+            total += r
+            stuck += info["stick_fraction"]
+            done = term or trunc
+        env.close()
+        t, v, s = np.concatenate(ts), np.concatenate(vs), np.concatenate(ss)
+        tu.append(t[-1])
+        us.append(us[-1])
+        ns.append(ns[-1])
+        lo = min(-2.5, float(v.min()) - 0.1)
+        for col, ax in enumerate(axes[row]):
+            ax.plot(t, v, lw=0.6, color="C0")
+            ax.fill_between(t, lo, 0.3, where=s, color="C3", alpha=0.3, lw=0, step="mid")
+            ax.set_ylim(lo, 0.3)
+            ax2 = ax.twinx()
+            ax2.step(tu, us, where="post", color="C2", lw=0.9)
+            ax2.step(tu, ns, where="post", color="C4", lw=0.7, ls="--")
+            ax2.set_ylim(-0.05 * top, 1.05 * top)
+            if col == 1:
+                ax.set_xlim(t[0], t[0] + zoom)
+                ax2.set_ylabel("u0, nu")
+            else:
+                ax.set_ylabel("v − V")
+                ax.set_title(f"{label}: stick-time fraction {stuck / (len(tu) - 1):.3f}, "
+                             f"return {total:.1f}", fontsize=9, loc="left")
+    axes[-1, 0].set_xlabel("time τ  (stuck: red; right axis: amplitude u0 green, "
+                           "frequency ratio nu purple dashed)")
+    axes[-1, 1].set_xlabel(f"first {zoom:g} time units")
+    fig.tight_layout()
+    fig.savefig(path, dpi=80)
+    plt.close(fig)
+
+
+def learning_curves(entries: list[Entry], baselines: list[Entry], path: Path) -> bool:
+    """Periodic-evaluation return and stick fraction against training steps, per group."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    curves = []
+    for e in entries:
+        runs = []
+        for p in e.info.get("paths", []):
+            f = Path(p) / "evaluations.npz" if Path(p).is_dir() else None
+            if f is not None and f.exists():
+                with np.load(f) as z:
+                    runs.append((z["timesteps"], z["results"].mean(axis=1), z["stick_fraction"]))
+        if runs:
+            curves.append((e, runs))
+    if not curves:
+        return False
+    fig, (a1, a2) = plt.subplots(1, 2, figsize=(10, 3.6))
+    for c, (e, runs) in enumerate(curves):
+        for i, (t, r, s) in enumerate(runs):
+            lab = e.label if i == 0 else None
+            a1.plot(t, r, color=f"C{c}", lw=1, alpha=0.8, label=lab)
+            a2.plot(t, np.maximum(s, 1e-4), color=f"C{c}", lw=1, alpha=0.8, label=lab)
+    styles = {"zero": ":", "best_constant": "--", "feedback": "-."}
+    for b in baselines:
+        if b.key in styles:
+            a1.axhline(b.metrics.ret.mean(), color="k", ls=styles[b.key], lw=0.8, label=b.label)
+            a2.axhline(max(b.metrics.stick_fraction.mean(), 1e-4), color="k", ls=styles[b.key],
+                       lw=0.8)
+    lows = [b.metrics.ret.mean() for b in baselines] + [r.min() for _, rs in curves
+                                                          for _, r, _ in rs]
+    a1.set_xlabel("training steps")
+    a1.set_ylabel("episode return")
+    a1.set_yscale("symlog", linthresh=10)
+    a1.set_ylim(1.5 * min(lows), 0.0)
+    a2.set_xlabel("training steps")
+    a2.set_ylabel("stick-time fraction")
+    a2.set_yscale("log")
+    a1.set_title("deterministic evaluation during training (one line per seed)", fontsize=9)
+    a2.set_title("baselines: final-evaluation means (black)", fontsize=9)
+    a1.legend(fontsize=7, loc="lower right")
+    fig.tight_layout()
+    fig.savefig(path, dpi=90)
+    plt.close(fig)
+    return True
+
+
+# -- CLI --------------------------------------------------------------------------------------
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(
+        prog="python -m agents.evaluate", description=__doc__.split("\n\n")[0],
+        formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    p.add_argument("--scene", nargs="+", choices=sorted(SCENE_ENV_IDS), default=None,
+                   help="scene(s) to evaluate (default: those of the runs)")
+    p.add_argument("--runs", nargs="*", type=Path, default=[],
+                   help="run folders of agents.train (grouped by algorithm)")
+    p.add_argument("--models", nargs="*", type=Path, default=[],
+                   help="model files (<algo>_*.zip, optional <stem>_vecnormalize.pkl and "
+                        "<stem>.yml beside them)")
+    p.add_argument("--controllers", nargs="*", choices=BASELINES, default=list(BASELINES),
+                   help="baselines to include")
+    p.add_argument("--seeds", type=int, default=5, help="evaluation seeds")
+    p.add_argument("--episodes", type=int, default=10, help="episodes per evaluation seed")
+    p.add_argument("--out", type=Path, default=Path("runs/eval"), help="output folder")
+    p.add_argument("--no-plots", action="store_true", help="write only the table and json")
+    p.add_argument("--grid", type=int, default=21,
+                   help="best-constant search: grid points per action dimension")
+    p.add_argument("--search-episodes", type=int, default=16,
+                   help="best-constant search: episodes per candidate")
+    return p
+
+
+def prepare(args: argparse.Namespace) -> list[str]:
+    """Check the command line; returns the scenes to evaluate (``ValueError`` if bad)."""
+    if args.seeds < 1 or args.episodes < 1:
+        raise ValueError("need --seeds >= 1 and --episodes >= 1")
+    if args.episodes > MAX_PLANTS or args.seeds > (SEARCH_SEED_BASE - eval_env_seed(0)) // (
+            SEED_STRIDE):
+        raise ValueError(f"need --episodes <= {MAX_PLANTS} and fewer seeds")
+    if args.grid < 2 or args.search_episodes < 2:
+        raise ValueError("need --grid >= 2 and --search-episodes >= 2")
+    for p in [*args.runs, *args.models]:
+        if not p.exists():
+            raise ValueError(f"{p} does not exist")
+    scenes = args.scene
+    if scenes is None:
+        found = []
+        for p in args.runs:
+            cfg = yaml.safe_load((p / "config.yml").read_text()) if (p / "config.yml").exists(
+            ) else {}
+            if cfg.get("scene") and cfg["scene"] not in found:
+                found.append(cfg["scene"])
+        if not found:
+            raise ValueError("give --scene (no run folder names one)")
+        scenes = found
+    if not args.runs and not args.models and not args.controllers:
+        raise ValueError("nothing to evaluate: give --runs, --models or --controllers")
+    return scenes
+
+
+def evaluate_scene(scene: str, args: argparse.Namespace) -> Path:
+    t0 = time.perf_counter()
+    out: Path = args.out
+    out.mkdir(parents=True, exist_ok=True)
+    trained, env_kwargs = trained_entries([*args.runs, *args.models], scene)
+    for e in trained:
+        for p in e.info["paths"]:
+            cfg_file = Path(p) / "config.yml" if Path(p).is_dir() else Path(p).with_suffix(".yml")
+            cfg = yaml.safe_load(cfg_file.read_text()) if cfg_file.exists() else {}
+            check_disjoint(cfg, args.seeds, args.episodes, p)
+    names = [n for n in BASELINES if n in args.controllers]
+    search = {"n_u0": args.grid, "n_nu": args.grid, "episodes": args.search_episodes}
+    baselines = baseline_entries(names, scene, env_kwargs, out, search)
+    entries = baselines + trained
+    for e in entries:
+        run_entry(e, scene, env_kwargs, args.seeds, args.episodes)
+
+    plots: list[str] = []
+    if not args.no_plots:
+        zero = ZeroExcitation(scene, env_kwargs)
+        shown: list[tuple[str, Controller]] = [(zero.label, zero)]
+        shown += [(e.label, e.factories[0](0)) for e in entries
+                  if e.key in ("best_constant", "feedback")]
+        shown += [(f"{e.label.split(' (')[0]} (training seed {e.info['seeds'][0]})",
+                   e.factories[0](0)) for e in trained]
+        name = f"{scene}_time_history.png"
+        time_history(shown, scene, env_kwargs, eval_env_seed(0), out / name)
+        plots.append(name)
+        name = f"{scene}_learning_curves.png"
+        if learning_curves(trained, baselines, out / name):
+            plots.append(name)
+
+    md = markdown(scene, entries, args.seeds, args.episodes, plots)
+    table = out / f"{scene}.md"
+    table.write_text(md + "\n")
+    result = {
+        "scene": scene, "env_kwargs": env_kwargs, "n_seeds": args.seeds,
+        "episodes": args.episodes, "eval_plant_seeds": eval_seeds(args.seeds, args.episodes),
+        "seconds": round(time.perf_counter() - t0, 2),
+        "controllers": {e.key: {**_summary(e), "info": e.info,
+                                "per_episode": e.metrics.as_dict(),
+                                "seed_means": e.seed_means} for e in entries},
+    }
+    (out / f"{scene}_results.json").write_text(json.dumps(result, indent=1, default=str))
+    print(md)
+    return table
+
+
+def main(argv: list[str] | None = None) -> list[Path]:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        scenes = prepare(args)
+    except ValueError as e:
+        parser.error(str(e))
+    return [evaluate_scene(scene, args) for scene in scenes]
+
+
+if __name__ == "__main__":
+    main()

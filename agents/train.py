@@ -1,0 +1,325 @@
+"""Train a stick-slip suppression agent with stable-baselines3.
+
+    python -m agents.train --algo ppo --scene self_excited --seed 0 -n 300000
+
+Hyperparameters come from ``agents/hyperparams/<algo>.yml`` (rl-baselines3-zoo style, one
+entry per environment id, i.e. per scene); ``-params key:value`` overrides single entries.
+Each run writes its own folder, by default ``runs/<algo>_<scene>_s<seed>_<timestamp>/``:
+
+- ``config.yml``: everything needed to repeat the run (resolved hyperparameters, seeds,
+  versions, command line) and the measured training wall time;
+- ``model.zip`` and ``vecnormalize.pkl`` (if observations/rewards are normalised);
+- ``evaluations.npz`` / ``eval_log.csv``: periodic deterministic evaluation on fixed
+  episodes (return, stick fraction, effort) -- the learning curve;
+- ``monitor.csv`` (training episodes) and ``progress.csv`` (SB3 logger); TensorBoard
+  events under ``tb/`` with ``--tensorboard``.
+
+Training runs on the native vector environment (``StickSlipSB3VecEnv``: all plants in one
+numba call). Training plants are seeded ``1000 * seed + i`` and the periodic evaluation
+``1000 * seed + 500 + i``; final evaluations use seeds from 10,000,000 on, so no reported
+episode was ever trained on.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import platform
+import sys
+import time
+from datetime import datetime
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+from agents.common import (
+    ALGOS,
+    SCENE_ENV_IDS,
+    EpisodeMetrics,
+    RunSpec,
+    TrainedController,
+    algo_class,
+    apply_overrides,
+    callback_env_seed,
+    check_seed,
+    load_hyperparams,
+    make_sb3_env,
+    rollout,
+    split_hyperparams,
+    train_env_seed,
+)
+
+
+def _callbacks() -> tuple[type, type]:
+    """Callback classes (defined lazily so ``--help`` does not import torch)."""
+    from stable_baselines3.common.callbacks import BaseCallback
+
+    class ProgressBar(BaseCallback):
+        """tqdm bar over timesteps with the latest evaluation in the postfix."""
+
+        def __init__(self, total: int, status: dict[str, Any], enabled: bool = True):
+            super().__init__()
+            self.total = total
+            self.status = status
+            self.enabled = enabled
+            self.bar = None
+            self._done = 0
+
+        def _on_training_start(self) -> None:
+            from tqdm.auto import tqdm
+
+            self.bar = tqdm(total=self.total, unit="step", disable=not self.enabled,
+                            dynamic_ncols=True, desc="train")
+
+        def _on_step(self) -> bool:
+            step = min(self.num_timesteps, self.total)
+            self.bar.update(step - self._done)
+            self._done = step
+            if self.status.get("dirty"):
+                self.status["dirty"] = False
+                self.bar.set_postfix(eval_return=f"{self.status['return']:.2f}",
+                                     stick=f"{self.status['stick']:.4f}", refresh=False)
+            return True
+
+        def _on_training_end(self) -> None:
+            self.bar.close()
+
+    class PeriodicEval(BaseCallback):
+        """Deterministic evaluation every ``eval_freq`` steps on the same fixed episodes.
+
+        Uses the evaluation code of ``agents.evaluate`` (exact stick fraction, effort,
+        return), so the learning curve and the final table measure the same thing. Results
+        are only logged, never used to pick a checkpoint: the final model is the result.
+        """
+
+        def __init__(self, scene: str, env_kwargs: dict, seed: int, n_episodes: int,
+                     eval_freq: int, run_dir: Path, status: dict[str, Any]):
+            super().__init__()
+            self.scene, self.env_kwargs, self.seed = scene, env_kwargs, seed
+            self.n_episodes, self.eval_freq = n_episodes, eval_freq
+            self.run_dir, self.status = run_dir, status
+            self.next_eval = 0
+            self.rows: list[dict[str, float]] = []
+            self.returns: list[np.ndarray] = []
+            self.lengths: list[np.ndarray] = []
+
+        def _evaluate(self) -> None:
+            ctrl = TrainedController(self.model, self.model.get_vec_normalize_env())
+            m: EpisodeMetrics = rollout(ctrl, self.scene, self.seed, self.n_episodes,
+                                        self.env_kwargs)
+            row = {"timesteps": self.num_timesteps, "time_s": time.perf_counter() - self.t0,
+                   "return_mean": float(m.ret.mean()), "return_std": float(m.ret.std()),
+                   "stick_fraction": float(m.stick_fraction.mean()),
+                   "effort": float(m.effort.mean()),
+                   "rms_vr_fluct": float(m.rms_vr_fluct.mean())}
+            self.rows.append(row)
+            self.returns.append(m.ret)
+            self.lengths.append(m.length)
+            for key in ("return_mean", "stick_fraction", "effort"):
+                self.logger.record(f"eval/{key}", row[key])
+            self.status.update({"return": row["return_mean"], "stick": row["stick_fraction"],
+                                "dirty": True})
+            self._write()
+
+        def _write(self) -> None:
+            np.savez(self.run_dir / "evaluations.npz",
+                     timesteps=np.array([r["timesteps"] for r in self.rows]),
+                     results=np.array(self.returns), ep_lengths=np.array(self.lengths),
+                     stick_fraction=np.array([r["stick_fraction"] for r in self.rows]),
+                     effort=np.array([r["effort"] for r in self.rows]))
+            with open(self.run_dir / "eval_log.csv", "w", newline="") as fh:
+                w = csv.DictWriter(fh, fieldnames=list(self.rows[0]))
+                w.writeheader()
+                w.writerows(self.rows)
+
+        def _on_training_start(self) -> None:
+            self.t0 = time.perf_counter()
+            self.next_eval = self.eval_freq
+            self._evaluate()  # the untrained policy: where the learning curve starts
+
+        def _on_step(self) -> bool:
+            if self.eval_freq > 0 and self.num_timesteps >= self.next_eval:
+                self._evaluate()
+                while self.next_eval <= self.num_timesteps:
+                    self.next_eval += self.eval_freq
+            return True
+
+        def _on_training_end(self) -> None:
+            if not self.rows or self.rows[-1]["timesteps"] != self.num_timesteps:
+                self._evaluate()  # the curve always ends at the final model
+
+    return ProgressBar, PeriodicEval
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(
+        prog="python -m agents.train", description=__doc__.split("\n\n")[0],
+        formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    p.add_argument("--algo", required=True, choices=ALGOS, help="RL algorithm")
+    p.add_argument("--scene", required=True, choices=sorted(SCENE_ENV_IDS), help="scene")
+    p.add_argument("--seed", type=int, default=0, help="seeds torch, the policy and the envs")
+    p.add_argument("-n", "--n-timesteps", type=int, default=None,
+                   help="training steps (default: the hyperparameter file's n_timesteps)")
+    p.add_argument("--hyperparams", type=Path, default=None,
+                   help="hyperparameter yml (default: agents/hyperparams/<algo>.yml)")
+    p.add_argument("-params", "--params", nargs="+", default=[], metavar="KEY:VALUE",
+                   help="override hyperparameters, e.g. -params n_envs:8 gamma:0.98")
+    p.add_argument("-f", "--log-folder", type=Path, default=Path("runs"),
+                   help="parent folder of the run folder")
+    p.add_argument("--run-dir", type=Path, default=None,
+                   help="exact run folder (default: <log-folder>/<algo>_<scene>_s<seed>_<time>)")
+    p.add_argument("--eval-freq", type=int, default=10_000,
+                   help="evaluate every this many steps (0: only at the end)")
+    p.add_argument("--eval-episodes", type=int, default=16, help="episodes per evaluation")
+    p.add_argument("--tensorboard", action="store_true",
+                   help="also log to TensorBoard (<run>/tb; needs the tensorboard package)")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument("--threads", type=int, default=1,
+                   help="torch threads (small MLPs train fastest on one)")
+    return p
+
+
+def _run_dir(args: argparse.Namespace) -> Path:
+    if args.run_dir is not None:
+        path = args.run_dir
+        if path.exists() and any(path.iterdir()):
+            raise ValueError(f"run folder {path} exists and is not empty")
+    else:
+        stamp = datetime.now().strftime("%Y%m%d-%H%M%S")
+        base = args.log_folder / f"{args.algo}_{args.scene}_s{args.seed}_{stamp}"
+        path, k = base, 1
+        while path.exists():
+            path = base.with_name(f"{base.name}_{k}")
+            k += 1
+    path.mkdir(parents=True, exist_ok=True)
+    return path
+
+
+def _versions() -> dict[str, str]:
+    import gymnasium
+    import stable_baselines3
+    import torch
+
+    import fricenv
+
+    return {"python": platform.python_version(), "numpy": np.__version__,
+            "torch": str(torch.__version__), "stable_baselines3": stable_baselines3.__version__,
+            "gymnasium": gymnasium.__version__, "fricenv": fricenv.__version__}
+
+
+def _plain(value: Any) -> Any:
+    """YAML-safe copy of a hyperparameter entry (callables and classes as their names)."""
+    if isinstance(value, dict):
+        return {str(k): _plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_plain(v) for v in value]
+    if isinstance(value, (str, int, float, bool)) or value is None:
+        return value
+    return getattr(value, "__name__", repr(value))
+
+
+def prepare(args: argparse.Namespace) -> tuple[RunSpec, dict[str, Any], Path]:
+    """Check the command line and resolve the hyperparameters (``ValueError`` if bad)."""
+    check_seed(args.seed)
+    if args.n_timesteps is not None and args.n_timesteps < 1:
+        raise ValueError(f"-n must be >= 1, got {args.n_timesteps}")
+    if args.eval_episodes < 1 or args.eval_freq < 0:
+        raise ValueError("need --eval-episodes >= 1 and --eval-freq >= 0")
+    if args.tensorboard:
+        try:
+            import tensorboard  # noqa: F401
+        except ImportError:
+            raise ValueError("--tensorboard needs the tensorboard package "
+                             "(pip install tensorboard)") from None
+    hp_file = args.hyperparams or Path(__file__).resolve().parent / "hyperparams" / (
+        f"{args.algo}.yml")
+    if not hp_file.exists():
+        raise ValueError(f"hyperparameter file {hp_file} does not exist")
+    raw = apply_overrides(load_hyperparams(args.algo, args.scene, hp_file), args.params)
+    if args.n_timesteps is not None:
+        raw["n_timesteps"] = args.n_timesteps
+    return split_hyperparams(args.algo, raw), raw, hp_file
+
+
+def train(args: argparse.Namespace, prepared: tuple | None = None) -> Path:
+    """Run one training; returns the run folder."""
+    import torch
+    from stable_baselines3.common.logger import Logger, make_output_format
+    from stable_baselines3.common.vec_env import VecNormalize
+
+    spec, raw, hp_file = prepared or prepare(args)
+    seed = args.seed
+    run_dir = _run_dir(args)
+
+    torch.set_num_threads(max(1, args.threads))
+    env = make_sb3_env(args.scene, spec.n_envs, train_env_seed(seed), spec.env_kwargs,
+                       monitor_file=run_dir / "monitor.csv")
+    if spec.normalize is not None:
+        gamma = spec.algo_kwargs.get("gamma", 0.99)
+        env = VecNormalize(env, gamma=gamma, **spec.normalize)
+    model = algo_class(args.algo)(spec.policy, env, seed=seed, device="cpu", verbose=0,
+                                  **spec.algo_kwargs)
+    outputs = [make_output_format("csv", str(run_dir))]
+    if args.tensorboard:
+        outputs.append(make_output_format("tensorboard", str(run_dir / "tb")))
+    model.set_logger(Logger(str(run_dir), outputs))
+
+    config = {
+        "algo": args.algo, "scene": args.scene, "env_id": SCENE_ENV_IDS[args.scene],
+        "seed": seed, "n_timesteps": spec.n_timesteps, "n_envs": spec.n_envs,
+        "hyperparams_file": str(hp_file), "overrides": list(args.params),
+        "hyperparams": _plain(raw), "env_kwargs": spec.env_kwargs,
+        "normalize": spec.normalize, "train_env_seeds": [train_env_seed(seed),
+                                                         train_env_seed(seed) + spec.n_envs - 1],
+        "eval_callback_seeds": [callback_env_seed(seed),
+                                callback_env_seed(seed) + args.eval_episodes - 1],
+        "eval_freq": args.eval_freq, "eval_episodes": args.eval_episodes,
+        "command": " ".join(["python -m agents.train", *sys.argv[1:]]),
+        "versions": _versions(), "started": datetime.now().isoformat(timespec="seconds"),
+        "torch_threads": torch.get_num_threads(),
+    }
+    cfg_path = run_dir / "config.yml"
+    cfg_path.write_text(yaml.safe_dump(config, sort_keys=False))
+
+    ProgressBar, PeriodicEval = _callbacks()
+    status: dict[str, Any] = {}
+    evaluator = PeriodicEval(args.scene, spec.env_kwargs, callback_env_seed(seed),
+                             args.eval_episodes, args.eval_freq, run_dir, status)
+    bar = ProgressBar(spec.n_timesteps, status, enabled=not args.no_progress)
+    t0 = time.perf_counter()
+    model.learn(spec.n_timesteps, callback=[evaluator, bar])
+    train_seconds = time.perf_counter() - t0
+
+    model.save(run_dir / "model.zip")
+    if spec.normalize is not None:
+        env.save(str(run_dir / "vecnormalize.pkl"))
+    env.close()
+    last = evaluator.rows[-1]
+    config.update({
+        "finished": datetime.now().isoformat(timespec="seconds"),
+        "train_seconds": round(train_seconds, 2), "timesteps_done": int(model.num_timesteps),
+        "final_eval": {k: last[k] for k in ("return_mean", "stick_fraction", "effort")},
+    })
+    cfg_path.write_text(yaml.safe_dump(config, sort_keys=False))
+    print(f"run folder: {run_dir}\ntraining wall time: {train_seconds:.1f} s "
+          f"({model.num_timesteps} steps); final eval return {last['return_mean']:.3f}, "
+          f"stick fraction {last['stick_fraction']:.4f}")
+    return run_dir
+
+
+def main(argv: list[str] | None = None) -> Path:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        prepared = prepare(args)
+        if args.run_dir is not None and args.run_dir.exists() and any(args.run_dir.iterdir()):
+            raise ValueError(f"run folder {args.run_dir} exists and is not empty")
+    except ValueError as e:  # bad input: a clear message and exit status 2, as argparse does
+        parser.error(str(e))
+    return train(args, prepared)
+
+
+if __name__ == "__main__":
+    main()
