@@ -18,6 +18,18 @@ FRICTION_LAWS: dict[str, tuple[float, float]] = {
     "viscous": (0.2, 0.0),
     "stribeck": (0.2, 0.16),
 }
+#: The paper's time-history cases (Figs. 4-7, Sec. 3.2.1; MODEL.md): figure -> the fields
+#: that differ from the defaults (Coulomb law, lam = 1/2, eta = 3/5, V = 1). One table for
+#: the scripts, the reproduction and the tests.
+PAPER_CASES: dict[str, dict[str, float]] = {
+    "4a": {"nu": 0.10, "u0": 0.2},
+    "4b": {"nu": 0.95, "u0": 0.05},
+    "5a": {"nu": 0.10, "u0": 1.15},
+    "5b": {"nu": 0.2, "u0": 3.05},
+    "6": {"nu": 1.15, "u0": 0.7},
+    "7": {"nu": 1.0, "u0": 1.65, "eta": 0.2},
+}
+
 _LAW_ALIASES = {
     "coulomb+viscosity": "viscous",
     "coulomb_viscosity": "viscous",

@@ -32,7 +32,7 @@ from .layout import (
     ST_X_MAX,
     ST_X_MIN,
 )
-from .params import OscillatorParams
+from .params import PAPER_CASES, OscillatorParams
 from .regimes import Regime
 from .sweep import (
     RegimeMap,
@@ -45,13 +45,12 @@ from .sweep import (
 
 #: Time histories of Figs. 4-7: (figure, panel, overrides, the paper's label).
 TIME_HISTORIES: list[tuple[int, str, dict, str]] = [
-    (4, "a", dict(nu=0.10, u0=0.2), "WM1 (angular modulated, no stick)"),
-    (4, "b", dict(nu=0.95, u0=0.05), "WM2 (amplitude modulated, no stick)"),
-    (5, "a", dict(nu=0.10, u0=1.15), "SSM1 (stick phases)"),
-    (5, "b", dict(nu=0.2, u0=3.05), "SSM1 (stick phases)"),
-    (6, "", dict(nu=1.15, u0=0.7), "SSM2; text: no stick in the whole cycle"),
-    (7, "", dict(nu=1.0, u0=1.65, eta=0.2), "caption: periodic oscillation; "
-     "text: periodic stick-slip"),
+    (4, "a", PAPER_CASES["4a"], "WM1 (angular modulated, no stick)"),
+    (4, "b", PAPER_CASES["4b"], "WM2 (amplitude modulated, no stick)"),
+    (5, "a", PAPER_CASES["5a"], "SSM1 (stick phases)"),
+    (5, "b", PAPER_CASES["5b"], "SSM1 (stick phases)"),
+    (6, "", PAPER_CASES["6"], "SSM2; text: no stick in the whole cycle"),
+    (7, "", PAPER_CASES["7"], "caption: periodic oscillation; text: periodic stick-slip"),
 ]
 
 #: Regime-map panels: figure -> (law, [(eta, (u0_min, u0_max))]). The u0 axis is

@@ -32,18 +32,13 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 import fricenv  # noqa: E402
-from fricenv.params import OscillatorParams  # noqa: E402
+from fricenv.params import PAPER_CASES, OscillatorParams  # noqa: E402
 
 T_END = 200.0
 DT_OUT = 0.1
 C = OscillatorParams.preset
 CASES: dict[str, OscillatorParams] = {
-    "fig4a": C("coulomb", nu=0.10, u0=0.2),
-    "fig4b": C("coulomb", nu=0.95, u0=0.05),
-    "fig5a": C("coulomb", nu=0.10, u0=1.15),
-    "fig5b": C("coulomb", nu=0.2, u0=3.05),
-    "fig6": C("coulomb", nu=1.15, u0=0.7),
-    "fig7": C("coulomb", nu=1.0, u0=1.65, eta=0.2),
+    **{f"fig{name}": C("coulomb", **kw) for name, kw in PAPER_CASES.items()},
     "stribeck": C("stribeck", eta=0.6, nu=0.1, u0=1.15),
 }
 TARGETS = {"exact": (1e-10, 0.5), "event": (1e-8, 1.0)}  # (max error, max time ratio)

@@ -14,15 +14,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
 import fricenv  # noqa: E402
-
-CASES = {  # MODEL.md: figure -> parameters (Coulomb law, lam = 1/2, V = 1, eta = 3/5)
-    "4a": dict(nu=0.10, u0=0.2),
-    "4b": dict(nu=0.95, u0=0.05),
-    "5a": dict(nu=0.10, u0=1.15),
-    "5b": dict(nu=0.2, u0=3.05),
-    "6": dict(nu=1.15, u0=0.7),
-    "7": dict(nu=1.0, u0=1.65, eta=0.2),
-}
+from fricenv.params import PAPER_CASES as CASES  # noqa: E402
 
 
 def main(argv: list[str] | None = None) -> None:

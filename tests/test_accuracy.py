@@ -20,6 +20,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from closed_forms import slip_phase_params  # noqa: E402
 
 from fricenv.layout import EVENT_STICK  # noqa: E402
+from fricenv.params import PAPER_CASES as PAPER_OVERRIDES  # noqa: E402
 from fricenv.params import OscillatorParams  # noqa: E402
 
 pytest.importorskip("scipy")
@@ -30,12 +31,7 @@ C = OscillatorParams.preset
 
 #: The paper's Coulomb time-history cases (MODEL.md table), from rest.
 PAPER_CASES: dict[str, OscillatorParams] = {
-    "fig4a": C("coulomb", nu=0.10, u0=0.2),
-    "fig4b": C("coulomb", nu=0.95, u0=0.05),
-    "fig5a": C("coulomb", nu=0.10, u0=1.15),
-    "fig5b": C("coulomb", nu=0.2, u0=3.05),
-    "fig6": C("coulomb", nu=1.15, u0=0.7),
-    "fig7": C("coulomb", nu=1.0, u0=1.65, eta=0.2),
+    f"fig{name}": OscillatorParams(**kw) for name, kw in PAPER_OVERRIDES.items()
 }
 #: Nonlinear laws (event method only), one of them self-excited without forcing.
 NONLINEAR_CASES: dict[str, OscillatorParams] = {

@@ -12,15 +12,7 @@ from hypothesis import strategies as st
 import fricenv
 from fricenv import OscillatorParams, OscillatorState, SimulationError, run_stats, simulate
 from fricenv.layout import EVENT_REVERSAL, EVENT_SLIP, EVENT_STICK
-
-PAPER_CASES = {  # MODEL.md: Figs. 4-7 (Coulomb law, lam = 1/2, V = 1)
-    "4a": dict(nu=0.10, u0=0.2),
-    "4b": dict(nu=0.95, u0=0.05),
-    "5a": dict(nu=0.10, u0=1.15),
-    "5b": dict(nu=0.2, u0=3.05),
-    "6": dict(nu=1.15, u0=0.7),
-    "7": dict(nu=1.0, u0=1.65, eta=0.2),
-}
+from fricenv.params import PAPER_CASES
 
 
 def stick_force(p: OscillatorParams, t, x):
