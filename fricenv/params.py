@@ -49,6 +49,14 @@ def resolve_law(name: str) -> str:
     return key
 
 
+def check_known_fields(cls_or_obj: object, names: object, what: str) -> None:
+    """``ValueError`` listing the names that are not fields of a dataclass, and the valid ones."""
+    known = {f.name for f in fields(cls_or_obj)}
+    unknown = sorted(set(names) - known)
+    if unknown:
+        raise ValueError(f"unknown {what}(s) {unknown}; expected some of {sorted(known)}")
+
+
 @dataclass(frozen=True)
 class OscillatorParams:
     """Dimensionless parameters of the paper's Eq. 7.
@@ -155,18 +163,12 @@ class OscillatorParams:
         ``"stribeck"`` (b1 = 0.2, b3 = 0.16). Keyword overrides replace any field.
         """
         b1, b3 = FRICTION_LAWS[resolve_law(law)]
-        known = {f.name for f in fields(cls)}
-        unknown = sorted(set(overrides) - known)
-        if unknown:
-            raise ValueError(f"unknown parameter(s) {unknown}; expected some of {sorted(known)}")
+        check_known_fields(cls, overrides, "parameter")
         return cls(**{"b1": b1, "b3": b3, **overrides})
 
     def replace(self, **changes: float) -> OscillatorParams:
         """A copy with ``changes`` applied (validated like a new instance)."""
-        known = {f.name for f in fields(self)}
-        unknown = sorted(set(changes) - known)
-        if unknown:
-            raise ValueError(f"unknown parameter(s) {unknown}; expected some of {sorted(known)}")
+        check_known_fields(self, changes, "parameter")
         return replace(self, **changes)
 
     def to_dict(self) -> dict:

@@ -10,7 +10,7 @@ touches the kernels.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, fields, replace
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -28,6 +28,7 @@ from fricenv.params import (
     P_XFK,
     P_XFS,
     OscillatorParams,
+    check_known_fields,
 )
 
 #: Action modes: which excitation settings the agent drives.
@@ -156,10 +157,7 @@ class Scene:
 
     def replace(self, **changes: Any) -> Scene:
         """A copy with ``changes`` applied (validated like a new scene)."""
-        known = {f.name for f in fields(self)}
-        unknown = sorted(set(changes) - known)
-        if unknown:
-            raise ValueError(f"unknown scene field(s) {unknown}; expected some of {sorted(known)}")
+        check_known_fields(self, changes, "scene field")
         return replace(self, **changes)
 
     # -- sampling ---------------------------------------------------------------------------
