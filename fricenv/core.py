@@ -90,7 +90,11 @@ W_PH1, W_C1, W_S1, W_PH2, W_C2, W_S2 = range(57, 63)
 # such as an environment step). Contacts are still found: grazing detection locates the
 # extremum of v whenever it could reach V.
 W_SKIP_EXTREMA = 63
-N_CX = 64
+# Curvature bounds of the closed form, for proving a scan step free of switches without a
+# root search: |v_p''| <= C_VDD_P (inf with a resonant tone), |v_h''| <= C_VDD_H |(x_h, v_h)|
+# at the step start, and |g''| <= C_GDD.
+C_VDD_P, C_VDD_H, C_GDD = 64, 65, 66
+N_CX = 67
 N_WORK = N_CX
 
 # What a root search evaluates.
@@ -217,6 +221,8 @@ def _setup_context(P, cx):
     cx[C_B1] = P[P_B1]
     cx[C_B3] = P[P_B3]
     cx[C_P2] = 1.0 - 0.25 * lam * lam
+    vdd_p = 0.0
+    gdd = 0.0
     for i in range(2):
         u = P[P_U1 + i]
         w = P[P_W1 + i]
@@ -232,6 +238,13 @@ def _setup_context(P, cx):
         cx[C_KC1 + 2 * i] = kc
         cx[C_KS1 + 2 * i] = ks
         cx[C_RES1 + i] = res
+        vdd_p += math.inf if res != 0.0 else math.sqrt(kc * kc + ks * ks) * w * w * abs(w)
+        gdd += abs(u) * w * w
+    cx[C_VDD_P] = vdd_p
+    cx[C_GDD] = gdd
+    # x^2 + v^2 never grows in the homogeneous motion (its rate is -2 lam v^2), and
+    # v_h'' = lam x_h + (lam^2 - 1) v_h.
+    cx[C_VDD_H] = math.sqrt(lam * lam + (lam * lam - 1.0) ** 2)
 
 
 @njit(cache=True)
@@ -449,7 +462,7 @@ def _extremum(cx, kind, lo, hi, dlo, dhi):
     return 0.5 * (a + b)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _contact_time(cx, kind, L, h0, d0, h1, d1, t_ext, h_ext):
     """First relative time in (0, L] where h = sd (v - V) reaches 0, or -1.
 
@@ -476,7 +489,7 @@ def _contact_time(cx, kind, L, h0, d0, h1, d1, t_ext, h_ext):
     return -1.0
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _x_extrema_between(cx, kind, stats, a, b, va, vb, vabs):
     """Displacement extremum where v changes sign on a monotone piece [a, b] of v.
 
@@ -497,23 +510,45 @@ def _x_extrema_between(cx, kind, stats, a, b, va, vb, vabs):
         _note_x(stats, x)
 
 
-@njit(cache=True)
-def _extremum_matters(cx, stats, sd, v0, v1, a0, a1, L, V):
+@njit(cache=True, inline="always")
+def _stays_positive(k0, d0, k1, d1, L, M):
+    """Proof that k > 0 on [0, L] from k, k' at both ends and a bound M on |k''|.
+
+    k lies above both k0 + d0 t - M t^2 / 2 and k1 - d1 (L - t) - M (L - t)^2 / 2. The
+    larger of these concave bounds is smallest at an end or where they cross (their
+    difference is linear in t), so one evaluation decides. False means "not proven".
+    """
+    if not (k0 > 0.0 and k1 > 0.0 and M < math.inf):
+        return False
+    slope = d0 - d1 - M * L
+    if slope == 0.0:
+        return True
+    t = -(k0 - k1 + d1 * L + 0.5 * M * L * L) / slope
+    if not (0.0 < t < L):
+        return True
+    return k0 + t * (d0 - 0.5 * M * t) > 0.0
+
+
+@njit(cache=True, inline="always")
+def _extremum_matters(cx, stats, sd, v0, v1, a0, a1, L, V, vdd_max):
     """Can the interior extremum of v on this step change v's extrema or touch v = V?
 
     acc goes from a0 to a1 through 0, so |v - v(end)| <= max(|a0|, |a1|) L on a step whose
     acceleration is monotone; a factor 2 covers the mild non-monotonicity a short step
-    allows.
+    allows. A touch is ruled out for certain when ``vdd_max`` (a bound on |v''| over the
+    step, inf if unknown) proves sd (v - V) > 0 throughout.
     """
     reach = 2.0 * max(abs(a0), abs(a1)) * L
     top = max(v0, v1) + reach
     bottom = min(v0, v1) - reach
     if cx[W_SKIP_EXTREMA] != 1.0 and (top > stats[ST_V_MAX] or bottom < stats[ST_V_MIN]):
         return True
-    return bottom <= V <= top
+    if not bottom <= V <= top:
+        return False
+    return not _stays_positive(sd * (v0 - V), sd * a0, sd * (v1 - V), sd * a1, L, vdd_max)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _slip_stats(cx, kind, stats, tau_e, t_ext, v_ext, v0, a0, v1, a1, x1, V):
     """Extrema and the (v - V)^2 integral over a slip step [0, tau_e]."""
     _note_v(stats, v1)
@@ -535,7 +570,7 @@ def _slip_stats(cx, kind, stats, tau_e, t_ext, v_ext, v0, a0, v1, a1, x1, V):
     stats[ST_VR2_INT] += 0.5 * tau_e * (y0 + y1) + tau_e * tau_e * (dy0 - dy1) / 12.0
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _stick_exit_time(cx, L, f0, fd0, f1, fd1):
     """First relative time in [0, L] where |f| exceeds xfs during a stick, or -1.
 
@@ -544,6 +579,10 @@ def _stick_exit_time(cx, L, f0, fd0, f1, fd1):
     pokes past xfs is not missed.
     """
     xfs = cx[C_XFS]
+    M = cx[C_GDD]  # f'' = g'' in stick
+    if _stays_positive(xfs - f0, -fd0, xfs - f1, -fd1, L, M) and _stays_positive(
+            xfs + f0, fd0, xfs + f1, fd1, L, M):
+        return -1.0
     t_ext = -1.0
     f_ext = 0.0
     if fd0 * fd1 < 0.0:
@@ -634,19 +673,21 @@ def _run_exact(P, S, t_span, out_t, stats, max_events, out_x, out_v, out_mode, e
         dt_reg = out_t[1] - out_t[0] if n_int > 0 else t_span
     m_reg = max(1, int(math.ceil(dt_reg / cap - 1e-9)))
     h_reg = dt_reg / m_reg
-    if (cx[W_KEY_LAM] == lam and cx[W_KEY_W1] == w1 and cx[W_KEY_W2] == w2
-            and cx[W_KEY_H] == h_reg):
-        r11, r12, r21, r22 = cx[W_R11], cx[W_R12], cx[W_R21], cx[W_R22]
-        rc1, rs1, rc2, rs2 = cx[W_RC1], cx[W_RS1], cx[W_RC2], cx[W_RS2]
-    else:
-        r11, r12, r21, r22 = _homog(h_reg, lam, cx[C_P2])
-        rc1 = math.cos(w1 * h_reg)
-        rs1 = math.sin(w1 * h_reg)
-        rc2 = math.cos(w2 * h_reg)
-        rs2 = math.sin(w2 * h_reg)
-        cx[W_R11], cx[W_R12], cx[W_R21], cx[W_R22] = r11, r12, r21, r22
-        cx[W_RC1], cx[W_RS1], cx[W_RC2], cx[W_RS2] = rc1, rs1, rc2, rs2
-        cx[W_KEY_LAM], cx[W_KEY_W1], cx[W_KEY_W2], cx[W_KEY_H] = lam, w1, w2, h_reg
+    # each piece is recomputed only when its own key changed (an agent retuning nu
+    # invalidates the second tone's rotation, not the rest)
+    same_h = cx[W_KEY_H] == h_reg
+    if not (same_h and cx[W_KEY_LAM] == lam):
+        cx[W_R11], cx[W_R12], cx[W_R21], cx[W_R22] = _homog(h_reg, lam, cx[C_P2])
+        cx[W_KEY_LAM] = lam
+    if not (same_h and cx[W_KEY_W1] == w1):
+        cx[W_RC1], cx[W_RS1] = math.cos(w1 * h_reg), math.sin(w1 * h_reg)
+        cx[W_KEY_W1] = w1
+    if not (same_h and cx[W_KEY_W2] == w2):
+        cx[W_RC2], cx[W_RS2] = math.cos(w2 * h_reg), math.sin(w2 * h_reg)
+        cx[W_KEY_W2] = w2
+    cx[W_KEY_H] = h_reg
+    r11, r12, r21, r22 = cx[W_R11], cx[W_R12], cx[W_R21], cx[W_R22]
+    rc1, rs1, rc2, rs2 = cx[W_RC1], cx[W_RS1], cx[W_RC2], cx[W_RS2]
 
     x = S[S_X]
     v = S[S_V]
@@ -716,7 +757,10 @@ def _run_exact(P, S, t_span, out_t, stats, max_events, out_x, out_v, out_mode, e
                     t_ext = -1.0
                     v_ext = 0.0
                     h_ext = 0.0
-                    if acc * a1 < 0.0 and _extremum_matters(cx, stats, sd, v, v1, acc, a1, L, V):
+                    if acc * a1 < 0.0 and _extremum_matters(
+                            cx, stats, sd, v, v1, acc, a1, L, V,
+                            cx[C_VDD_P] + cx[C_VDD_H] * math.sqrt(
+                                cx[C_DX] * cx[C_DX] + cx[C_DV] * cx[C_DV])):
                         t_ext = _extremum(cx, K_SLIP_V, 0.0, L, acc, a1)
                         _, v_ext, _, _ = _slip_at(cx, t_ext)
                         h_ext = sd * (v_ext - V)
@@ -1144,7 +1188,8 @@ def _run_event(P, S, t_span, out_t, stats, max_events, rtol, atol, out_x, out_v,
                         need_dense = True
             if need_dense:
                 _dp5_dense(cx, kx, kv)
-            if acc * a1 < 0.0 and _extremum_matters(cx, stats, sd, v, v1, acc, a1, hstep, V):
+            if acc * a1 < 0.0 and _extremum_matters(cx, stats, sd, v, v1, acc, a1, hstep, V,
+                                                    math.inf):
                 t_ext = _extremum(cx, K_DENSE_V, 0.0, hstep, acc, a1)
                 v_ext, _, _ = _dense_v(cx, t_ext)
                 h_ext = sd * (v_ext - V)
