@@ -60,6 +60,13 @@ from .layout import (
 )
 from .params import P_B1, P_B3, P_LAM, P_U1, P_U2, P_V, P_W1, P_W2, P_XFK, P_XFS
 
+# Kernels that never allocate are compiled with ``_nrt=False`` (numba's CPU target option
+# that turns its reference-counting runtime off for that function). Otherwise every call
+# that passes an array (or a view such as P[i]) does atomic incref/decref pairs on the
+# array's shared counter: measured, that was ~40 % of a scan step, and with threads the
+# counters of a batch's common parent array bounce between cores. The caller keeps every
+# array alive for the duration of the call, so no count is needed. Only ``advance``,
+# ``record`` and ``_fresh_workspace``, which allocate, keep the runtime.
 TWO_PI = 2.0 * math.pi
 # Scan steps must hold at most one extremum of v (or of f in stick): a tone's extrema are
 # pi / omega apart, so half a radian per step leaves a wide margin (>= 12 steps a period).
@@ -94,7 +101,8 @@ W_SKIP_EXTREMA = 63
 # root search: |v_p''| <= C_VDD_P (inf with a resonant tone), |v_h''| <= C_VDD_H |(x_h, v_h)|
 # at the step start, and |g''| <= C_GDD.
 C_VDD_P, C_VDD_H, C_GDD = 64, 65, 66
-N_CX = 67
+C_KX, C_KV = 67, 74  # the 7 stages of x and of v of the current RK step
+N_CX = 81
 N_WORK = N_CX
 
 # What a root search evaluates.
@@ -105,7 +113,7 @@ K_DENSE_H = 3  # slip (RK dense output): h = sd * (v - V)
 K_DENSE_V = 4  # slip (RK dense output): v
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, _nrt=False, inline="always")
 def _wrap(phi):
     if 0.0 <= phi < TWO_PI:
         return phi
@@ -113,7 +121,7 @@ def _wrap(phi):
     return phi if phi < TWO_PI else 0.0
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def reset_stats(stats):
     """Zero the counters of ``stats`` and set the extrema to +-inf."""
     for i in range(stats.shape[0]):
@@ -124,7 +132,7 @@ def reset_stats(stats):
     stats[ST_X_MIN] = np.inf
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, _nrt=False, inline="always")
 def _note_v(stats, v):
     if v > stats[ST_V_MAX]:
         stats[ST_V_MAX] = v
@@ -132,7 +140,7 @@ def _note_v(stats, v):
         stats[ST_V_MIN] = v
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, _nrt=False, inline="always")
 def _note_x(stats, x):
     if x > stats[ST_X_MAX]:
         stats[ST_X_MAX] = x
@@ -140,13 +148,13 @@ def _note_x(stats, x):
         stats[ST_X_MIN] = x
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def stick_force(P, x, phi1, phi2):
     """Everything but friction acting on a block riding with the belt: -lam V - x + g."""
     return -P[P_LAM] * P[P_V] - x + P[P_U1] * math.cos(phi1) + P[P_U2] * math.cos(phi2)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def initial_state(P, x0, v0, S):
     """Fill ``S`` for a start at t = 0 with zero tone phases; mode is chosen from the rules."""
     S[S_T] = 0.0
@@ -157,7 +165,7 @@ def initial_state(P, x0, v0, S):
     S[S_MODE] = initial_mode(P, x0, v0, 0.0, 0.0)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def initial_mode(P, x, v, phi1, phi2):
     """-1/+1 for slip below/above the belt, 0 for stick (v == V and |f| <= xfs)."""
     vr = v - P[P_V]
@@ -174,7 +182,7 @@ def initial_mode(P, x, v, phi1, phi2):
 # ----------------------------------------------------------------------------------------
 # Closed form of a Coulomb slip step
 # ----------------------------------------------------------------------------------------
-@njit(cache=True, inline="always")
+@njit(cache=True, _nrt=False, inline="always")
 def _homog(tau, lam, p2):
     """Transition matrix of x'' + lam x' + x = 0 over tau, for every damping.
 
@@ -206,7 +214,7 @@ def _homog(tau, lam, p2):
     return ec + 0.5 * lam * es, es, -es, ec - 0.5 * lam * es
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _setup_context(P, cx):
     """Constants of the run: particular-solution coefficients of each tone."""
     lam = P[P_LAM]
@@ -247,7 +255,7 @@ def _setup_context(P, cx):
     cx[C_VDD_H] = math.sqrt(lam * lam + (lam * lam - 1.0) ** 2)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _scan_cap(P):
     """Longest scan step: short against the fastest active tone and the damping rate."""
     cap = DELTA_MAX
@@ -264,7 +272,7 @@ def _scan_cap(P):
     return cap
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, _nrt=False, inline="always")
 def _particular(cx, tau, c1, s1, c2, s2, sd):
     """Particular solution (x_p, v_p) at relative time tau, tone phases (c_i, s_i) there."""
     xp = -sd * cx[C_XFK]
@@ -286,7 +294,7 @@ def _particular(cx, tau, c1, s1, c2, s2, sd):
     return xp, vp
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, _nrt=False, inline="always")
 def _slip_start(cx, x, v, c1, s1, c2, s2, sd):
     """Start a closed-form slip step at (x, v) with tone phases (c_i, s_i)."""
     cx[C_XA] = x
@@ -301,7 +309,7 @@ def _slip_start(cx, x, v, c1, s1, c2, s2, sd):
     cx[C_DV] = v - vp
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, _nrt=False, inline="always")
 def _rotate(cx, cr1, sr1, cr2, sr2):
     """Tone phases at the step start advanced by the rotations (cr_i, sr_i)."""
     c1 = cx[C_C1A] * cr1 - cx[C_S1A] * sr1
@@ -311,7 +319,7 @@ def _rotate(cx, cr1, sr1, cr2, sr2):
     return c1, s1, c2, s2
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, _nrt=False, inline="always")
 def _forcing(cx, c1, s1, c2, s2):
     """g, g' and g'' for tone phases (c_i, s_i)."""
     u1 = cx[C_U1]
@@ -324,7 +332,7 @@ def _forcing(cx, c1, s1, c2, s2):
     return g, gd, gdd
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, _nrt=False, inline="always")
 def _slip_with(cx, tau, h11, h12, h21, h22, c1, s1, c2, s2):
     """Closed-form slip state at relative time tau: x, v, acceleration and jerk."""
     sd = cx[C_SD]
@@ -337,7 +345,7 @@ def _slip_with(cx, tau, h11, h12, h21, h22, c1, s1, c2, s2):
     return x, v, acc, jerk
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _slip_at(cx, tau):
     h11, h12, h21, h22 = _homog(tau, cx[C_LAM], cx[C_P2])
     c1, s1, c2, s2 = _rotate(cx, math.cos(cx[C_W1] * tau), math.sin(cx[C_W1] * tau),
@@ -345,7 +353,7 @@ def _slip_at(cx, tau):
     return _slip_with(cx, tau, h11, h12, h21, h22, c1, s1, c2, s2)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _stick_at(cx, tau):
     """Stick state at relative time tau: x and f, f', f''."""
     c1, s1, c2, s2 = _rotate(cx, math.cos(cx[C_W1] * tau), math.sin(cx[C_W1] * tau),
@@ -358,7 +366,7 @@ def _stick_at(cx, tau):
 # ----------------------------------------------------------------------------------------
 # Dense output of a Dormand–Prince step (Shampine's quartic interpolant)
 # ----------------------------------------------------------------------------------------
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _dense_v(cx, tau):
     """v, v', v'' on the dense output of the current RK step."""
     h = cx[C_H]
@@ -373,7 +381,7 @@ def _dense_v(cx, tau):
     return v, dv, ddv
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _dense_x(cx, tau):
     h = cx[C_H]
     th = tau / h
@@ -381,7 +389,7 @@ def _dense_x(cx, tau):
         cx[C_QX0 + 2] + th * cx[C_QX0 + 3])))
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _feval(cx, kind, tau):
     """Value, first and second derivative of the searched function at relative time tau."""
     if kind == K_SLIP_H:
@@ -401,7 +409,7 @@ def _feval(cx, kind, tau):
     return v, dv, ddv
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _bracket(cx, kind, deriv, offset, lo, hi, flo, fhi, rel_tol):
     """Shrink a bracket [lo, hi] of a root of F to rounding level; return (lo, hi).
 
@@ -448,21 +456,21 @@ def _bracket(cx, kind, deriv, offset, lo, hi, flo, fhi, rel_tol):
     return lo, hi
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _root(cx, kind, deriv, offset, lo, hi, flo, fhi):
     """Point of a bracket of a root on ``fhi``'s side (where the switch has happened)."""
     _, b = _bracket(cx, kind, deriv, offset, lo, hi, flo, fhi, EVENT_REL_TOL)
     return b
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _extremum(cx, kind, lo, hi, dlo, dhi):
     """Relative time of the extremum of ``kind`` in [lo, hi], from its derivative's signs."""
     a, b = _bracket(cx, kind, 1, 0.0, lo, hi, dlo, dhi, EXTREMUM_REL_TOL)
     return 0.5 * (a + b)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, _nrt=False, inline="always")
 def _contact_time(cx, kind, L, h0, d0, h1, d1, t_ext, h_ext):
     """First relative time in (0, L] where h = sd (v - V) reaches 0, or -1.
 
@@ -489,7 +497,7 @@ def _contact_time(cx, kind, L, h0, d0, h1, d1, t_ext, h_ext):
     return -1.0
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, _nrt=False, inline="always")
 def _x_extrema_between(cx, kind, stats, a, b, va, vb, vabs):
     """Displacement extremum where v changes sign on a monotone piece [a, b] of v.
 
@@ -510,7 +518,7 @@ def _x_extrema_between(cx, kind, stats, a, b, va, vb, vabs):
         _note_x(stats, x)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, _nrt=False, inline="always")
 def _stays_positive(k0, d0, k1, d1, L, M):
     """Proof that k > 0 on [0, L] from k, k' at both ends and a bound M on |k''|.
 
@@ -529,7 +537,7 @@ def _stays_positive(k0, d0, k1, d1, L, M):
     return k0 + t * (d0 - 0.5 * M * t) > 0.0
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, _nrt=False, inline="always")
 def _extremum_matters(cx, stats, sd, v0, v1, a0, a1, L, V, vdd_max):
     """Can the interior extremum of v on this step change v's extrema or touch v = V?
 
@@ -548,7 +556,7 @@ def _extremum_matters(cx, stats, sd, v0, v1, a0, a1, L, V, vdd_max):
     return not _stays_positive(sd * (v0 - V), sd * a0, sd * (v1 - V), sd * a1, L, vdd_max)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, _nrt=False, inline="always")
 def _slip_stats(cx, kind, stats, tau_e, t_ext, v_ext, v0, a0, v1, a1, x1, V):
     """Extrema and the (v - V)^2 integral over a slip step [0, tau_e]."""
     _note_v(stats, v1)
@@ -570,7 +578,7 @@ def _slip_stats(cx, kind, stats, tau_e, t_ext, v_ext, v0, a0, v1, a1, x1, V):
     stats[ST_VR2_INT] += 0.5 * tau_e * (y0 + y1) + tau_e * tau_e * (dy0 - dy1) / 12.0
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, _nrt=False, inline="always")
 def _stick_exit_time(cx, L, f0, fd0, f1, fd1):
     """First relative time in [0, L] where |f| exceeds xfs during a stick, or -1.
 
@@ -610,7 +618,7 @@ def _stick_exit_time(cx, L, f0, fd0, f1, fd1):
 # ----------------------------------------------------------------------------------------
 # Shared per-step pieces
 # ----------------------------------------------------------------------------------------
-@njit(cache=True, inline="always")
+@njit(cache=True, _nrt=False, inline="always")
 def _record_event(ev_t, ev_kind, ev_x, counts, t, kind, x):
     n = counts[0]
     if n >= ev_t.shape[0]:
@@ -622,7 +630,7 @@ def _record_event(ev_t, ev_kind, ev_x, counts, t, kind, x):
     return True
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _contact_outcome(cx, stats, x, c1, c2, sd):
     """Mode after slip in direction sd reaches v = V at x: stick, or reverse."""
     f = -cx[C_LAM] * cx[C_V] - x + cx[C_U1] * c1 + cx[C_U2] * c2
@@ -633,14 +641,14 @@ def _contact_outcome(cx, stats, x, c1, c2, sd):
     return (1.0 if f > 0.0 else -1.0), EVENT_REVERSAL
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _stick_outcome(cx, stats, x, c1, c2):
     f = -cx[C_LAM] * cx[C_V] - x + cx[C_U1] * c1 + cx[C_U2] * c2
     stats[ST_N_SLIP] += 1.0
     return 1.0 if f > 0.0 else -1.0
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, _nrt=False, inline="always")
 def _renorm(c, s):
     k = 1.5 - 0.5 * (c * c + s * s)
     return c * k, s * k
@@ -649,7 +657,7 @@ def _renorm(c, s):
 # ----------------------------------------------------------------------------------------
 # Exact (closed-form) runner
 # ----------------------------------------------------------------------------------------
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _run_exact(P, S, t_span, out_t, stats, max_events, out_x, out_v, out_mode, ev_t, ev_kind,
                ev_x, counts, cx):
     """Advance S by t_span with the closed-form solver; see ``advance``.
@@ -885,14 +893,14 @@ def _run_exact(P, S, t_span, out_t, stats, max_events, out_x, out_v, out_mode, e
 # ----------------------------------------------------------------------------------------
 # Event-driven Dormand–Prince 5(4) runner
 # ----------------------------------------------------------------------------------------
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _rhs_acc(cx, sd, x, v, ph1, ph2):
     """Slip acceleration for any friction law; tone phases given as angles."""
     return _acc(cx[C_LAM], cx[C_V], sd * cx[C_XFK], cx[C_B1], cx[C_B3], cx[C_U1], cx[C_U2],
                 x, v, ph1, ph2)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, _nrt=False, inline="always")
 def _acc(lam, V, sxfk, b1, b3, u1, u2, x, v, ph1, ph2):
     """Slip acceleration from scalars; terms a configuration zeroes are skipped."""
     a = -lam * v - x - sxfk
@@ -913,7 +921,7 @@ _S3, _S5, _S7, _S9 = -1.0 / 6.0, 1.0 / 120.0, -1.0 / 5040.0, 1.0 / 362880.0
 _S11, _S13, _S15 = -1.0 / 39916800.0, 1.0 / 6227020800.0, -1.0 / 1307674368000.0
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, _nrt=False, inline="always")
 def _sincos_small(t):
     """cos and sin of |t| <= 0.5 by their Taylor series (relative error < 1e-18).
 
@@ -928,14 +936,14 @@ def _sincos_small(t):
     return c, s
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, _nrt=False, inline="always")
 def _tone_at(u, cp, sp, th):
     """u cos(phase + th) from cos/sin of the phase."""
     c, s = _sincos_small(th)
     return u * (cp * c - sp * s)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, _nrt=False, inline="always")
 def _forcing_at(u1, u2, cp1, sp1, cp2, sp2, th1, th2):
     g = 0.0
     if u1 != 0.0:
@@ -945,7 +953,7 @@ def _forcing_at(u1, u2, cp1, sp1, cp2, sp2, th1, th2):
     return g
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _set_phases(cx, ph1, ph2):
     """Tone phases at an RK step start, as angles and as cos/sin."""
     cx[C_PH1A] = ph1
@@ -956,7 +964,7 @@ def _set_phases(cx, ph1, ph2):
     cx[C_SP2] = math.sin(ph2)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _dp5_step(cx, sd, x0, v0, a0, h, kx, kv):
     """One Dormand–Prince step from (x0, v0) at the step start (phases in cx); fills k.
 
@@ -1037,7 +1045,7 @@ def _dp5_step(cx, sd, x0, v0, a0, h, kx, kv):
     return x1, v1
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, _nrt=False, inline="always")
 def _dp5_error(kx, kv, h, x0, v0, x1, v1, rtol, atol):
     """RMS of the embedded error estimate scaled by atol + rtol |y| (SciPy's RK45 norm)."""
     ex = (-71.0 / 57600.0 * kx[0] + 71.0 / 16695.0 * kx[2] - 71.0 / 1920.0 * kx[3]
@@ -1065,7 +1073,7 @@ _P61, _P62, _P63 = (40617522.0 / 29380423.0, -110615467.0 / 29380423.0,
                     69997945.0 / 29380423.0)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, _nrt=False, inline="always")
 def _dense_coeffs(k):
     q0 = k[0]
     q1 = _P01 * k[0] + _P21 * k[2] + _P31 * k[3] + _P41 * k[4] + _P51 * k[5] + _P61 * k[6]
@@ -1074,14 +1082,14 @@ def _dense_coeffs(k):
     return q0, q1, q2, q3
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, _nrt=False, inline="always")
 def _dp5_dense(cx, kx, kv):
     """Coefficients of the dense output of the last DP5 step, stored in cx."""
     cx[C_QX0], cx[C_QX0 + 1], cx[C_QX0 + 2], cx[C_QX0 + 3] = _dense_coeffs(kx)
     cx[C_QV0], cx[C_QV0 + 1], cx[C_QV0 + 2], cx[C_QV0 + 3] = _dense_coeffs(kv)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, _nrt=False, inline="always")
 def _step_factor(err):
     """0.9 err^(-1/5) clamped to [0.2, 5]: the step-size update of a 5th-order pair.
 
@@ -1106,13 +1114,13 @@ def _step_factor(err):
     return min(5.0, max(0.2, y))
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _run_event(P, S, t_span, out_t, stats, max_events, rtol, atol, out_x, out_v, out_mode,
                ev_t, ev_kind, ev_x, counts, cx):
     """Advance S by t_span: adaptive DP5(4) in slip, exact stick; see ``advance``."""
     _setup_context(P, cx)
-    kx = np.empty(7)
-    kv = np.empty(7)
+    kx = cx[C_KX:C_KX + 7]
+    kv = cx[C_KV:C_KV + 7]
     cap = _scan_cap(P)
     V = cx[C_V]
     w1 = cx[C_W1]
@@ -1336,7 +1344,7 @@ def _run_event(P, S, t_span, out_t, stats, max_events, rtol, atol, out_x, out_v,
 # ----------------------------------------------------------------------------------------
 # The paper's scheme: fixed-step RK4 with sgn
 # ----------------------------------------------------------------------------------------
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _sgn_acc(P, x, v, ph1, ph2):
     vr = v - P[P_V]
     s = 1.0 if vr > 0.0 else (-1.0 if vr < 0.0 else 0.0)
@@ -1453,7 +1461,7 @@ def _fresh_workspace():
     return work
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False, inline="always")
 def advance_ws(P, S, t_span, stats, method, rtol, atol, max_events, work):
     """``advance`` with a caller-owned workspace (see ``new_workspace``).
 

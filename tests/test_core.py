@@ -290,3 +290,28 @@ def test_property_exact_matches_event(p):
     check_invariants(p, a)
     scale = 1.0 + np.max(np.abs(a.x))
     assert np.max(np.abs(a.x - b.x)) <= 1e-6 * scale
+
+
+@settings(max_examples=300, deadline=None)
+@given(
+    k0=st.floats(-2.0, 5.0),
+    d0=st.floats(-20.0, 20.0),
+    c2=st.floats(-10.0, 10.0),
+    c3=st.floats(-10.0, 10.0),
+    L=st.floats(0.01, 1.0),
+)
+def test_positivity_certificate_is_sound(k0, d0, c2, c3, L):
+    """_stays_positive never certifies a function that dips to 0 (here a cubic, whose
+    |k''| = |2 c2 + 6 c3 t| on [0, L] is bounded by M)."""
+    from fricenv.core import _stays_positive
+
+    t = np.linspace(0.0, L, 2001)
+    k = k0 + d0 * t + c2 * t**2 + c3 * t**3
+    M = abs(2 * c2) + 6 * abs(c3) * L
+    k1 = k0 + d0 * L + c2 * L**2 + c3 * L**3
+    d1 = d0 + 2 * c2 * L + 3 * c3 * L**2
+    if _stays_positive(k0, d0, k1, d1, L, M):
+        assert k.min() > 0.0
+    # with the exact curvature of a parabola far from 0 it does prove positivity
+    if c3 == 0.0 and k.min() > 0.5 * M * L * L + 1e-9:
+        assert _stays_positive(k0, d0, k1, d1, L, M)
