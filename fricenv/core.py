@@ -72,6 +72,13 @@ TWO_PI = 2.0 * math.pi
 # pi / omega apart, so half a radian per step leaves a wide margin (>= 12 steps a period).
 DELTA_MAX = 0.5  # longest scan step in tau
 PHASE_PER_STEP = 0.5  # longest scan step in radians of the fastest active tone
+# A caller that reads no extrema (W_SKIP_EXTREMA) needs only the switches, which the curvature
+# proofs guard on steps of any length (see _one_extremum_at_most), so its scan steps may be
+# longer: 1.5 rad of the fastest tone keeps the (v - V)^2 quadrature within ~1e-6.
+DELTA_WIDE = 1.0
+PHASE_PER_STEP_WIDE = 1.5
+# Steps are halved until the proofs hold, at most down to this fraction of the scan step.
+MIN_SPLIT = 1.0 / 1024.0
 MAX_ROOT_ITER = 200
 EVENT_REL_TOL = 4e-16  # switching instants: to rounding
 # An extremum's value is insensitive to its position (error ~ f'' dt^2), so 1e-9 in time
@@ -102,7 +109,13 @@ W_SKIP_EXTREMA = 63
 # at the step start, and |g''| <= C_GDD.
 C_VDD_P, C_VDD_H, C_GDD = 64, 65, 66
 C_KX, C_KV = 67, 74  # the 7 stages of x and of v of the current RK step
-N_CX = 81
+# ... and of the third derivatives: |v_p'''| <= C_VDDD_P, |v_h'''| <= C_VDDD_H |(x_h, v_h)|,
+# |g'''| <= C_GDDD.
+C_VDDD_P, C_VDDD_H, C_GDDD = 81, 82, 83
+# Cached with the regular scan step: its transition constants over half a step (midpoint
+# of the (v - V)^2 quadrature).
+W_M11, W_M12, W_M21, W_M22, W_MC1, W_MS1, W_MC2, W_MS2 = range(84, 92)
+N_CX = 92
 N_WORK = N_CX
 
 # What a root search evaluates.
@@ -230,7 +243,9 @@ def _setup_context(P, cx):
     cx[C_B3] = P[P_B3]
     cx[C_P2] = 1.0 - 0.25 * lam * lam
     vdd_p = 0.0
+    vddd_p = 0.0
     gdd = 0.0
+    gddd = 0.0
     for i in range(2):
         u = P[P_U1 + i]
         w = P[P_W1 + i]
@@ -246,24 +261,37 @@ def _setup_context(P, cx):
         cx[C_KC1 + 2 * i] = kc
         cx[C_KS1 + 2 * i] = ks
         cx[C_RES1 + i] = res
-        vdd_p += math.inf if res != 0.0 else math.sqrt(kc * kc + ks * ks) * w * w * abs(w)
+        if res != 0.0:
+            # x_p = u tau sin(phi) / 2 (w = 1, tau from the step start, steps <= 1 long):
+            # |v_p''| <= |u| (3 + tau) / 2, |v_p'''| <= |u| (4 + tau) / 2
+            vdd_p += 2.0 * abs(u)
+            vddd_p += 2.5 * abs(u)
+        else:
+            amp = math.sqrt(kc * kc + ks * ks)
+            vdd_p += amp * w * w * abs(w)
+            vddd_p += amp * w * w * w * w
         gdd += abs(u) * w * w
+        gddd += abs(u) * w * w * abs(w)
     cx[C_VDD_P] = vdd_p
+    cx[C_VDDD_P] = vddd_p
     cx[C_GDD] = gdd
+    cx[C_GDDD] = gddd
     # x^2 + v^2 never grows in the homogeneous motion (its rate is -2 lam v^2), and
-    # v_h'' = lam x_h + (lam^2 - 1) v_h.
+    # v_h'' = lam x_h + (lam^2 - 1) v_h, v_h''' = (1 - lam^2) x_h + (2 lam - lam^3) v_h.
     cx[C_VDD_H] = math.sqrt(lam * lam + (lam * lam - 1.0) ** 2)
+    cx[C_VDDD_H] = math.sqrt((1.0 - lam * lam) ** 2 + (2.0 * lam - lam ** 3) ** 2)
 
 
 @njit(cache=True, _nrt=False)
-def _scan_cap(P):
+def _scan_cap(P, wide):
     """Longest scan step: short against the fastest active tone and the damping rate."""
-    cap = DELTA_MAX
+    cap = DELTA_WIDE if wide else DELTA_MAX
+    phase = PHASE_PER_STEP_WIDE if wide else PHASE_PER_STEP
     for i in range(2):
         if P[P_U1 + i] != 0.0:
             w = abs(P[P_W1 + i])
-            if w * cap > PHASE_PER_STEP:
-                cap = PHASE_PER_STEP / w
+            if w * cap > phase:
+                cap = phase / w
     lam = P[P_LAM]
     if lam > 2.0:
         rate = 0.5 * lam + math.sqrt(0.25 * lam * lam - 1.0)
@@ -557,8 +585,11 @@ def _extremum_matters(cx, stats, sd, v0, v1, a0, a1, L, V, vdd_max):
 
 
 @njit(cache=True, _nrt=False, inline="always")
-def _slip_stats(cx, kind, stats, tau_e, t_ext, v_ext, v0, a0, v1, a1, x1, V):
-    """Extrema and the (v - V)^2 integral over a slip step [0, tau_e]."""
+def _slip_stats(cx, kind, stats, tau_e, t_ext, v_ext, v0, a0, j0, v1, a1, j1, x1, v_mid, V):
+    """Extrema and the (v - V)^2 integral over a slip step [0, tau_e].
+
+    v, v', v'' at both ends, and v at the midpoint unless ``v_mid`` is NaN.
+    """
     _note_v(stats, v1)
     _note_x(stats, x1)
     if cx[W_SKIP_EXTREMA] == 1.0:
@@ -570,12 +601,63 @@ def _slip_stats(cx, kind, stats, tau_e, t_ext, v_ext, v0, a0, v1, a1, x1, V):
         _x_extrema_between(cx, kind, stats, t_ext, tau_e, v_ext, v1, vabs)
     else:
         _x_extrema_between(cx, kind, stats, 0.0, tau_e, v0, v1, max(abs(v0), abs(v1)))
-    # Hermite quadrature of y = (v - V)^2 with y' = 2 (v - V) v' at both ends.
-    y0 = (v0 - V) * (v0 - V)
-    y1 = (v1 - V) * (v1 - V)
-    dy0 = 2.0 * (v0 - V) * a0
-    dy1 = 2.0 * (v1 - V) * a1
-    stats[ST_VR2_INT] += 0.5 * tau_e * (y0 + y1) + tau_e * tau_e * (dy0 - dy1) / 12.0
+    # Hermite quadrature of y = (v - V)^2 from y, y', y'' at both ends and, if given, y at
+    # the midpoint: exact for degree 7 (5 without the midpoint). y' = 2 (v - V) a and
+    # y'' = 2 (a^2 + (v - V) j), with a = v', j = v''.
+    r0 = v0 - V
+    r1 = v1 - V
+    dy0 = 2.0 * r0 * a0
+    dy1 = 2.0 * r1 * a1
+    ddy0 = 2.0 * (a0 * a0 + r0 * j0)
+    ddy1 = 2.0 * (a1 * a1 + r1 * j1)
+    if math.isnan(v_mid):
+        stats[ST_VR2_INT] += tau_e * (0.5 * (r0 * r0 + r1 * r1) + tau_e * (
+            0.1 * (dy0 - dy1) + tau_e * (ddy0 + ddy1) / 120.0))
+    else:
+        rm = v_mid - V
+        stats[ST_VR2_INT] += tau_e * ((19.0 / 70.0) * (r0 * r0 + r1 * r1) + (16.0 / 35.0) * rm * rm
+                                      + tau_e * ((1.0 / 35.0) * (dy0 - dy1)
+                                                 + tau_e * (ddy0 + ddy1) / 840.0))
+
+
+@njit(cache=True, _nrt=False, inline="always")
+def _jerk(cx, v, a, s1, s2):
+    """v'' in slip from v, v' and the tones' sines (the friction law's slope included)."""
+    vr = v - cx[C_V]
+    slope = cx[C_B1] - 3.0 * cx[C_B3] * vr * vr
+    return (slope - cx[C_LAM]) * a - v - (cx[C_U1] * cx[C_W1] * s1 + cx[C_U2] * cx[C_W2] * s2)
+
+
+@njit(cache=True, _nrt=False, inline="always")
+def _sign_kept(k0, k1, L, M):
+    """Proof that k keeps one strict sign on [0, L] from its end values and |k'| <= M."""
+    if k0 > 0.0 and k1 > 0.0:
+        return k0 + k1 > M * L
+    if k0 < 0.0 and k1 < 0.0:
+        return -(k0 + k1) > M * L
+    return False
+
+
+@njit(cache=True, _nrt=False, inline="always")
+def _one_extremum_at_most(h0, d0, h1, d1, hdd0, hdd1, L, M2, M3, cap):
+    """May a slip step [0, L] go to the contact search, which handles one extremum of h?
+
+    Yes if h = sd (v - V) provably stays positive (no contact at all), or h'' provably
+    keeps its sign (h' monotone: one extremum at most), or the step is already tiny.
+    Otherwise the caller halves the step, so no dip of h to 0 can hide between two
+    extrema, however long the scan step.
+    """
+    return (_stays_positive(h0, d0, h1, d1, L, M2) or _sign_kept(hdd0, hdd1, L, M3)
+            or L <= MIN_SPLIT * cap)
+
+
+@njit(cache=True, _nrt=False, inline="always")
+def _stick_held(cx, L, f0, fd0, f1, fd1):
+    """Proof that |f| <= xfs holds on a whole stick step [0, L] (f'' = g'' in stick)."""
+    xfs = cx[C_XFS]
+    M = cx[C_GDD]
+    return _stays_positive(xfs - f0, -fd0, xfs - f1, -fd1, L, M) and _stays_positive(
+        xfs + f0, fd0, xfs + f1, fd1, L, M)
 
 
 @njit(cache=True, _nrt=False, inline="always")
@@ -584,13 +666,9 @@ def _stick_exit_time(cx, L, f0, fd0, f1, fd1):
 
     Each side (f > xfs, f < -xfs) is checked on the monotone pieces of f, split at the
     interior extremum of f when f' changes sign, so a peak of |f| inside the step that
-    pokes past xfs is not missed.
+    pokes past xfs is not missed. The caller makes sure f has one extremum at most.
     """
     xfs = cx[C_XFS]
-    M = cx[C_GDD]  # f'' = g'' in stick
-    if _stays_positive(xfs - f0, -fd0, xfs - f1, -fd1, L, M) and _stays_positive(
-            xfs + f0, fd0, xfs + f1, fd1, L, M):
-        return -1.0
     t_ext = -1.0
     f_ext = 0.0
     if fd0 * fd1 < 0.0:
@@ -667,7 +745,7 @@ def _run_exact(P, S, t_span, out_t, stats, max_events, out_x, out_v, out_mode, e
     transition constants are computed once, so recording costs nothing extra.
     """
     _setup_context(P, cx)
-    cap = _scan_cap(P)
+    cap = _scan_cap(P, cx[W_SKIP_EXTREMA] == 1.0)
     V = cx[C_V]
     lam = cx[C_LAM]
     w1 = cx[C_W1]
@@ -684,14 +762,18 @@ def _run_exact(P, S, t_span, out_t, stats, max_events, out_x, out_v, out_mode, e
     # each piece is recomputed only when its own key changed (an agent retuning nu
     # invalidates the second tone's rotation, not the rest)
     same_h = cx[W_KEY_H] == h_reg
+    hm = 0.5 * h_reg
     if not (same_h and cx[W_KEY_LAM] == lam):
         cx[W_R11], cx[W_R12], cx[W_R21], cx[W_R22] = _homog(h_reg, lam, cx[C_P2])
+        cx[W_M11], cx[W_M12], cx[W_M21], cx[W_M22] = _homog(hm, lam, cx[C_P2])
         cx[W_KEY_LAM] = lam
     if not (same_h and cx[W_KEY_W1] == w1):
         cx[W_RC1], cx[W_RS1] = math.cos(w1 * h_reg), math.sin(w1 * h_reg)
+        cx[W_MC1], cx[W_MS1] = math.cos(w1 * hm), math.sin(w1 * hm)
         cx[W_KEY_W1] = w1
     if not (same_h and cx[W_KEY_W2] == w2):
         cx[W_RC2], cx[W_RS2] = math.cos(w2 * h_reg), math.sin(w2 * h_reg)
+        cx[W_MC2], cx[W_MS2] = math.cos(w2 * hm), math.sin(w2 * hm)
         cx[W_KEY_W2] = w2
     cx[W_KEY_H] = h_reg
     r11, r12, r21, r22 = cx[W_R11], cx[W_R12], cx[W_R21], cx[W_R22]
@@ -741,44 +823,56 @@ def _run_exact(P, S, t_span, out_t, stats, max_events, out_x, out_v, out_mode, e
             on_grid = regular_interval
             while t < tk:
                 L = tk - t
+                full = True  # the step reaches tk (False once halved)
                 stats[ST_N_STEPS] += 1.0
                 if mode != 0.0:
                     # ---------------- slip step ----------------
                     _slip_start(cx, x, v, c1, s1, c2, s2, mode)
-                    if on_grid:
-                        nc1, ns1, nc2, ns2 = _rotate(cx, rc1, rs1, rc2, rs2)
-                        nc1, ns1 = _renorm(nc1, ns1)
-                        nc2, ns2 = _renorm(nc2, ns2)
-                        x1, v1, a1, _ = _slip_with(cx, L, r11, r12, r21, r22, nc1, ns1, nc2,
-                                                   ns2)
-                    else:
-                        nc1, ns1, nc2, ns2 = _rotate(cx, math.cos(w1 * L), math.sin(w1 * L),
-                                                     math.cos(w2 * L), math.sin(w2 * L))
-                        x1, v1, a1, _ = _slip_at(cx, L)
                     sd = mode
                     h0 = sd * (v - V)
                     d0 = sd * acc
                     if fresh and d0 < 0.0 and h0 <= 0.0:
                         d0 = 0.0
-                    h1 = sd * (v1 - V)
-                    d1 = sd * a1
+                    j0 = _jerk(cx, v, acc, s1, s2)
+                    r_h = math.sqrt(cx[C_DX] * cx[C_DX] + cx[C_DV] * cx[C_DV])
+                    vdd = cx[C_VDD_P] + cx[C_VDD_H] * r_h  # bounds |v''| on the step
+                    vddd = cx[C_VDDD_P] + cx[C_VDDD_H] * r_h  # bounds |v'''|
+                    while True:
+                        if on_grid:
+                            nc1, ns1, nc2, ns2 = _rotate(cx, rc1, rs1, rc2, rs2)
+                            nc1, ns1 = _renorm(nc1, ns1)
+                            nc2, ns2 = _renorm(nc2, ns2)
+                            x1, v1, a1, j1 = _slip_with(cx, L, r11, r12, r21, r22, nc1, ns1,
+                                                        nc2, ns2)
+                        else:
+                            nc1, ns1, nc2, ns2 = _rotate(
+                                cx, math.cos(w1 * L), math.sin(w1 * L), math.cos(w2 * L),
+                                math.sin(w2 * L))
+                            x1, v1, a1, j1 = _slip_at(cx, L)
+                        h1 = sd * (v1 - V)
+                        d1 = sd * a1
+                        if _one_extremum_at_most(h0, d0, h1, d1, sd * j0, sd * j1, L, vdd,
+                                                 vddd, cap):
+                            break
+                        L *= 0.5
+                        full = False
+                        on_grid = False
                     t_ext = -1.0
                     v_ext = 0.0
                     h_ext = 0.0
-                    if acc * a1 < 0.0 and _extremum_matters(
-                            cx, stats, sd, v, v1, acc, a1, L, V,
-                            cx[C_VDD_P] + cx[C_VDD_H] * math.sqrt(
-                                cx[C_DX] * cx[C_DX] + cx[C_DV] * cx[C_DV])):
+                    if acc * a1 < 0.0 and _extremum_matters(cx, stats, sd, v, v1, acc, a1, L,
+                                                            V, vdd):
                         t_ext = _extremum(cx, K_SLIP_V, 0.0, L, acc, a1)
                         _, v_ext, _, _ = _slip_at(cx, t_ext)
                         h_ext = sd * (v_ext - V)
                     te = _contact_time(cx, K_SLIP_H, L, h0, d0, h1, d1, t_ext, h_ext)
                     if te >= 0.0:
-                        xe, _, ae, _ = _slip_at(cx, te)
+                        xe, _, ae, je = _slip_at(cx, te)
                         ec1, es1, ec2, es2 = _rotate(cx, math.cos(w1 * te), math.sin(w1 * te),
                                                      math.cos(w2 * te), math.sin(w2 * te))
-                        _slip_stats(cx, K_SLIP_V, stats, te, t_ext, v_ext, v, acc, V, ae, xe,
-                                    V)
+                        _, v_mid, _, _ = _slip_at(cx, 0.5 * te)
+                        _slip_stats(cx, K_SLIP_V, stats, te, t_ext, v_ext, v, acc, j0, V, ae,
+                                    je, xe, v_mid, V)
                         new_mode, kind = _contact_outcome(cx, stats, xe, ec1, ec2, sd)
                         ph1 = _wrap(ph1 + w1 * te)
                         ph2 = _wrap(ph2 + w2 * te)
@@ -802,7 +896,15 @@ def _run_exact(P, S, t_span, out_t, stats, max_events, out_x, out_v, out_mode, e
                         if status != STATUS_OK:
                             break
                         continue
-                    _slip_stats(cx, K_SLIP_V, stats, L, t_ext, v_ext, v, acc, v1, a1, x1, V)
+                    if on_grid:
+                        mc1, ms1, mc2, ms2 = _rotate(cx, cx[W_MC1], cx[W_MS1], cx[W_MC2],
+                                                     cx[W_MS2])
+                        _, v_mid, _, _ = _slip_with(cx, 0.5 * L, cx[W_M11], cx[W_M12],
+                                                    cx[W_M21], cx[W_M22], mc1, ms1, mc2, ms2)
+                    else:
+                        _, v_mid, _, _ = _slip_at(cx, 0.5 * L)
+                    _slip_stats(cx, K_SLIP_V, stats, L, t_ext, v_ext, v, acc, j0, v1, a1, j1,
+                                x1, v_mid, V)
                     x = x1
                     v = v1
                     acc = a1
@@ -816,21 +918,30 @@ def _run_exact(P, S, t_span, out_t, stats, max_events, out_x, out_v, out_mode, e
                     cx[C_S1A] = s1
                     cx[C_C2A] = c2
                     cx[C_S2A] = s2
-                    if on_grid:
-                        nc1, ns1, nc2, ns2 = _rotate(cx, rc1, rs1, rc2, rs2)
-                        nc1, ns1 = _renorm(nc1, ns1)
-                        nc2, ns2 = _renorm(nc2, ns2)
-                    else:
-                        nc1, ns1, nc2, ns2 = _rotate(cx, math.cos(w1 * L), math.sin(w1 * L),
-                                                     math.cos(w2 * L), math.sin(w2 * L))
-                    g0, gd0, _ = _forcing(cx, c1, s1, c2, s2)
+                    g0, gd0, gdd0 = _forcing(cx, c1, s1, c2, s2)
                     f0 = -lam * V - x + g0
                     fd0 = -V + gd0
-                    x1 = x + V * L
-                    g1, gd1, _ = _forcing(cx, nc1, ns1, nc2, ns2)
-                    f1 = -lam * V - x1 + g1
-                    fd1 = -V + gd1
-                    te = _stick_exit_time(cx, L, f0, fd0, f1, fd1)
+                    while True:
+                        if on_grid:
+                            nc1, ns1, nc2, ns2 = _rotate(cx, rc1, rs1, rc2, rs2)
+                            nc1, ns1 = _renorm(nc1, ns1)
+                            nc2, ns2 = _renorm(nc2, ns2)
+                        else:
+                            nc1, ns1, nc2, ns2 = _rotate(
+                                cx, math.cos(w1 * L), math.sin(w1 * L), math.cos(w2 * L),
+                                math.sin(w2 * L))
+                        x1 = x + V * L
+                        g1, gd1, gdd1 = _forcing(cx, nc1, ns1, nc2, ns2)
+                        f1 = -lam * V - x1 + g1
+                        fd1 = -V + gd1
+                        held = _stick_held(cx, L, f0, fd0, f1, fd1)
+                        if held or _sign_kept(gdd0, gdd1, L, cx[C_GDDD]) or (
+                                L <= MIN_SPLIT * cap):
+                            break
+                        L *= 0.5
+                        full = False
+                        on_grid = False
+                    te = -1.0 if held else _stick_exit_time(cx, L, f0, fd0, f1, fd1)
                     if te >= 0.0:
                         xe = x + V * te
                         stats[ST_STICK_TIME] += te
@@ -864,7 +975,7 @@ def _run_exact(P, S, t_span, out_t, stats, max_events, out_x, out_v, out_mode, e
                     c1, s1, c2, s2 = nc1, ns1, nc2, ns2
                     ph1 = _wrap(ph1 + w1 * L)
                     ph2 = _wrap(ph2 + w2 * L)
-                t = tk
+                t = tk if full else t + L
                 fresh = False
                 if not (math.isfinite(x) and math.isfinite(v)):
                     status = STATUS_NONFINITE
@@ -1121,7 +1232,7 @@ def _run_event(P, S, t_span, out_t, stats, max_events, rtol, atol, out_x, out_v,
     _setup_context(P, cx)
     kx = cx[C_KX:C_KX + 7]
     kv = cx[C_KV:C_KV + 7]
-    cap = _scan_cap(P)
+    cap = _scan_cap(P, False)
     V = cx[C_V]
     w1 = cx[C_W1]
     w2 = cx[C_W2]
@@ -1244,7 +1355,10 @@ def _run_event(P, S, t_span, out_t, stats, max_events, rtol, atol, out_x, out_v,
                     j_out += 1
                     counts[1] = j_out
             if step_end > 0.0:
-                _slip_stats(cx, K_DENSE_V, stats, step_end, t_ext, v_ext, v, acc, v1, a1, x1, V)
+                j0 = _jerk(cx, v, acc, cx[C_SP1], cx[C_SP2])
+                j1 = _jerk(cx, v1, a1, cx[C_SE1], cx[C_SE2])  # end of the last RK step taken
+                _slip_stats(cx, K_DENSE_V, stats, step_end, t_ext, v_ext, v, acc, j0, v1, a1, j1,
+                            x1, math.nan, V)
             if te >= 0.0:
                 pe1 = ph1 + w1 * te
                 pe2 = ph2 + w2 * te
@@ -1287,9 +1401,14 @@ def _run_event(P, S, t_span, out_t, stats, max_events, rtol, atol, out_x, out_v,
             cx[C_S1A] = math.sin(ph1)
             cx[C_C2A] = math.cos(ph2)
             cx[C_S2A] = math.sin(ph2)
-            _, f0, fd0, _ = _stick_at(cx, 0.0)
-            x1, f1, fd1, _ = _stick_at(cx, L)
-            te = _stick_exit_time(cx, L, f0, fd0, f1, fd1)
+            _, f0, fd0, fdd0 = _stick_at(cx, 0.0)
+            while True:  # halved until f provably has one extremum at most (see _run_exact)
+                x1, f1, fd1, fdd1 = _stick_at(cx, L)
+                held = _stick_held(cx, L, f0, fd0, f1, fd1)
+                if held or _sign_kept(fdd0, fdd1, L, cx[C_GDDD]) or L <= MIN_SPLIT * cap:
+                    break
+                L *= 0.5
+            te = -1.0 if held else _stick_exit_time(cx, L, f0, fd0, f1, fd1)
             step_end = L if te < 0.0 else te
             if out_t is not None:
                 while j_out < n_out and out_t[j_out] <= t + step_end + 1e-13 * max(1.0,

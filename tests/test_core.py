@@ -10,8 +10,19 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import fricenv
-from fricenv import OscillatorParams, OscillatorState, SimulationError, run_stats, simulate
-from fricenv.layout import EVENT_REVERSAL, EVENT_SLIP, EVENT_STICK
+from fricenv import OscillatorParams, OscillatorState, SimulationError, core, run_stats, simulate
+from fricenv.core import _stays_positive, new_workspace
+from fricenv.layout import (
+    EVENT_REVERSAL,
+    EVENT_SLIP,
+    EVENT_STICK,
+    N_STATE,
+    N_STATS,
+    ST_N_REVERSAL,
+    ST_N_STICK,
+    ST_STICK_TIME,
+    ST_VR2_INT,
+)
 from fricenv.params import PAPER_CASES
 
 
@@ -303,8 +314,6 @@ def test_property_exact_matches_event(p):
 def test_positivity_certificate_is_sound(k0, d0, c2, c3, L):
     """_stays_positive never certifies a function that dips to 0 (here a cubic, whose
     |k''| = |2 c2 + 6 c3 t| on [0, L] is bounded by M)."""
-    from fricenv.core import _stays_positive
-
     t = np.linspace(0.0, L, 2001)
     k = k0 + d0 * t + c2 * t**2 + c3 * t**3
     M = abs(2 * c2) + 6 * abs(c3) * L
@@ -315,3 +324,65 @@ def test_positivity_certificate_is_sound(k0, d0, c2, c3, L):
     # with the exact curvature of a parabola far from 0 it does prove positivity
     if c3 == 0.0 and k.min() > 0.5 * M * L * L + 1e-9:
         assert _stays_positive(k0, d0, k1, d1, L, M)
+
+
+def _intervals(P, work, n, dt):
+    S = np.empty(N_STATE)
+    core.initial_state(P, 0.3, -0.2, S)
+    stats = np.empty(N_STATS)
+    rows = []
+    for _ in range(n):
+        core.reset_stats(stats)
+        if work is None:
+            status = core.advance(P, S, dt, stats, 0, 1e-9, 1e-9, 10_000)
+        else:
+            status = core.advance_ws(P, S, dt, stats, 0, 1e-9, 1e-9, 10_000, work)
+        assert status == 0
+        rows.append([stats[ST_STICK_TIME], stats[ST_N_STICK], stats[ST_N_REVERSAL],
+                     stats[ST_VR2_INT]])
+    return S.copy(), np.array(rows)
+
+
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(
+    lam=st.floats(0.0, 0.6),
+    eta=st.floats(0.5, 9.0),
+    nu=st.floats(0.3, 1.7),
+    u0=st.floats(0.0, 3.0),
+)
+def test_wide_scan_steps_match_short_ones(lam, eta, nu, u0):
+    """A caller that reads no extrema gets scan steps of up to a radian of the fastest tone,
+    guarded by the curvature proofs; state, switches and stick time agree with the default
+    short steps to rounding, the (v - V)^2 quadrature to its own accuracy."""
+    P = OscillatorParams.preset("coulomb", lam=lam, eta=eta, nu=nu, u0=u0).to_array()
+    dt = math.pi / 6.0
+    S_short, short = _intervals(P, None, 60, dt)
+    S_wide, wide = _intervals(P, new_workspace(extrema=False), 60, dt)
+    np.testing.assert_allclose(S_wide[:4], S_short[:4], rtol=0, atol=1e-9)
+    np.testing.assert_array_equal(wide[:, 1:3], short[:, 1:3])
+    np.testing.assert_allclose(wide[:, 0], short[:, 0], rtol=0, atol=1e-9)
+    np.testing.assert_allclose(wide[:, 3], short[:, 3], rtol=1e-5, atol=1e-8)
+
+
+@pytest.mark.parametrize("kw", [{"lam": 0.0, "u0": 0.0}, {"lam": 0.05, "eta": 6.0, "u0": 2.0,
+                                                          "nu": 1.5}, {"nu": 1.2, "u0": 2.0}])
+def test_vr2_quadrature_against_a_fine_trajectory(kw):
+    """The stats-only (v - V)^2 integral of a control interval, wide scan steps included,
+    against Simpson's rule on a finely recorded trajectory."""
+    p = OscillatorParams.preset("coulomb", **kw)
+    dt = math.pi / 6.0
+    tr = simulate(p, 20 * dt, x0=0.3, v0=-0.2, dt_out=dt / 2000)
+    P = p.to_array()
+    for work in (None, new_workspace(extrema=False)):
+        S = np.empty(N_STATE)
+        core.initial_state(P, 0.3, -0.2, S)
+        stats = np.empty(N_STATS)
+        for k in range(20):
+            core.reset_stats(stats)
+            if work is None:
+                core.advance(P, S, dt, stats, 0, 1e-9, 1e-9, 10_000)
+            else:
+                core.advance_ws(P, S, dt, stats, 0, 1e-9, 1e-9, 10_000, work)
+            y = (tr.v[k * 2000:(k + 1) * 2000 + 1] - p.V) ** 2
+            simpson = dt / 2000 / 3 * (y[0] + y[-1] + 4 * y[1:-1:2].sum() + 2 * y[2:-1:2].sum())
+            assert stats[ST_VR2_INT] == pytest.approx(simpson, rel=1e-5, abs=1e-8)
