@@ -17,7 +17,19 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from fricenv.core import advance, advance_ws, initial_mode, initial_state, reset_stats
+from fricenv.core import (
+    W_C1,
+    W_C2,
+    W_PH1,
+    W_PH2,
+    W_S1,
+    W_S2,
+    advance,
+    advance_ws,
+    initial_mode,
+    initial_state,
+    reset_stats,
+)
 from fricenv.layout import (
     METHOD_EVENT,
     METHOD_EXACT,
@@ -168,27 +180,41 @@ def control_interval(P, S, ctrl, cfg, a, stats, res, work) -> int:
     return 0
 
 
+@njit(cache=True, inline="always")
+def _cos_sin(phi, work, key, c, s):
+    """cos and sin of ``phi``, from the core's cache when it holds this very angle."""
+    if phi == work[key]:
+        return work[c], work[s]
+    return math.cos(phi), math.sin(phi)
+
+
 @njit(cache=True)
-def write_obs(P, S, ctrl, cfg, obs) -> bool:
-    """Write the float32 observation; True when the state left the observation box."""
+def write_obs(P, S, ctrl, cfg, obs, work) -> bool:
+    """Write the float32 observation; True when the state left the observation box.
+
+    The tones' cos/sin come from the core's workspace when it holds them for the phases in
+    ``S`` (the closed form carries them), which spares four transcendental calls a step.
+    """
     x = S[S_X]
     vr = S[S_V] - P[P_V]
     xl = cfg[C_X_LIM]
     vl = cfg[C_V_LIM]
+    c1, s1 = _cos_sin(S[S_PHI1], work, W_PH1, W_C1, W_S1)
+    c2, s2 = _cos_sin(S[S_PHI2], work, W_PH2, W_C2, W_S2)
     obs[O_X] = _clip(x, -xl, xl)
     obs[O_VR] = _clip(vr, -vl, vl)
     obs[O_STICK] = 1.0 if S[S_MODE] == 0.0 else 0.0
-    obs[O_COS1] = math.cos(S[S_PHI1])
-    obs[O_SIN1] = math.sin(S[S_PHI1])
-    obs[O_COS2] = math.cos(S[S_PHI2])
-    obs[O_SIN2] = math.sin(S[S_PHI2])
+    obs[O_COS1] = c1
+    obs[O_SIN1] = s1
+    obs[O_COS2] = c2
+    obs[O_SIN2] = s2
     obs[O_U0] = ctrl[0]
     obs[O_NU] = ctrl[1]
     return abs(x) > xl or abs(vr) > vl
 
 
 @njit(cache=True)
-def start_episode(P, S, ctrl, cfg, P_new, init, obs) -> None:
+def start_episode(P, S, ctrl, cfg, P_new, init, obs, work) -> None:
     """Begin an episode from a sampled parameter vector and starting vector."""
     for k in range(P.shape[0]):
         P[k] = P_new[k]
@@ -200,7 +226,7 @@ def start_episode(P, S, ctrl, cfg, P_new, init, obs) -> None:
     S[S_PHI2] = init[I_PHI2]
     # initial_state chose the mode with zero phases; redo it with the drawn ones.
     S[S_MODE] = initial_mode(P, S[S_X], S[S_V], S[S_PHI1], S[S_PHI2])
-    write_obs(P, S, ctrl, cfg, obs)
+    write_obs(P, S, ctrl, cfg, obs, work)
 
 
 @njit(cache=True)
@@ -211,7 +237,7 @@ def step_single(P, S, ctrl, cfg, a, stats, obs, res, work) -> int:
     status = control_interval(P, S, ctrl, cfg, a, stats, res, work)
     if status != 0:
         return status
-    res[R_TERM] = 1.0 if write_obs(P, S, ctrl, cfg, obs) else 0.0
+    res[R_TERM] = 1.0 if write_obs(P, S, ctrl, cfg, obs, work) else 0.0
     return 0
 
 
@@ -241,7 +267,7 @@ def _plant_step(
     """Body of the batch step for plant ``i`` (see ``step_batch``)."""
     did_reset[i] = False
     if mode == AUTORESET_NEXT_STEP and autoreset[i]:
-        start_episode(P[i], S[i], ctrl[i], cfg, next_P[i], next_init[i], obs[i])
+        start_episode(P[i], S[i], ctrl[i], cfg, next_P[i], next_init[i], obs[i], work[i])
         steps[i] = 0
         for k in range(res.shape[1]):
             res[i, k] = 0.0
@@ -250,10 +276,14 @@ def _plant_step(
         autoreset[i] = False
         did_reset[i] = True
         return 0
-    status = control_interval(P[i], S[i], ctrl[i], cfg, A[i], stats[i], res[i], work[i])
+    Pi = P[i]
+    Si = S[i]
+    ci = ctrl[i]
+    wi = work[i]
+    status = control_interval(Pi, Si, ci, cfg, A[i], stats[i], res[i], wi)
     if status != 0:
         return status
-    term = write_obs(P[i], S[i], ctrl[i], cfg, obs[i])
+    term = write_obs(Pi, Si, ci, cfg, obs[i], wi)
     res[i, R_TERM] = 1.0 if term else 0.0
     steps[i] += 1
     trunc = steps[i] >= max_steps
@@ -263,7 +293,7 @@ def _plant_step(
     if mode == AUTORESET_SAME_STEP and done:
         for k in range(obs.shape[1]):
             final_obs[i, k] = obs[i, k]
-        start_episode(P[i], S[i], ctrl[i], cfg, next_P[i], next_init[i], obs[i])
+        start_episode(P[i], S[i], ctrl[i], cfg, next_P[i], next_init[i], obs[i], work[i])
         steps[i] = 0
         did_reset[i] = True
     else:
@@ -407,11 +437,11 @@ def step_batch_parallel(
 
 
 @njit(cache=True)
-def start_batch(P, S, ctrl, cfg, P_new, init, mask, obs, steps, autoreset) -> None:
+def start_batch(P, S, ctrl, cfg, P_new, init, mask, obs, steps, autoreset, work) -> None:
     """Begin episodes for the plants selected by ``mask``."""
     for i in range(P.shape[0]):
         if mask[i]:
-            start_episode(P[i], S[i], ctrl[i], cfg, P_new[i], init[i], obs[i])
+            start_episode(P[i], S[i], ctrl[i], cfg, P_new[i], init[i], obs[i], work[i])
             steps[i] = 0
             autoreset[i] = False
 

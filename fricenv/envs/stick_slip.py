@@ -424,7 +424,9 @@ class StickSlipEnv(gym.Env):
         super().reset(seed=seed)
         values = self.setup.draw(self.np_random)
         self.setup.episode(values, options, self._P_new, self._init)
-        K.start_episode(self._P, self._S, self._ctrl, self._cfg, self._P_new, self._init, self._obs)
+        K.start_episode(
+            self._P, self._S, self._ctrl, self._cfg, self._P_new, self._init, self._obs, self._work
+        )
         self._needs_reset = False
         if self._renderer is not None:
             self._renderer.clear(self._S[S_T], self._S[S_V], self._S[S_MODE] == 0.0)

@@ -202,6 +202,7 @@ class StickSlipVectorEnv(VectorEnv):
             self._obs,
             self._steps,
             self._autoreset,
+            self._work,
         )
         self._terminated[mask] = False
         self._truncated[mask] = False
