@@ -314,6 +314,53 @@ def test_vector_env_matches_single_envs_step_for_step(mode, kw):
     assert np.array_equal(o1, o2)
 
 
+def test_kernel_episode_matches_python_episode():
+    """The vector kernel builds an episode from its uniforms exactly as EnvSetup does."""
+    from fricenv.envs import kernels
+    from fricenv.envs.scenes import INITIAL, N_DRAWS, RANDOMIZABLE, new_episode_arrays
+    from fricenv.envs.stick_slip import EnvSetup
+
+    for k, name in enumerate((*RANDOMIZABLE, *INITIAL)):
+        assert getattr(kernels, "D_" + name.upper()) == k  # the kernel's draw layout
+    rng = np.random.default_rng(0)
+    for scene in SCENES:
+        for randomize in (False, True):
+            setup = EnvSetup.build(scene, randomize=randomize)
+            bounds = np.stack([setup.draw_lo, setup.draw_hi])
+            U = rng.random((500, N_DRAWS))
+            U[0], U[1] = 0.0, np.nextafter(1.0, 0.0)
+            (P1, I1), (P2, I2) = new_episode_arrays(), new_episode_arrays()
+            for u in U:
+                setup.episode(setup.scale(u), None, P1, I1)
+                kernels.episode_from_uniforms(u, bounds, setup.cfg, P2, I2)
+                assert np.array_equal(P1, P2) and np.array_equal(I1, I2)
+
+
+@pytest.mark.parametrize("mode", [AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP])
+def test_vector_env_matches_single_envs_across_draw_buffer_refills(mode):
+    """Episodes of two steps: each plant's buffered draws run out and refill many times, in
+    the kernel's autoresets and in reset() (plain, with options, reseeded), in step."""
+    from fricenv.envs.vector import DRAW_ROWS
+
+    n, horizon = 3, 2
+    kw = {"scene": "self_excited", "randomize": True, "action_mode": "both"}
+    native = gym.make_vec(ENV_ID, num_envs=n, max_episode_steps=horizon, autoreset_mode=mode, **kw)
+    singles = gym.make_vec(
+        ENV_ID,
+        num_envs=n,
+        vectorization_mode="sync",
+        max_episode_steps=horizon,
+        vector_kwargs={"autoreset_mode": mode},
+        **kw,
+    )
+    rng = np.random.default_rng(0)
+    for reset_kw in ({"seed": 5}, {}, {"options": {"x0": 0.5, "lam": 0.04}}, {"seed": 9}):
+        assert np.array_equal(native.reset(**reset_kw)[0], singles.reset(**reset_kw)[0])
+        for _ in range(DRAW_ROWS * horizon + 5):
+            a = rng.uniform(-1, 1, native.action_space.shape).astype(np.float32)
+            _assert_same_step(native.step(a), singles.step(a))
+
+
 def test_vector_reset_mask_and_seed_list():
     vec = StickSlipVectorEnv(num_envs=3, autoreset_mode="Disabled")
     obs, _ = vec.reset(seed=[1, None, 3])

@@ -17,7 +17,19 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from fricenv.core import advance, advance_ws, initial_mode, initial_state, reset_stats
+from fricenv.core import (
+    W_C1,
+    W_C2,
+    W_PH1,
+    W_PH2,
+    W_S1,
+    W_S2,
+    advance,
+    advance_ws,
+    initial_mode,
+    initial_state,
+    reset_stats,
+)
 from fricenv.layout import (
     METHOD_EVENT,
     METHOD_EXACT,
@@ -30,7 +42,7 @@ from fricenv.layout import (
     ST_STICK_TIME,
     ST_VR2_INT,
 )
-from fricenv.params import P_B1, P_B3, P_U1, P_U2, P_V, P_W1, P_W2
+from fricenv.params import P_B1, P_B3, P_LAM, P_U1, P_U2, P_V, P_W1, P_W2, P_XFK, P_XFS
 
 # Action modes (index into scenes.ACTION_MODES).
 MODE_AMPLITUDE, MODE_FREQUENCY, MODE_BOTH = 0, 1, 2
@@ -58,8 +70,10 @@ MODE_AMPLITUDE, MODE_FREQUENCY, MODE_BOTH = 0, 1, 2
     C_RTOL,
     C_ATOL,
     C_MAX_EVENTS,
-) = range(21)
-N_CFG = 21
+    C_U0_START,
+    C_NU_START,
+) = range(23)
+N_CFG = 23
 METHOD_AUTO = -1
 
 # Per-step results (float64 row): reward, stick fraction, effort, velocity variance, terminated.
@@ -68,6 +82,10 @@ N_RES = 5
 
 # Layout of the per-episode starting vector (mirrors scenes.I_*).
 I_X0, I_V0, I_PHI1, I_PHI2, I_U0, I_NU = range(6)
+
+# Layout of one episode's uniform draws (mirrors scenes.RANDOMIZABLE + scenes.INITIAL).
+D_LAM, D_ETA, D_V, D_XFK, D_XFS, D_B1, D_B3, D_X0, D_V0, D_PHI1, D_PHI2 = range(11)
+TWO_PI = 2.0 * math.pi
 
 # Observation layout.
 O_X, O_VR, O_STICK, O_COS1, O_SIN1, O_COS2, O_SIN2, O_U0, O_NU = range(9)
@@ -78,6 +96,10 @@ STATUS_BAD_ACTION = -1
 
 # Autoreset modes of the vector kernel.
 AUTORESET_NEXT_STEP, AUTORESET_SAME_STEP, AUTORESET_DISABLED = 0, 1, 2
+
+# Slots of the vector kernel's int64 ``ivars``: two inputs, then two counts it writes.
+IV_MAX_STEPS, IV_MODE, IV_N_RESET, IV_N_EMPTY = range(4)
+N_IVARS = 4
 
 
 @njit(cache=True)
@@ -168,27 +190,41 @@ def control_interval(P, S, ctrl, cfg, a, stats, res, work) -> int:
     return 0
 
 
+@njit(cache=True, inline="always")
+def _cos_sin(phi, work, key, c, s):
+    """cos and sin of ``phi``, from the core's cache when it holds this very angle."""
+    if phi == work[key]:
+        return work[c], work[s]
+    return math.cos(phi), math.sin(phi)
+
+
 @njit(cache=True)
-def write_obs(P, S, ctrl, cfg, obs) -> bool:
-    """Write the float32 observation; True when the state left the observation box."""
+def write_obs(P, S, ctrl, cfg, obs, work) -> bool:
+    """Write the float32 observation; True when the state left the observation box.
+
+    The tones' cos/sin come from the core's workspace when it holds them for the phases in
+    ``S`` (the closed form carries them), which spares four transcendental calls a step.
+    """
     x = S[S_X]
     vr = S[S_V] - P[P_V]
     xl = cfg[C_X_LIM]
     vl = cfg[C_V_LIM]
+    c1, s1 = _cos_sin(S[S_PHI1], work, W_PH1, W_C1, W_S1)
+    c2, s2 = _cos_sin(S[S_PHI2], work, W_PH2, W_C2, W_S2)
     obs[O_X] = _clip(x, -xl, xl)
     obs[O_VR] = _clip(vr, -vl, vl)
     obs[O_STICK] = 1.0 if S[S_MODE] == 0.0 else 0.0
-    obs[O_COS1] = math.cos(S[S_PHI1])
-    obs[O_SIN1] = math.sin(S[S_PHI1])
-    obs[O_COS2] = math.cos(S[S_PHI2])
-    obs[O_SIN2] = math.sin(S[S_PHI2])
+    obs[O_COS1] = c1
+    obs[O_SIN1] = s1
+    obs[O_COS2] = c2
+    obs[O_SIN2] = s2
     obs[O_U0] = ctrl[0]
     obs[O_NU] = ctrl[1]
     return abs(x) > xl or abs(vr) > vl
 
 
 @njit(cache=True)
-def start_episode(P, S, ctrl, cfg, P_new, init, obs) -> None:
+def start_episode(P, S, ctrl, cfg, P_new, init, obs, work) -> None:
     """Begin an episode from a sampled parameter vector and starting vector."""
     for k in range(P.shape[0]):
         P[k] = P_new[k]
@@ -200,7 +236,42 @@ def start_episode(P, S, ctrl, cfg, P_new, init, obs) -> None:
     S[S_PHI2] = init[I_PHI2]
     # initial_state chose the mode with zero phases; redo it with the drawn ones.
     S[S_MODE] = initial_mode(P, S[S_X], S[S_V], S[S_PHI1], S[S_PHI2])
-    write_obs(P, S, ctrl, cfg, obs)
+    write_obs(P, S, ctrl, cfg, obs, work)
+
+
+@njit(cache=True, inline="always")
+def _scaled(u, bounds, k):
+    return bounds[0, k] + (bounds[1, k] - bounds[0, k]) * u[k]
+
+
+@njit(cache=True)
+def episode_from_uniforms(u, bounds, cfg, P_out, init_out) -> None:
+    """One episode's parameter and starting vectors from its N_DRAWS uniforms ``u``.
+
+    ``bounds`` = [draw_lo, draw_hi]. This is ``EnvSetup.draw``'s scaling followed by
+    ``scenes.episode_from_draws`` without options, operation for operation, so that an
+    autoreset inside the step kernel starts exactly the episode a single environment's
+    ``reset()`` would.
+    """
+    eta = _scaled(u, bounds, D_ETA)
+    u0 = cfg[C_U0_START]
+    nu = cfg[C_NU_START]
+    P_out[P_LAM] = _scaled(u, bounds, D_LAM)
+    P_out[P_V] = _scaled(u, bounds, D_V)
+    P_out[P_XFK] = _scaled(u, bounds, D_XFK)
+    P_out[P_XFS] = _scaled(u, bounds, D_XFS)
+    P_out[P_B1] = _scaled(u, bounds, D_B1)
+    P_out[P_B3] = _scaled(u, bounds, D_B3)
+    P_out[P_W1] = eta
+    P_out[P_U1] = cfg[C_G1] * u0
+    P_out[P_U2] = cfg[C_G2] * u0
+    P_out[P_W2] = nu * eta
+    init_out[I_X0] = _scaled(u, bounds, D_X0)
+    init_out[I_V0] = _scaled(u, bounds, D_V0)
+    init_out[I_PHI1] = _scaled(u, bounds, D_PHI1) % TWO_PI
+    init_out[I_PHI2] = _scaled(u, bounds, D_PHI2) % TWO_PI
+    init_out[I_U0] = u0
+    init_out[I_NU] = nu
 
 
 @njit(cache=True)
@@ -211,7 +282,7 @@ def step_single(P, S, ctrl, cfg, a, stats, obs, res, work) -> int:
     status = control_interval(P, S, ctrl, cfg, a, stats, res, work)
     if status != 0:
         return status
-    res[R_TERM] = 1.0 if write_obs(P, S, ctrl, cfg, obs) else 0.0
+    res[R_TERM] = 1.0 if write_obs(P, S, ctrl, cfg, obs, work) else 0.0
     return 0
 
 
@@ -230,19 +301,19 @@ def _plant_step(
     truncated,
     steps,
     autoreset,
-    next_P,
-    next_init,
     did_reset,
     final_obs,
     max_steps,
     mode,
     work,
 ) -> int:
-    """Body of the batch step for plant ``i`` (see ``step_batch``)."""
+    """Body of the batch step for plant ``i`` (see ``step_batch``).
+
+    Marks in ``did_reset[i]`` a plant whose next episode must start now; the caller starts
+    it (``_start_next``), which keeps the draw buffers out of this call's long argument list.
+    """
     did_reset[i] = False
     if mode == AUTORESET_NEXT_STEP and autoreset[i]:
-        start_episode(P[i], S[i], ctrl[i], cfg, next_P[i], next_init[i], obs[i])
-        steps[i] = 0
         for k in range(res.shape[1]):
             res[i, k] = 0.0
         terminated[i] = False
@@ -250,10 +321,14 @@ def _plant_step(
         autoreset[i] = False
         did_reset[i] = True
         return 0
-    status = control_interval(P[i], S[i], ctrl[i], cfg, A[i], stats[i], res[i], work[i])
+    Pi = P[i]
+    Si = S[i]
+    ci = ctrl[i]
+    wi = work[i]
+    status = control_interval(Pi, Si, ci, cfg, A[i], stats[i], res[i], wi)
     if status != 0:
         return status
-    term = write_obs(P[i], S[i], ctrl[i], cfg, obs[i])
+    term = write_obs(Pi, Si, ci, cfg, obs[i], wi)
     res[i, R_TERM] = 1.0 if term else 0.0
     steps[i] += 1
     trunc = steps[i] >= max_steps
@@ -263,12 +338,24 @@ def _plant_step(
     if mode == AUTORESET_SAME_STEP and done:
         for k in range(obs.shape[1]):
             final_obs[i, k] = obs[i, k]
-        start_episode(P[i], S[i], ctrl[i], cfg, next_P[i], next_init[i], obs[i])
-        steps[i] = 0
         did_reset[i] = True
     else:
         autoreset[i] = done
     return 0
+
+
+@njit(cache=True)
+def _start_next(i, P, S, ctrl, cfg, obs, steps, draws, cursor, bounds, new_P, new_init, work):
+    """Start plant ``i``'s next episode from its next buffered row of draws.
+
+    The caller refills a spent buffer before the next call; the modulo only keeps a caller
+    that forgets from reading outside the buffer.
+    """
+    row = cursor[i] % draws.shape[1]
+    episode_from_uniforms(draws[i, row], bounds, cfg, new_P[i], new_init[i])
+    cursor[i] += 1
+    start_episode(P[i], S[i], ctrl[i], cfg, new_P[i], new_init[i], obs[i], work[i])
+    steps[i] = 0
 
 
 @njit(cache=True)
@@ -279,6 +366,24 @@ def _first_bad_action(A, autoreset, mode) -> int:
         if not actions_finite(A[i]):
             return i
     return -1
+
+
+@njit(cache=True)
+def _count(status, did_reset, cursor, n_rows, ivars) -> int:
+    """Write the reset and empty-buffer counts to ``ivars``; return the failure count."""
+    n_failed = 0
+    n_reset = 0
+    n_empty = 0
+    for i in range(status.shape[0]):
+        if status[i] != 0:
+            n_failed += 1
+        if did_reset[i]:
+            n_reset += 1
+            if cursor[i] >= n_rows:
+                n_empty += 1
+    ivars[IV_N_RESET] = n_reset
+    ivars[IV_N_EMPTY] = n_empty
+    return n_failed
 
 
 @njit(cache=True)
@@ -295,8 +400,11 @@ def step_batch(
     truncated,
     steps,
     autoreset,
-    next_P,
-    next_init,
+    draws,
+    cursor,
+    bounds,
+    new_P,
+    new_init,
     did_reset,
     final_obs,
     status,
@@ -305,19 +413,23 @@ def step_batch(
 ) -> int:
     """Step N plants with autoreset in one call.
 
-    ``ivars`` = [max_episode_steps, autoreset mode]. ``autoreset[i]`` marks a plant whose
-    episode ended on the previous call. NEXT_STEP: such a plant is reset from its stashed
-    episode (``next_P``, ``next_init``) instead of stepped, with reward 0. SAME_STEP: a plant
-    whose episode ends now is reset at once, its last observation saved in ``final_obs``.
-    DISABLED: the caller resets. ``did_reset`` marks plants that consumed their stash (the
-    caller draws a new one). Actions are all checked before any plant moves: a non-finite
-    one returns its plant's index + 1 as a negative number. Otherwise returns the number of
+    ``ivars`` = [max_episode_steps, autoreset mode, n_reset, n_empty]. ``autoreset[i]`` marks
+    a plant whose episode ended on the previous call. NEXT_STEP: such a plant is reset
+    instead of stepped, with reward 0. SAME_STEP: a plant whose episode ends now is reset at
+    once, its last observation saved in ``final_obs``. DISABLED: the caller resets. A reset
+    starts the episode made of the uniforms ``draws[i, cursor[i]]`` (scaled by ``bounds``,
+    built in ``new_P[i]``, ``new_init[i]``) and advances ``cursor[i]``. ``did_reset`` marks
+    the plants reset now; the kernel writes their number to ``ivars[2]`` and, in
+    ``ivars[3]``, how many of them used their last buffered row (the caller refills those
+    before the next call). Actions are all checked before any plant moves: a non-finite one
+    returns its plant's index + 1 as a negative number. Otherwise returns the number of
     plants whose integration failed (their codes are in ``status``).
     """
-    bad = _first_bad_action(A, autoreset, ivars[1])
+    bad = _first_bad_action(A, autoreset, ivars[IV_MODE])
     if bad >= 0:
         return -(bad + 1)
-    n_failed = 0
+    max_steps = ivars[IV_MAX_STEPS]
+    mode = ivars[IV_MODE]
     for i in range(P.shape[0]):
         status[i] = _plant_step(
             i,
@@ -333,17 +445,17 @@ def step_batch(
             truncated,
             steps,
             autoreset,
-            next_P,
-            next_init,
             did_reset,
             final_obs,
-            ivars[0],
-            ivars[1],
+            max_steps,
+            mode,
             work,
         )
-        if status[i] != 0:
-            n_failed += 1
-    return n_failed
+        if did_reset[i]:
+            _start_next(
+                i, P, S, ctrl, cfg, obs, steps, draws, cursor, bounds, new_P, new_init, work
+            )
+    return _count(status, did_reset, cursor, draws.shape[1], ivars)
 
 
 @njit(cache=True, parallel=True)
@@ -360,8 +472,11 @@ def step_batch_parallel(
     truncated,
     steps,
     autoreset,
-    next_P,
-    next_init,
+    draws,
+    cursor,
+    bounds,
+    new_P,
+    new_init,
     did_reset,
     final_obs,
     status,
@@ -373,9 +488,11 @@ def step_batch_parallel(
     Each plant reads and writes only its own rows, so the result is identical to the
     serial kernel whatever the thread count; worth it from a few dozen plants up.
     """
-    bad = _first_bad_action(A, autoreset, ivars[1])
+    bad = _first_bad_action(A, autoreset, ivars[IV_MODE])
     if bad >= 0:
         return -(bad + 1)
+    max_steps = ivars[IV_MAX_STEPS]
+    mode = ivars[IV_MODE]
     for i in prange(P.shape[0]):
         status[i] = _plant_step(
             i,
@@ -391,27 +508,25 @@ def step_batch_parallel(
             truncated,
             steps,
             autoreset,
-            next_P,
-            next_init,
             did_reset,
             final_obs,
-            ivars[0],
-            ivars[1],
+            max_steps,
+            mode,
             work,
         )
-    n_failed = 0
-    for i in range(P.shape[0]):
-        if status[i] != 0:
-            n_failed += 1
-    return n_failed
+        if did_reset[i]:
+            _start_next(
+                i, P, S, ctrl, cfg, obs, steps, draws, cursor, bounds, new_P, new_init, work
+            )
+    return _count(status, did_reset, cursor, draws.shape[1], ivars)
 
 
 @njit(cache=True)
-def start_batch(P, S, ctrl, cfg, P_new, init, mask, obs, steps, autoreset) -> None:
+def start_batch(P, S, ctrl, cfg, P_new, init, mask, obs, steps, autoreset, work) -> None:
     """Begin episodes for the plants selected by ``mask``."""
     for i in range(P.shape[0]):
         if mask[i]:
-            start_episode(P[i], S[i], ctrl[i], cfg, P_new[i], init[i], obs[i])
+            start_episode(P[i], S[i], ctrl[i], cfg, P_new[i], init[i], obs[i], work[i])
             steps[i] = 0
             autoreset[i] = False
 

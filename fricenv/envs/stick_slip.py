@@ -130,6 +130,7 @@ class EnvSetup:
         cfg[K.C_X_LIM], cfg[K.C_V_LIM] = sc.x_limit, sc.v_limit
         cfg[K.C_METHOD] = _METHODS[method]
         cfg[K.C_RTOL], cfg[K.C_ATOL], cfg[K.C_MAX_EVENTS] = RTOL, ATOL, MAX_EVENTS
+        cfg[K.C_U0_START], cfg[K.C_NU_START] = sc.params.u0, sc.params.nu
 
         n_act = 2 if sc.action_mode == "both" else 1
         action_space = spaces.Box(-1.0, 1.0, shape=(n_act,), dtype=np.float32)
@@ -155,7 +156,12 @@ class EnvSetup:
 
     def draw(self, rng: np.random.Generator) -> np.ndarray:
         """The uniforms of one episode, scaled; always N_DRAWS numbers from ``rng``."""
-        return self.draw_lo + (self.draw_hi - self.draw_lo) * rng.random(N_DRAWS)
+        return self.scale(rng.random(N_DRAWS))
+
+    def scale(self, u: np.ndarray) -> np.ndarray:
+        """One episode's N_DRAWS uniforms scaled to their bounds (``kernels._scaled`` is
+        the same expression, for episodes started inside the vector kernel)."""
+        return self.draw_lo + (self.draw_hi - self.draw_lo) * u
 
     def episode(self, values: np.ndarray, options: dict | None, P_out, init_out) -> None:
         episode_from_draws(self.scene, values, options, P_out, init_out)
@@ -424,7 +430,9 @@ class StickSlipEnv(gym.Env):
         super().reset(seed=seed)
         values = self.setup.draw(self.np_random)
         self.setup.episode(values, options, self._P_new, self._init)
-        K.start_episode(self._P, self._S, self._ctrl, self._cfg, self._P_new, self._init, self._obs)
+        K.start_episode(
+            self._P, self._S, self._ctrl, self._cfg, self._P_new, self._init, self._obs, self._work
+        )
         self._needs_reset = False
         if self._renderer is not None:
             self._renderer.clear(self._S[S_T], self._S[S_V], self._S[S_MODE] == 0.0)

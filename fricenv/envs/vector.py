@@ -2,9 +2,11 @@
 
 Built like Gymnasium's ``CartPoleVectorEnv`` but bit-compatible with
 ``SyncVectorEnv`` over ``StickSlipEnv``: plant ``i`` owns its own random generator, seeded
-``seed + i`` as ``SyncVectorEnv`` seeds its sub-environments, and the random numbers of the
-*next* episode are drawn as soon as an episode starts, so the kernel can autoreset in place
-with exactly the numbers a single environment would draw at its next ``reset()``.
+``seed + i`` as ``SyncVectorEnv`` seeds its sub-environments. Each plant keeps the uniforms
+of its next ``DRAW_ROWS`` episodes in a buffer (one ``rng.random`` call yields the same
+numbers as that many calls of one episode's size), so the kernel autoresets in place with
+exactly the numbers a single environment would draw at its next ``reset()``, and Python
+only refills a plant's buffer every ``DRAW_ROWS`` episodes.
 """
 
 from __future__ import annotations
@@ -20,7 +22,7 @@ from fricenv.core import new_workspace
 from fricenv.envs import kernels as K
 from fricenv.envs.scenes import N_DRAWS, N_INIT, Scene
 from fricenv.envs.stick_slip import EnvSetup, coerce_action, raise_status
-from fricenv.layout import N_STATE, N_STATS, S_MODE, S_PHI1, S_PHI2, S_T, S_V, S_X
+from fricenv.layout import METHOD_EXACT, N_STATE, N_STATS, S_MODE, S_PHI1, S_PHI2, S_T, S_V, S_X
 from fricenv.params import N_PARAMS, P_U1, P_U2, P_V, P_XFK
 
 _AUTORESET = {
@@ -28,15 +30,30 @@ _AUTORESET = {
     AutoresetMode.SAME_STEP: K.AUTORESET_SAME_STEP,
     AutoresetMode.DISABLED: K.AUTORESET_DISABLED,
 }
-_INFO_KEYS = (
-    ("stick_fraction", K.R_STICK),
-    ("effort", K.R_EFFORT),
-    ("velocity_variance", K.R_VAR),
-)
+#: Info keys, in the order of their columns in the kernel's results (adjacent: one slice
+#: takes them all).
+_INFO_KEYS = ("stick_fraction", "effort", "velocity_variance")
+_INFO_COLS = slice(K.R_STICK, K.R_VAR + 1)
+
+
+def _info_dict(vals: np.ndarray, masks: np.ndarray) -> dict[str, Any]:
+    """SyncVectorEnv's layout of the infos: each key's values, then its ``_key`` mask."""
+    return {
+        "stick_fraction": vals[0],
+        "_stick_fraction": masks[0],
+        "effort": vals[1],
+        "_effort": masks[1],
+        "velocity_variance": vals[2],
+        "_velocity_variance": masks[2],
+    }
 
 
 #: From this many plants on, a step spreads them over threads (numba prange).
 PARALLEL_MIN_ENVS = 64
+#: Episodes' worth of uniforms buffered per plant: one ``rng.random`` call every so many
+#: episodes instead of one per episode.
+DRAW_ROWS = 16
+
 
 class StickSlipVectorEnv(VectorEnv):
     """``num_envs`` independent ``StickSlipEnv`` plants, stepped in one numba call.
@@ -119,18 +136,30 @@ class StickSlipVectorEnv(VectorEnv):
         self._autoreset = np.zeros(n, dtype=np.bool_)
         self._did_reset = np.zeros(n, dtype=np.bool_)
         self._status = np.zeros(n, dtype=np.int64)
-        self._ivars = np.array([self.max_episode_steps, _AUTORESET[self.autoreset_mode]])
+        self._ivars = np.zeros(K.N_IVARS, dtype=np.int64)
+        self._ivars[K.IV_MAX_STEPS] = self.max_episode_steps
+        self._ivars[K.IV_MODE] = _AUTORESET[self.autoreset_mode]
         self._work = new_workspace(n, extrema=False)  # core cache kept across intervals
         # Threads pay off from a few dozen plants; both kernels give identical results.
         self._step_kernel = K.step_batch_parallel if n >= PARALLEL_MIN_ENVS else K.step_batch
 
-        # Stash of each plant's next episode: its draws and what they make.
-        self._next_values = np.zeros((n, N_DRAWS))
-        self._next_P = np.zeros((n, N_PARAMS))
-        self._next_init = np.zeros((n, N_INIT))
+        # Each plant's buffered uniforms (DRAW_ROWS episodes ahead) and its next row; the
+        # episode being started is built in _new_P, _new_init.
+        self._draws = np.zeros((n, DRAW_ROWS, N_DRAWS))
+        self._cursor = np.full(n, DRAW_ROWS, dtype=np.int64)
+        self._bounds = np.stack([self.setup.draw_lo, self.setup.draw_hi])
+        self._new_P = np.zeros((n, N_PARAMS))
+        self._new_init = np.zeros((n, N_INIT))
         self._rngs: list[np.random.Generator | None] = [None] * n
+        # Episodes started in the kernel skip EnvSetup.episode's check: it cannot fail
+        # without options when b1 and b3 are drawn from [0, 0].
+        b13 = self._bounds[:, [K.D_B1, K.D_B3]]
+        if self._cfg[K.C_METHOD] == METHOD_EXACT and np.any(b13 != 0.0):
+            raise ValueError("method='exact' needs the Coulomb law (b1 = b3 = 0)")
         self._act_shape = self.action_space.shape
         self._needs_reset = True
+        # Info masks when every plant reports (copied, since callers may keep them).
+        self._all_true = np.ones((len(_INFO_KEYS), n), dtype=np.bool_)
 
         self._traces = None
         self._painter = None
@@ -177,19 +206,20 @@ class StickSlipVectorEnv(VectorEnv):
         return self._obs.copy(), {}
 
     def _reset_plants(self, idx: np.ndarray, seeds: list, options: list[dict]) -> None:
-        """Start new episodes for plants ``idx``, then restock their stashes."""
-        P_new = np.zeros((self.num_envs, N_PARAMS))
-        init = np.zeros((self.num_envs, N_INIT))
+        """Start new episodes for plants ``idx`` (validating ``options``, per plant)."""
+        setup = self.setup
+        P_new, init, cursor = self._new_P, self._new_init, self._cursor
         mask = np.zeros(self.num_envs, dtype=np.bool_)
         for i, s, opt in zip(idx.tolist(), seeds, options, strict=True):
-            rng = self._rngs[i]
-            if s is not None or rng is None:
-                rng = self._rngs[i] = seeding.np_random(s)[0]
-                values = self.setup.draw(rng)
-            else:
-                # Drawn when the previous episode started: what a single env draws now.
-                values = self._next_values[i]
-            self.setup.episode(values, opt or None, P_new[i], init[i])
+            if s is not None or self._rngs[i] is None:
+                self._rngs[i] = seeding.np_random(s)[0]
+                cursor[i] = DRAW_ROWS  # a new stream: drop the old one's rows
+            if cursor[i] >= DRAW_ROWS:
+                self._refill(i)
+            # The row a single env would draw now (consumed even if the options are bad).
+            values = setup.scale(self._draws[i, cursor[i]])
+            cursor[i] += 1
+            setup.episode(values, opt or None, P_new[i], init[i])
             mask[i] = True
         K.start_batch(
             self._P,
@@ -202,20 +232,26 @@ class StickSlipVectorEnv(VectorEnv):
             self._obs,
             self._steps,
             self._autoreset,
+            self._work,
         )
         self._terminated[mask] = False
         self._truncated[mask] = False
         self._needs_reset = False
-        self._restock(idx)
+        self._refill_empty()
         if self._traces is not None:
             for i in idx.tolist():
                 self._traces[i].clear(self._S[i, S_T], self._S[i, S_V], self._S[i, S_MODE] == 0)
 
-    def _restock(self, idx) -> None:
-        setup = self.setup
-        for i in idx:
-            vals = self._next_values[i] = setup.draw(self._rngs[i])
-            setup.episode(vals, None, self._next_P[i], self._next_init[i])
+    def _refill(self, i: int) -> None:
+        """Buffer plant ``i``'s next DRAW_ROWS episodes: the numbers as many single-env
+        resets would draw, in order, from one call."""
+        self._rngs[i].random(out=self._draws[i])
+        self._cursor[i] = 0
+
+    def _refill_empty(self) -> None:
+        for i in np.flatnonzero(self._cursor >= DRAW_ROWS).tolist():
+            if self._rngs[i] is not None:
+                self._refill(i)
 
     def step(
         self, actions: np.ndarray
@@ -245,8 +281,11 @@ class StickSlipVectorEnv(VectorEnv):
             self._truncated,
             self._steps,
             self._autoreset,
-            self._next_P,
-            self._next_init,
+            self._draws,
+            self._cursor,
+            self._bounds,
+            self._new_P,
+            self._new_init,
             self._did_reset,
             self._final_obs,
             self._status,
@@ -260,55 +299,46 @@ class StickSlipVectorEnv(VectorEnv):
             self._needs_reset = True
             i = int(np.flatnonzero(self._status)[0])
             raise_status(int(self._status[i]), None, f" {i}")
-        reset_now = self._did_reset
-        if reset_now.any():
-            idx = np.flatnonzero(reset_now)
-            self._restock(idx)
-            if self._traces is not None:
-                S = self._S
-                for i in idx.tolist():
-                    self._traces[i].clear(S[i, S_T], S[i, S_V], S[i, S_MODE] == 0)
-        infos = self._infos()
+        res = self._res
+        if self._ivars[K.IV_N_RESET] == 0:
+            # The common case: every plant reports this step's values; one copy each for the
+            # values and the masks (callers may keep what a step returns).
+            infos = _info_dict(res.T[_INFO_COLS].copy(), self._all_true.copy())
+        else:
+            infos = self._after_resets()
         return (
             self._obs.copy(),
-            self._res[:, K.R_REWARD].copy(),
+            res[:, K.R_REWARD].copy(),
             self._terminated.copy(),
             self._truncated.copy(),
             infos,
         )
 
-    def _infos(self) -> dict[str, Any]:
-        """Batch the per-plant infos as SyncVectorEnv would: values plus ``_key`` masks."""
-        res = self._res
-        mode = self.autoreset_mode
-        if mode == AutoresetMode.DISABLED:
-            has = None
-        else:
-            # A plant reset in this call reports its (empty) reset info instead.
-            has = ~self._did_reset
+    def _after_resets(self) -> dict[str, Any]:
+        """After a step that reset plants: refill spent buffers, restart traces, and batch
+        the infos as SyncVectorEnv would (a plant reset now reports its empty reset info)."""
+        if self._ivars[K.IV_N_EMPTY]:
+            self._refill_empty()
+        done = self._did_reset.copy()
+        if self._traces is not None:
+            S = self._S
+            for i in np.flatnonzero(done).tolist():
+                self._traces[i].clear(S[i, S_T], S[i, S_V], S[i, S_MODE] == 0)
+        vals = self._res.T[_INFO_COLS]
         infos: dict[str, Any] = {}
-        if has is None or has.all():
-            mask = np.ones(self.num_envs, dtype=np.bool_)
-            for key, col in _INFO_KEYS:
-                infos[key] = res[:, col].copy()
-                infos["_" + key] = mask.copy()
-        elif has.any():
-            for key, col in _INFO_KEYS:
-                infos[key] = np.where(has, res[:, col], 0.0)
-                infos["_" + key] = has.copy()
-        if mode == AutoresetMode.SAME_STEP and self._did_reset.any():
-            done = self._did_reset.copy()
+        if self._ivars[K.IV_N_RESET] < self.num_envs:
+            has = ~done
+            now = np.where(has, vals, 0.0)
+            infos.update(_info_dict(now, np.broadcast_to(has, now.shape).copy()))
+        if self.autoreset_mode == AutoresetMode.SAME_STEP:
             final_obs = np.full(self.num_envs, None, dtype=object)
             for i in np.flatnonzero(done).tolist():
                 final_obs[i] = self._final_obs[i].copy()
-            final_info: dict[str, Any] = {}
-            for key, col in _INFO_KEYS:
-                final_info[key] = np.where(done, res[:, col], 0.0)
-                final_info["_" + key] = done.copy()
+            fin = np.where(done, vals, 0.0)
             infos["final_obs"] = final_obs
             infos["_final_obs"] = done.copy()
-            infos["final_info"] = final_info
-            infos["_final_info"] = done.copy()
+            infos["final_info"] = _info_dict(fin, np.broadcast_to(done, fin.shape).copy())
+            infos["_final_info"] = done
         return infos
 
     def render(self) -> tuple[np.ndarray, ...] | None:
