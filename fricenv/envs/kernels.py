@@ -6,6 +6,10 @@ they agree bit for bit. The step kernels allocate nothing of their own (only
 stats-only path (``core.advance``): an environment step integrates to the next control
 instant and keeps no trajectory.
 
+Kernels that allocate nothing are compiled without numba's reference-counting runtime
+(``_nrt=False``, see ``fricenv.core``): otherwise every per-plant call does atomic count
+updates on the batch arrays, which threads then fight over.
+
 Note for developers: numba's on-disk cache does not notice edits to ``fricenv.core``; after
 changing the core, delete ``fricenv/envs/__pycache__/*.nb[ic]``.
 """
@@ -102,12 +106,12 @@ IV_MAX_STEPS, IV_MODE, IV_N_RESET, IV_N_EMPTY = range(4)
 N_IVARS = 4
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _clip(v, lo, hi):
     return lo if v < lo else (hi if v > hi else v)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def actions_finite(a) -> bool:
     for k in range(a.shape[0]):
         if not math.isfinite(a[k]):
@@ -115,7 +119,7 @@ def actions_finite(a) -> bool:
     return True
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def set_excitation(P, ctrl, cfg) -> None:
     """Write the tone amplitudes and the second tone's frequency from (u0, nu).
 
@@ -127,7 +131,7 @@ def set_excitation(P, ctrl, cfg) -> None:
     P[P_W2] = ctrl[1] * P[P_W1]
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def apply_action(ctrl, cfg, a) -> None:
     """Map a normalised action in [-1, 1] (clipped) to (u0, nu), absolute or incremental."""
     mode = int(cfg[C_ACTION_MODE])
@@ -148,7 +152,7 @@ def apply_action(ctrl, cfg, a) -> None:
             ctrl[1] = cfg[C_NU_LO] + 0.5 * (ai + 1.0) * (cfg[C_NU_HI] - cfg[C_NU_LO])
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _method(P, cfg) -> int:
     m = int(cfg[C_METHOD])
     if m != METHOD_AUTO:
@@ -158,7 +162,7 @@ def _method(P, cfg) -> int:
     return METHOD_EVENT
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def control_interval(P, S, ctrl, cfg, a, stats, res, work) -> int:
     """Apply action ``a``, advance one control interval, fill the reward terms in ``res``.
 
@@ -190,7 +194,7 @@ def control_interval(P, S, ctrl, cfg, a, stats, res, work) -> int:
     return 0
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, _nrt=False, inline="always")
 def _cos_sin(phi, work, key, c, s):
     """cos and sin of ``phi``, from the core's cache when it holds this very angle."""
     if phi == work[key]:
@@ -198,7 +202,7 @@ def _cos_sin(phi, work, key, c, s):
     return math.cos(phi), math.sin(phi)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def write_obs(P, S, ctrl, cfg, obs, work) -> bool:
     """Write the float32 observation; True when the state left the observation box.
 
@@ -223,7 +227,7 @@ def write_obs(P, S, ctrl, cfg, obs, work) -> bool:
     return abs(x) > xl or abs(vr) > vl
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def start_episode(P, S, ctrl, cfg, P_new, init, obs, work) -> None:
     """Begin an episode from a sampled parameter vector and starting vector."""
     for k in range(P.shape[0]):
@@ -239,12 +243,12 @@ def start_episode(P, S, ctrl, cfg, P_new, init, obs, work) -> None:
     write_obs(P, S, ctrl, cfg, obs, work)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, _nrt=False, inline="always")
 def _scaled(u, bounds, k):
     return bounds[0, k] + (bounds[1, k] - bounds[0, k]) * u[k]
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def episode_from_uniforms(u, bounds, cfg, P_out, init_out) -> None:
     """One episode's parameter and starting vectors from its N_DRAWS uniforms ``u``.
 
@@ -274,7 +278,7 @@ def episode_from_uniforms(u, bounds, cfg, P_out, init_out) -> None:
     init_out[I_NU] = nu
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def step_single(P, S, ctrl, cfg, a, stats, obs, res, work) -> int:
     """One step of the single environment (one dispatch per step keeps it cheap)."""
     if not actions_finite(a):
@@ -286,7 +290,7 @@ def step_single(P, S, ctrl, cfg, a, stats, obs, res, work) -> int:
     return 0
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _plant_step(
     i,
     P,
@@ -344,7 +348,7 @@ def _plant_step(
     return 0
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _start_next(i, P, S, ctrl, cfg, obs, steps, draws, cursor, bounds, new_P, new_init, work):
     """Start plant ``i``'s next episode from its next buffered row of draws.
 
@@ -358,7 +362,7 @@ def _start_next(i, P, S, ctrl, cfg, obs, steps, draws, cursor, bounds, new_P, ne
     steps[i] = 0
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _first_bad_action(A, autoreset, mode) -> int:
     for i in range(A.shape[0]):
         if mode == AUTORESET_NEXT_STEP and autoreset[i]:
@@ -368,7 +372,7 @@ def _first_bad_action(A, autoreset, mode) -> int:
     return -1
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _count(status, did_reset, cursor, n_rows, ivars) -> int:
     """Write the reset and empty-buffer counts to ``ivars``; return the failure count."""
     n_failed = 0
@@ -386,7 +390,7 @@ def _count(status, did_reset, cursor, n_rows, ivars) -> int:
     return n_failed
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def step_batch(
     P,
     S,
@@ -521,7 +525,7 @@ def step_batch_parallel(
     return _count(status, did_reset, cursor, draws.shape[1], ivars)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def start_batch(P, S, ctrl, cfg, P_new, init, mask, obs, steps, autoreset, work) -> None:
     """Begin episodes for the plants selected by ``mask``."""
     for i in range(P.shape[0]):
