@@ -9,8 +9,8 @@ Targets (ratios, so that machine speed cancels):
 
 Timings alternate between the contenders in rounds and report medians, because the machine
 may be shared. Every contender is warmed up first (numba compilation and cache loading are
-excluded). The physics floor (``core.advance`` alone, per control interval, in a numba loop)
-is printed too: no vector env can be cheaper per plant-step than that.
+excluded). The physics floor (``core.advance_ws`` alone, per control interval, in a numba loop)
+is printed too: no vector env can be cheaper per plant-step than that on one thread.
 
 Usage: ``python scripts/bench_env.py [--quick] [--no-ppo] [--json out.json]``
 """
@@ -65,32 +65,37 @@ def _rounds(contenders: dict[str, tuple[Callable[[], None], int]], rounds: int) 
 
 
 def physics_floor(env_id: str, snapshots: int) -> float:
-    """Seconds per plant-step of ``core.advance`` alone, on the vector env's own plants.
+    """Seconds per plant-step of the physics alone, on the vector env's own plants.
 
-    The 256 plants are stepped with random actions; after each step their parameters and
-    states are copied and advanced by one control interval in a bare numba loop (no action
-    scaling, reward, observation or Python): the floor any vector env on this core has.
+    The 256 plants are stepped with random actions; after each step their parameters,
+    states and core workspaces are copied and advanced by one control interval in a bare
+    numba loop through ``core.advance_ws``, the call the environments make (no action
+    scaling, reward, observation or Python; the excitation is not retuned, so the
+    workspace's cached transition constants stay valid). No vector env on this core can
+    be cheaper per plant-step than that, with one thread.
     """
     from numba import njit
 
-    from fricenv.core import advance, reset_stats
-    from fricenv.envs.kernels import _method
+    from fricenv.core import advance_ws, reset_stats
+    from fricenv.envs.kernels import C_ATOL, C_RTOL, _method
 
     @njit
-    def advance_all(P, S, stats, cfg, dt):
+    def advance_all(P, S, stats, cfg, dt, work):
         for i in range(P.shape[0]):
             reset_stats(stats[i])
-            advance(P[i], S[i], dt, stats[i], _method(P[i], cfg), 1e-8, 1e-10, 10_000)
+            advance_ws(P[i], S[i], dt, stats[i], _method(P[i], cfg), cfg[C_RTOL], cfg[C_ATOL],
+                       10_000, work[i])
 
     vec = gym.make_vec(env_id, num_envs=256)
     step = _stepper(vec, seed=1)
     total = 0.0
     for k in range(snapshots + 1):
         step()
-        P, S, stats = vec._P.copy(), vec._S.copy(), vec._stats.copy()
+        P, S, stats, work = vec._P.copy(), vec._S.copy(), vec._stats.copy(), vec._work.copy()
+        advance_all(P, S, stats, vec._cfg, vec.dt, work)  # first call: compile, fill caches
         t = time.perf_counter()
-        advance_all(P, S, stats, vec._cfg, vec.dt)
-        if k:  # the first call compiles
+        advance_all(P, S, stats, vec._cfg, vec.dt, work)
+        if k:
             total += time.perf_counter() - t
     return total / snapshots / 256
 
@@ -204,7 +209,7 @@ def main() -> None:
         print(f"    StickSlip unwrapped step       {r['single_step_us']:8.2f} us")
         print(f"    StickSlip gym.make'd step      {r['made_step_us']:8.2f} us")
         print(f"    native vector, per plant-step  {r['vector_per_plant_us']:8.3f} us (256 plants)")
-        print(f"    core.advance alone, per step   {r['physics_floor_us']:8.3f} us (floor)")
+        print(f"    physics alone, 1 thread        {r['physics_floor_us']:8.3f} us (floor)")
         ok1 = r["single_over_pendulum"] <= 1.0
         ok2 = r["single_over_vector_plant"] >= 20.0
         print(
