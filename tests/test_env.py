@@ -283,17 +283,10 @@ def _assert_same_step(r1, r2):
             assert i1[key].dtype == i2[key].dtype and np.array_equal(i1[key], i2[key]), key
 
 
-@pytest.mark.parametrize("mode", [AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP])
-@pytest.mark.parametrize(
-    "kw",
-    [{}, {"scene": "self_excited", "randomize": True, "action_mode": "both", "incremental": True}],
-)
-def test_vector_env_matches_single_envs_step_for_step(mode, kw):
-    n, horizon = 4, 7  # short episodes: several autoresets
+def _native_and_sync(n, horizon, mode, **kw):
+    """The native vector env and its reference: SyncVectorEnv over gym.make'd single envs
+    (TimeLimit, seeds seed + i), both with this horizon and autoreset mode."""
     native = gym.make_vec(ENV_ID, num_envs=n, max_episode_steps=horizon, autoreset_mode=mode, **kw)
-    assert isinstance(native, StickSlipVectorEnv)
-    assert native.metadata["autoreset_mode"] == mode
-    # SyncVectorEnv over gym.make'd single envs (TimeLimit, seeds seed + i) is the reference.
     singles = gym.make_vec(
         ENV_ID,
         num_envs=n,
@@ -302,6 +295,18 @@ def test_vector_env_matches_single_envs_step_for_step(mode, kw):
         vector_kwargs={"autoreset_mode": mode},
         **kw,
     )
+    return native, singles
+
+
+@pytest.mark.parametrize("mode", [AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP])
+@pytest.mark.parametrize(
+    "kw",
+    [{}, {"scene": "self_excited", "randomize": True, "action_mode": "both", "incremental": True}],
+)
+def test_vector_env_matches_single_envs_step_for_step(mode, kw):
+    native, singles = _native_and_sync(4, 7, mode, **kw)  # short episodes: many autoresets
+    assert isinstance(native, StickSlipVectorEnv)
+    assert native.metadata["autoreset_mode"] == mode
     o1, _ = native.reset(seed=42)
     o2, _ = singles.reset(seed=42)
     assert np.array_equal(o1, o2)
@@ -342,17 +347,9 @@ def test_vector_env_matches_single_envs_across_draw_buffer_refills(mode):
     the kernel's autoresets and in reset() (plain, with options, reseeded), in step."""
     from fricenv.envs.vector import DRAW_ROWS
 
-    n, horizon = 3, 2
-    kw = {"scene": "self_excited", "randomize": True, "action_mode": "both"}
-    native = gym.make_vec(ENV_ID, num_envs=n, max_episode_steps=horizon, autoreset_mode=mode, **kw)
-    singles = gym.make_vec(
-        ENV_ID,
-        num_envs=n,
-        vectorization_mode="sync",
-        max_episode_steps=horizon,
-        vector_kwargs={"autoreset_mode": mode},
-        **kw,
-    )
+    horizon = 2
+    native, singles = _native_and_sync(3, horizon, mode, scene="self_excited", randomize=True,
+                                       action_mode="both")
     rng = np.random.default_rng(0)
     for reset_kw in ({"seed": 5}, {}, {"options": {"x0": 0.5, "lam": 0.04}}, {"seed": 9}):
         assert np.array_equal(native.reset(**reset_kw)[0], singles.reset(**reset_kw)[0])
