@@ -1253,6 +1253,89 @@ def _step_factor(err2):
     return min(5.0, max(0.2, y))
 
 
+# Shampine's L-stable Rosenbrock pair of order 4(3) (the "stiff" method of Numerical Recipes):
+# stages Y_i = y + sum a_ij g_j at t + alpha_i h, (I / (gamma h) - J) g_i = f(Y_i) +
+# gamma_i h f_t + sum c_ij g_j / h; 3 function values and 4 linear solves a step.
+_RG = 0.5
+_RA21, _RA31, _RA32 = 2.0, 48.0 / 25.0, 6.0 / 25.0
+_RC21, _RC31, _RC32 = -8.0, 372.0 / 25.0, 12.0 / 5.0
+_RC41, _RC42, _RC43 = -112.0 / 125.0, -54.0 / 125.0, -2.0 / 5.0
+_RB1, _RB2, _RB3, _RB4 = 19.0 / 9.0, 1.0 / 2.0, 25.0 / 108.0, 125.0 / 108.0
+_RE1, _RE2, _RE4 = 17.0 / 54.0, 7.0 / 36.0, 125.0 / 108.0
+_RG1, _RG2, _RG3, _RG4 = 1.0 / 2.0, -3.0 / 2.0, 121.0 / 50.0, 29.0 / 250.0
+_RALPHA3 = 3.0 / 5.0
+# A slip step is stiff when |df/dv| h exceeds this (DP5 is stable up to about 3.3).
+STIFF_HK = 2.5
+
+
+@njit(cache=True, _nrt=False, inline="always")
+def _ros_solve(c, j22, r1, r2):
+    """(c I - J) z = r for J = [[0, 1], [-1, j22]]."""
+    det = 1.0 + c * (c - j22)
+    z1 = (r2 + (c - j22) * r1) / det
+    return z1, c * z1 - r1
+
+
+@njit(cache=True, _nrt=False)
+def _ros4_step(cx, sd, x0, v0, a0, h):
+    """One Rosenbrock step of the slip equation from (x0, v0) (phases in cx).
+
+    Returns x, v and v' at the end and the embedded error of x and v. J is exact: the
+    friction law's slope enters only dv'/dv. cos/sin of the tone phases at the step end go
+    to cx[C_CE1..C_SE2], as after a DP5 step.
+    """
+    lam = cx[C_LAM]
+    V = cx[C_V]
+    sxfk = sd * cx[C_XFK]
+    b1 = cx[C_B1]
+    b3 = cx[C_B3]
+    u1 = cx[C_U1]
+    u2 = cx[C_U2]
+    w1 = cx[C_W1]
+    w2 = cx[C_W2]
+    cp1 = cx[C_CP1]
+    sp1 = cx[C_SP1]
+    cp2 = cx[C_CP2]
+    sp2 = cx[C_SP2]
+    vr = v0 - V
+    j22 = -lam + b1 - 3.0 * b3 * vr * vr
+    gt = -(u1 * w1 * sp1 + u2 * w2 * sp2)  # dg/dt at the step start
+    c = 1.0 / (_RG * h)
+    ce1, se1 = _sincos(w1 * h)
+    ce2, se2 = _sincos(w2 * h)
+    c_end1 = cp1 * ce1 - sp1 * se1
+    s_end1 = sp1 * ce1 + cp1 * se1
+    c_end2 = cp2 * ce2 - sp2 * se2
+    s_end2 = sp2 * ce2 + cp2 * se2
+    c31, s31 = _sincos(w1 * _RALPHA3 * h)
+    c32, s32 = _sincos(w2 * _RALPHA3 * h)
+    g_end = u1 * c_end1 + u2 * c_end2
+    g_3 = u1 * (cp1 * c31 - sp1 * s31) + u2 * (cp2 * c32 - sp2 * s32)
+    g1x, g1v = _ros_solve(c, j22, v0, a0 + h * _RG1 * gt)
+    x2 = x0 + _RA21 * g1x
+    v2 = v0 + _RA21 * g1v
+    f2v = _acc(lam, V, sxfk, b1, b3, 0.0, 0.0, x2, v2, 0.0, 0.0) + g_end
+    g2x, g2v = _ros_solve(c, j22, v2 + _RC21 * g1x / h,
+                          f2v + h * _RG2 * gt + _RC21 * g1v / h)
+    x3 = x0 + _RA31 * g1x + _RA32 * g2x
+    v3 = v0 + _RA31 * g1v + _RA32 * g2v
+    f3v = _acc(lam, V, sxfk, b1, b3, 0.0, 0.0, x3, v3, 0.0, 0.0) + g_3
+    g3x, g3v = _ros_solve(c, j22, v3 + (_RC31 * g1x + _RC32 * g2x) / h,
+                          f3v + h * _RG3 * gt + (_RC31 * g1v + _RC32 * g2v) / h)
+    g4x, g4v = _ros_solve(c, j22, v3 + (_RC41 * g1x + _RC42 * g2x + _RC43 * g3x) / h,
+                          f3v + h * _RG4 * gt + (_RC41 * g1v + _RC42 * g2v + _RC43 * g3v) / h)
+    x1 = x0 + _RB1 * g1x + _RB2 * g2x + _RB3 * g3x + _RB4 * g4x
+    v1 = v0 + _RB1 * g1v + _RB2 * g2v + _RB3 * g3v + _RB4 * g4v
+    ex = _RE1 * g1x + _RE2 * g2x + _RE4 * g4x
+    ev = _RE1 * g1v + _RE2 * g2v + _RE4 * g4v
+    a1 = _acc(lam, V, sxfk, b1, b3, 0.0, 0.0, x1, v1, 0.0, 0.0) + g_end
+    cx[C_CE1] = c_end1
+    cx[C_SE1] = s_end1
+    cx[C_CE2] = c_end2
+    cx[C_SE2] = s_end2
+    return x1, v1, a1, ex, ev
+
+
 @njit(cache=True, _nrt=False)
 def _run_event(P, S, t_span, out_t, stats, max_events, rtol, atol, out_x, out_v, out_mode,
                ev_t, ev_kind, ev_x, counts, cx):
@@ -1276,6 +1359,7 @@ def _run_event(P, S, t_span, out_t, stats, max_events, rtol, atol, out_x, out_v,
     status = STATUS_OK
     fresh = True
     h = min(cap, 0.05)
+    h_ros = -1.0  # Rosenbrock step size while in a stiff stretch (-1: not in one)
     phases_stale = True
     n_carried = 0
     j_out = 1
@@ -1303,123 +1387,163 @@ def _run_event(P, S, t_span, out_t, stats, max_events, rtol, atol, out_x, out_v,
                 cx[C_PH1A] = ph1
                 cx[C_PH2A] = ph2
             sd = mode
-            while True:
-                h = min(h, cap, t_stop - t)
-                x1, v1 = _dp5_step(cx, sd, x, v, acc, h, kx, kv)
-                err2 = _dp5_error_sq(kx, kv, h, x, v, x1, v1, rtol, atol)
-                if err2 <= 1.0 or h <= 1e-14 * max(1.0, abs(t)):
-                    break
-                h *= _step_factor(err2)
-            stats[ST_N_STEPS] += 1.0
-            hstep = h
-            a1 = kv[6]
-            cx[C_XA] = x
-            cx[C_VA] = v
-            cx[C_SD] = sd
-            cx[C_H] = hstep
-            h0 = sd * (v - V)
-            d0 = sd * acc
-            if fresh and d0 < 0.0 and h0 <= 0.0:
-                d0 = 0.0
-            h1 = sd * (v1 - V)
-            d1 = sd * a1
-            t_ext = -1.0
-            v_ext = 0.0
-            h_ext = 0.0
-            # the dense output is built only for steps that need it: an extremum, a contact,
-            # a sign change of v, or an output time inside
-            need_dense = acc * a1 < 0.0 or h1 <= 0.0 or v * v1 < 0.0
-            if out_t is not None:
-                if j_out < n_out:
-                    if out_t[j_out] <= t + hstep + 1e-13 * max(1.0, abs(t)):
-                        need_dense = True
-            if need_dense:
-                _dp5_dense(cx, kx, kv)
-            if acc * a1 < 0.0 and _extremum_matters(cx, stats, sd, v, v1, acc, a1, hstep, V,
-                                                    math.inf):
-                t_ext = _extremum(cx, K_DENSE_V, 0.0, hstep, acc, a1)
-                v_ext, _, _ = _dense_v(cx, t_ext)
-                h_ext = sd * (v_ext - V)
-            te = _contact_time(cx, K_DENSE_H, hstep, h0, d0, h1, d1, t_ext, h_ext)
-            if te > 0.0:
-                # polish the switching time on the RK formula itself (order 5, not 4)
-                for _ in range(3):
-                    xe, ve = _dp5_step(cx, sd, x, v, acc, te, kx, kv)
-                    he = sd * (ve - V)
-                    de = sd * kv[6]
-                    if abs(de) < 1e-8 or abs(he) <= 1e-15 * (1.0 + abs(V)):
+            # Stiff stretch (the cubic law's slope |df/dv| h past DP5's stability): on the
+            # stats-only path, a Rosenbrock step, kept only where no switch, extremum or
+            # sign change of v needs a dense output; anything else goes to DP5.
+            vr0 = v - V
+            k_stiff = abs(cx[C_B1] - cx[C_LAM] - 3.0 * cx[C_B3] * vr0 * vr0)
+            ros_taken = False
+            if out_t is None and k_stiff * min(h, cap) >= STIFF_HK:
+                h_stab = 3.0 / k_stiff  # about DP5's longest stable step
+                if not h_ros > 0.0:
+                    h_ros = 2.0 * h_stab
+                while h_ros > 1.5 * h_stab:
+                    hr = min(h_ros, cap, t_stop - t)
+                    xr, vr1, ar, ex, ev = _ros4_step(cx, sd, x, v, acc, hr)
+                    sx = atol + rtol * max(abs(x), abs(xr))
+                    sv = atol + rtol * max(abs(v), abs(vr1))
+                    err_r = 0.5 * ((ex / sx) ** 2 + (ev / sv) ** 2)
+                    h_ros = hr * min(4.0, max(0.2, 0.9 * (err_r + 1e-30) ** -0.125))
+                    if err_r <= 1.0:
+                        ros_taken = (sd * (vr1 - V) > 0.0 and acc * ar > 0.0 and v * vr1 > 0.0
+                                     and sd * vr0 > 0.0)
+                        if ros_taken:
+                            stats[ST_N_STEPS] += 1.0
+                            j0 = _jerk(cx, v, acc, cx[C_SP1], cx[C_SP2])
+                            j1 = _jerk(cx, vr1, ar, cx[C_SE1], cx[C_SE2])
+                            _slip_stats(cx, K_DENSE_V, stats, hr, -1.0, 0.0, v, acc, j0, vr1,
+                                        ar, j1, xr, math.nan, V)
+                            t = t + hr
+                            x = xr
+                            v = vr1
+                            acc = ar
+                            ph1 = _wrap(ph1 + w1 * hr)
+                            ph2 = _wrap(ph2 + w2 * hr)
+                            cx[C_CP1], cx[C_SP1] = _renorm(cx[C_CE1], cx[C_SE1])
+                            cx[C_CP2], cx[C_SP2] = _renorm(cx[C_CE2], cx[C_SE2])
+                            n_carried += 1
+                            fresh = False
                         break
-                    tn = te - he / de
-                    if not (0.0 < tn <= hstep):
+            else:
+                h_ros = -1.0
+            if not ros_taken:
+                while True:
+                    h = min(h, cap, t_stop - t)
+                    x1, v1 = _dp5_step(cx, sd, x, v, acc, h, kx, kv)
+                    err2 = _dp5_error_sq(kx, kv, h, x, v, x1, v1, rtol, atol)
+                    if err2 <= 1.0 or h <= 1e-14 * max(1.0, abs(t)):
                         break
-                    te = tn
-                xe, ve = _dp5_step(cx, sd, x, v, acc, te, kx, kv)
-                ae = kv[6]
-                _dp5_dense(cx, kx, kv)  # dense output of [0, te] for stats and outputs
-                cx[C_H] = te
-                step_end = te
-                x1 = xe
-                v1 = V
-                a1 = ae
-                if not (0.0 <= t_ext <= te):
-                    t_ext = -1.0
-                else:
+                    h *= _step_factor(err2)
+                stats[ST_N_STEPS] += 1.0
+                hstep = h
+                a1 = kv[6]
+                cx[C_XA] = x
+                cx[C_VA] = v
+                cx[C_SD] = sd
+                cx[C_H] = hstep
+                h0 = sd * (v - V)
+                d0 = sd * acc
+                if fresh and d0 < 0.0 and h0 <= 0.0:
+                    d0 = 0.0
+                h1 = sd * (v1 - V)
+                d1 = sd * a1
+                t_ext = -1.0
+                v_ext = 0.0
+                h_ext = 0.0
+                # the dense output is built only for steps that need it: an extremum, a contact,
+                # a sign change of v, or an output time inside
+                need_dense = acc * a1 < 0.0 or h1 <= 0.0 or v * v1 < 0.0
+                if out_t is not None:
+                    if j_out < n_out:
+                        if out_t[j_out] <= t + hstep + 1e-13 * max(1.0, abs(t)):
+                            need_dense = True
+                if need_dense:
+                    _dp5_dense(cx, kx, kv)
+                if acc * a1 < 0.0 and _extremum_matters(cx, stats, sd, v, v1, acc, a1, hstep, V,
+                                                        math.inf):
+                    t_ext = _extremum(cx, K_DENSE_V, 0.0, hstep, acc, a1)
                     v_ext, _, _ = _dense_v(cx, t_ext)
-            elif te == 0.0:
-                step_end = 0.0
-            else:
-                step_end = hstep
-            if out_t is not None:  # outputs inside (t, t + step_end]
-                while j_out < n_out and out_t[j_out] <= t + step_end + 1e-13 * max(1.0,
-                                                                                 abs(t)):
-                    tau = min(max(out_t[j_out] - t, 0.0), step_end)
-                    if tau == step_end:
-                        out_x[j_out] = x1
-                        out_v[j_out] = v1 if te < 0.0 else V
+                    h_ext = sd * (v_ext - V)
+                te = _contact_time(cx, K_DENSE_H, hstep, h0, d0, h1, d1, t_ext, h_ext)
+                if te > 0.0:
+                    # polish the switching time on the RK formula itself (order 5, not 4)
+                    for _ in range(3):
+                        xe, ve = _dp5_step(cx, sd, x, v, acc, te, kx, kv)
+                        he = sd * (ve - V)
+                        de = sd * kv[6]
+                        if abs(de) < 1e-8 or abs(he) <= 1e-15 * (1.0 + abs(V)):
+                            break
+                        tn = te - he / de
+                        if not (0.0 < tn <= hstep):
+                            break
+                        te = tn
+                    xe, ve = _dp5_step(cx, sd, x, v, acc, te, kx, kv)
+                    ae = kv[6]
+                    _dp5_dense(cx, kx, kv)  # dense output of [0, te] for stats and outputs
+                    cx[C_H] = te
+                    step_end = te
+                    x1 = xe
+                    v1 = V
+                    a1 = ae
+                    if not (0.0 <= t_ext <= te):
+                        t_ext = -1.0
                     else:
-                        out_x[j_out] = _dense_x(cx, tau)
-                        out_v[j_out], _, _ = _dense_v(cx, tau)
-                    out_mode[j_out] = mode
-                    j_out += 1
-                    counts[1] = j_out
-            if step_end > 0.0:
-                j0 = _jerk(cx, v, acc, cx[C_SP1], cx[C_SP2])
-                j1 = _jerk(cx, v1, a1, cx[C_SE1], cx[C_SE2])  # end of the last RK step taken
-                _slip_stats(cx, K_DENSE_V, stats, step_end, t_ext, v_ext, v, acc, j0, v1, a1, j1,
-                            x1, math.nan, V)
-            if te >= 0.0:
-                pe1 = ph1 + w1 * te
-                pe2 = ph2 + w2 * te
-                xe = x1 if te > 0.0 else x
-                new_mode, kind = _contact_outcome(cx, stats, xe, math.cos(pe1), math.cos(pe2),
-                                                  sd)
-                t = t + te
-                x = xe
-                v = V
-                ph1 = _wrap(pe1)
-                ph2 = _wrap(pe2)
-                phases_stale = True
-                mode = new_mode
-                acc = _rhs_acc(cx, mode, x, v, ph1, ph2) if mode != 0.0 else 0.0
-                fresh = True
-                n_events += 1
-                if ev_t is not None:
-                    if not _record_event(ev_t, ev_kind, ev_x, counts, t, kind, x):
-                        status = STATUS_BUFFER_FULL
-                if n_events > max_events:
-                    status = STATUS_EVENT_CAP
-            else:
-                t = t + hstep
-                x = x1
-                v = v1
-                acc = a1
-                ph1 = _wrap(ph1 + w1 * hstep)
-                ph2 = _wrap(ph2 + w2 * hstep)
-                cx[C_CP1], cx[C_SP1] = _renorm(cx[C_CE1], cx[C_SE1])
-                cx[C_CP2], cx[C_SP2] = _renorm(cx[C_CE2], cx[C_SE2])
-                n_carried += 1
-                fresh = False
-            h = hstep * _step_factor(err2)
+                        v_ext, _, _ = _dense_v(cx, t_ext)
+                elif te == 0.0:
+                    step_end = 0.0
+                else:
+                    step_end = hstep
+                if out_t is not None:  # outputs inside (t, t + step_end]
+                    while j_out < n_out and out_t[j_out] <= t + step_end + 1e-13 * max(1.0,
+                                                                                     abs(t)):
+                        tau = min(max(out_t[j_out] - t, 0.0), step_end)
+                        if tau == step_end:
+                            out_x[j_out] = x1
+                            out_v[j_out] = v1 if te < 0.0 else V
+                        else:
+                            out_x[j_out] = _dense_x(cx, tau)
+                            out_v[j_out], _, _ = _dense_v(cx, tau)
+                        out_mode[j_out] = mode
+                        j_out += 1
+                        counts[1] = j_out
+                if step_end > 0.0:
+                    j0 = _jerk(cx, v, acc, cx[C_SP1], cx[C_SP2])
+                    j1 = _jerk(cx, v1, a1, cx[C_SE1], cx[C_SE2])  # end of the last RK step
+                    _slip_stats(cx, K_DENSE_V, stats, step_end, t_ext, v_ext, v, acc, j0, v1,
+                                a1, j1, x1, math.nan, V)
+                if te >= 0.0:
+                    pe1 = ph1 + w1 * te
+                    pe2 = ph2 + w2 * te
+                    xe = x1 if te > 0.0 else x
+                    new_mode, kind = _contact_outcome(cx, stats, xe, math.cos(pe1), math.cos(pe2),
+                                                      sd)
+                    t = t + te
+                    x = xe
+                    v = V
+                    ph1 = _wrap(pe1)
+                    ph2 = _wrap(pe2)
+                    phases_stale = True
+                    mode = new_mode
+                    acc = _rhs_acc(cx, mode, x, v, ph1, ph2) if mode != 0.0 else 0.0
+                    fresh = True
+                    n_events += 1
+                    if ev_t is not None:
+                        if not _record_event(ev_t, ev_kind, ev_x, counts, t, kind, x):
+                            status = STATUS_BUFFER_FULL
+                    if n_events > max_events:
+                        status = STATUS_EVENT_CAP
+                else:
+                    t = t + hstep
+                    x = x1
+                    v = v1
+                    acc = a1
+                    ph1 = _wrap(ph1 + w1 * hstep)
+                    ph2 = _wrap(ph2 + w2 * hstep)
+                    cx[C_CP1], cx[C_SP1] = _renorm(cx[C_CE1], cx[C_SE1])
+                    cx[C_CP2], cx[C_SP2] = _renorm(cx[C_CE2], cx[C_SE2])
+                    n_carried += 1
+                    fresh = False
+                h = hstep * _step_factor(err2)
         else:
             # ---------------- exact stick step ----------------
             L = min(cap, t_stop - t)

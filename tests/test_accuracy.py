@@ -325,3 +325,21 @@ def test_random_cases_match_scipy_reference() -> None:
             assert err <= SCIPY_X_TOL and dt_ev <= SCIPY_EVENT_T_TOL, (i, method, p, err, dt_ev)
             worst = max(worst, err)
     print(f"\n[random sweep] worst max|dx| = {worst:.2e}")
+
+
+@pytest.mark.parametrize("u0", [2000.0, 5000.0])
+def test_stiff_stretches_on_the_stats_path(u0: float) -> None:
+    """At large u0 the cubic law's slope makes slip stiff; the stats-only path then takes
+    Rosenbrock steps (far fewer than DP5's stability-limited ones) and still agrees with the
+    recording path (DP5 throughout) at the same tolerance, switch for switch."""
+    from fricenv import run_stats, simulate
+
+    p = C("stribeck", eta=1 / 9, u0=u0, nu=1.3)
+    s = run_stats(p, 400.0, rtol=1e-6, atol=1e-8)
+    tr = simulate(p, 400.0, rtol=1e-6, atol=1e-8, dt_out=400.0)
+    ref = simulate(p, 400.0, rtol=1e-11, atol=1e-11, dt_out=400.0)
+    assert s.n_steps < 0.6 * tr.n_steps
+    assert (s.n_reversals, s.n_stick) == (ref.n_reversals, ref.n_stick)
+    scale = max(abs(ref.x[-1]), abs(ref.v[-1]))
+    assert abs(s.state.x - ref.x[-1]) <= 1e-5 * scale
+    assert abs(s.state.v - ref.v[-1]) <= 1e-5 * scale
