@@ -721,6 +721,18 @@ def _record_event(ev_t, ev_kind, ev_x, counts, t, kind, x):
     return True
 
 
+@njit(cache=True, _nrt=False, inline="always")
+def _log_event(ev_t, ev_kind, ev_x, counts, t, kind, x, n_events, max_events):
+    """Record switch number ``n_events`` when a buffer is given; the run's status after it."""
+    status = STATUS_OK
+    if ev_t is not None:
+        if not _record_event(ev_t, ev_kind, ev_x, counts, t, kind, x):
+            status = STATUS_BUFFER_FULL
+    if n_events > max_events:
+        status = STATUS_EVENT_CAP
+    return status
+
+
 @njit(cache=True, _nrt=False)
 def _contact_outcome(cx, stats, x, c1, c2, sd):
     """Mode after slip in direction sd reaches v = V at x: stick, or reverse."""
@@ -900,11 +912,8 @@ def _run_exact(P, S, t_span, out_t, stats, max_events, out_x, out_v, out_mode, e
                         fresh = True
                         on_grid = False
                         n_events += 1
-                        if ev_t is not None:
-                            if not _record_event(ev_t, ev_kind, ev_x, counts, t, kind, x):
-                                status = STATUS_BUFFER_FULL
-                        if n_events > max_events:
-                            status = STATUS_EVENT_CAP
+                        status = _log_event(ev_t, ev_kind, ev_x, counts, t, kind, x, n_events,
+                                            max_events)
                         if status != STATUS_OK:
                             break
                         continue
@@ -969,11 +978,8 @@ def _run_exact(P, S, t_span, out_t, stats, max_events, out_x, out_v, out_mode, e
                         fresh = True
                         on_grid = False
                         n_events += 1
-                        if ev_t is not None:
-                            if not _record_event(ev_t, ev_kind, ev_x, counts, t, EVENT_SLIP, x):
-                                status = STATUS_BUFFER_FULL
-                        if n_events > max_events:
-                            status = STATUS_EVENT_CAP
+                        status = _log_event(ev_t, ev_kind, ev_x, counts, t, EVENT_SLIP, x, n_events,
+                                            max_events)
                         if status != STATUS_OK:
                             break
                         continue
@@ -1107,25 +1113,35 @@ def _set_phases(cx, ph1, ph2):
     cx[C_SP2] = math.sin(ph2)
 
 
+@njit(cache=True, _nrt=False, inline="always")
+def _step_inputs(cx, sd):
+    """What a Runge–Kutta or Rosenbrock slip step reads from the context, as scalars (kept
+    in registers: the stages then never reload the array)."""
+    return (cx[C_LAM], cx[C_V], sd * cx[C_XFK], cx[C_B1], cx[C_B3], cx[C_U1], cx[C_U2],
+            cx[C_CP1], cx[C_SP1], cx[C_CP2], cx[C_SP2])
+
+
+@njit(cache=True, _nrt=False, inline="always")
+def _end_phases(cx, cp1, sp1, cp2, sp2, ce1, se1, ce2, se2):
+    """Tone phases (cos/sin) at a step's end from its start and the rotations (ce_i, se_i);
+    stored in cx[C_CE1..C_SE2] for the next step. Returns the forcing's cosines there."""
+    c_end1 = cp1 * ce1 - sp1 * se1
+    c_end2 = cp2 * ce2 - sp2 * se2
+    cx[C_CE1] = c_end1
+    cx[C_SE1] = sp1 * ce1 + cp1 * se1
+    cx[C_CE2] = c_end2
+    cx[C_SE2] = sp2 * ce2 + cp2 * se2
+    return c_end1, c_end2
+
+
 @njit(cache=True, _nrt=False)
 def _dp5_step(cx, sd, x0, v0, a0, h, kx, kv):
     """One Dormand–Prince step from (x0, v0) at the step start (phases in cx); fills k.
 
-    Everything is kept in scalars and the stage arrays are written once at the end, so the
-    compiler need not reload the context array after every stage. cos/sin of the tone
-    phases at the step end go to cx[C_CE1..C_SE2] for the next step.
+    Everything is kept in scalars and the stage arrays are written once at the end. cos/sin
+    of the tone phases at the step end go to cx[C_CE1..C_SE2] for the next step.
     """
-    lam = cx[C_LAM]
-    V = cx[C_V]
-    sxfk = sd * cx[C_XFK]
-    b1 = cx[C_B1]
-    b3 = cx[C_B3]
-    u1 = cx[C_U1]
-    u2 = cx[C_U2]
-    cp1 = cx[C_CP1]
-    sp1 = cx[C_SP1]
-    cp2 = cx[C_CP2]
-    sp2 = cx[C_SP2]
+    lam, V, sxfk, b1, b3, u1, u2, cp1, sp1, cp2, sp2 = _step_inputs(cx, sd)
     d1 = cx[C_W1] * h
     d2 = cx[C_W2] * h
     c21, s21, c31, s31, c81, s81, c91, s91, ce1, se1 = _stage_rotations(d1)
@@ -1134,10 +1150,7 @@ def _dp5_step(cx, sd, x0, v0, a0, h, kx, kv):
     g3 = u1 * (cp1 * c31 - sp1 * s31) + u2 * (cp2 * c32 - sp2 * s32)
     g4 = u1 * (cp1 * c81 - sp1 * s81) + u2 * (cp2 * c82 - sp2 * s82)
     g5 = u1 * (cp1 * c91 - sp1 * s91) + u2 * (cp2 * c92 - sp2 * s92)
-    c_end1 = cp1 * ce1 - sp1 * se1
-    s_end1 = sp1 * ce1 + cp1 * se1
-    c_end2 = cp2 * ce2 - sp2 * se2
-    s_end2 = sp2 * ce2 + cp2 * se2
+    c_end1, c_end2 = _end_phases(cx, cp1, sp1, cp2, sp2, ce1, se1, ce2, se2)
     g6 = u1 * c_end1 + u2 * c_end2
     k1x = v0
     k1v = a0
@@ -1167,10 +1180,6 @@ def _dp5_step(cx, sd, x0, v0, a0, h, kx, kv):
     v1 = v0 + h * (35.0 / 384.0 * k1v + 500.0 / 1113.0 * k3v + 125.0 / 192.0 * k4v
                    - 2187.0 / 6784.0 * k5v + 11.0 / 84.0 * k6v)
     k7v = _acc(lam, V, sxfk, b1, b3, 0.0, 0.0, x1, v1, 0.0, 0.0) + g6
-    cx[C_CE1] = c_end1
-    cx[C_SE1] = s_end1
-    cx[C_CE2] = c_end2
-    cx[C_SE2] = s_end2
     kx[0] = k1x
     kx[1] = k2x
     kx[2] = k3x
@@ -1253,6 +1262,15 @@ def _step_factor(err2):
     return min(5.0, max(0.2, y))
 
 
+@njit(cache=True, _nrt=False, inline="always")
+def _carry(cx, t, x1, v1, a1, ph1, ph2, h):
+    """Move to the end of an accepted slip step of length h: its (t, x, v, v', phases);
+    the end's tone cos/sin become the next step's start (renormalised)."""
+    cx[C_CP1], cx[C_SP1] = _renorm(cx[C_CE1], cx[C_SE1])
+    cx[C_CP2], cx[C_SP2] = _renorm(cx[C_CE2], cx[C_SE2])
+    return t + h, x1, v1, a1, _wrap(ph1 + cx[C_W1] * h), _wrap(ph2 + cx[C_W2] * h)
+
+
 # Shampine's L-stable Rosenbrock pair of order 4(3) (the "stiff" method of Numerical Recipes):
 # stages Y_i = y + sum a_ij g_j at t + alpha_i h, (I / (gamma h) - J) g_i = f(Y_i) +
 # gamma_i h f_t + sum c_ij g_j / h; 3 function values and 4 linear solves a step.
@@ -1284,29 +1302,16 @@ def _ros4_step(cx, sd, x0, v0, a0, h):
     friction law's slope enters only dv'/dv. cos/sin of the tone phases at the step end go
     to cx[C_CE1..C_SE2], as after a DP5 step.
     """
-    lam = cx[C_LAM]
-    V = cx[C_V]
-    sxfk = sd * cx[C_XFK]
-    b1 = cx[C_B1]
-    b3 = cx[C_B3]
-    u1 = cx[C_U1]
-    u2 = cx[C_U2]
+    lam, V, sxfk, b1, b3, u1, u2, cp1, sp1, cp2, sp2 = _step_inputs(cx, sd)
     w1 = cx[C_W1]
     w2 = cx[C_W2]
-    cp1 = cx[C_CP1]
-    sp1 = cx[C_SP1]
-    cp2 = cx[C_CP2]
-    sp2 = cx[C_SP2]
     vr = v0 - V
     j22 = -lam + b1 - 3.0 * b3 * vr * vr
     gt = -(u1 * w1 * sp1 + u2 * w2 * sp2)  # dg/dt at the step start
     c = 1.0 / (_RG * h)
     ce1, se1 = _sincos(w1 * h)
     ce2, se2 = _sincos(w2 * h)
-    c_end1 = cp1 * ce1 - sp1 * se1
-    s_end1 = sp1 * ce1 + cp1 * se1
-    c_end2 = cp2 * ce2 - sp2 * se2
-    s_end2 = sp2 * ce2 + cp2 * se2
+    c_end1, c_end2 = _end_phases(cx, cp1, sp1, cp2, sp2, ce1, se1, ce2, se2)
     c31, s31 = _sincos(w1 * _RALPHA3 * h)
     c32, s32 = _sincos(w2 * _RALPHA3 * h)
     g_end = u1 * c_end1 + u2 * c_end2
@@ -1329,10 +1334,6 @@ def _ros4_step(cx, sd, x0, v0, a0, h):
     ex = _RE1 * g1x + _RE2 * g2x + _RE4 * g4x
     ev = _RE1 * g1v + _RE2 * g2v + _RE4 * g4v
     a1 = _acc(lam, V, sxfk, b1, b3, 0.0, 0.0, x1, v1, 0.0, 0.0) + g_end
-    cx[C_CE1] = c_end1
-    cx[C_SE1] = s_end1
-    cx[C_CE2] = c_end2
-    cx[C_SE2] = s_end2
     return x1, v1, a1, ex, ev
 
 
@@ -1413,14 +1414,7 @@ def _run_event(P, S, t_span, out_t, stats, max_events, rtol, atol, out_x, out_v,
                             j1 = _jerk(cx, vr1, ar, cx[C_SE1], cx[C_SE2])
                             _slip_stats(cx, K_DENSE_V, stats, hr, -1.0, 0.0, v, acc, j0, vr1,
                                         ar, j1, xr, math.nan, V)
-                            t = t + hr
-                            x = xr
-                            v = vr1
-                            acc = ar
-                            ph1 = _wrap(ph1 + w1 * hr)
-                            ph2 = _wrap(ph2 + w2 * hr)
-                            cx[C_CP1], cx[C_SP1] = _renorm(cx[C_CE1], cx[C_SE1])
-                            cx[C_CP2], cx[C_SP2] = _renorm(cx[C_CE2], cx[C_SE2])
+                            t, x, v, acc, ph1, ph2 = _carry(cx, t, xr, vr1, ar, ph1, ph2, hr)
                             n_carried += 1
                             fresh = False
                         break
@@ -1527,20 +1521,10 @@ def _run_event(P, S, t_span, out_t, stats, max_events, rtol, atol, out_x, out_v,
                     acc = _rhs_acc(cx, mode, x, v, ph1, ph2) if mode != 0.0 else 0.0
                     fresh = True
                     n_events += 1
-                    if ev_t is not None:
-                        if not _record_event(ev_t, ev_kind, ev_x, counts, t, kind, x):
-                            status = STATUS_BUFFER_FULL
-                    if n_events > max_events:
-                        status = STATUS_EVENT_CAP
+                    status = _log_event(ev_t, ev_kind, ev_x, counts, t, kind, x, n_events,
+                                        max_events)
                 else:
-                    t = t + hstep
-                    x = x1
-                    v = v1
-                    acc = a1
-                    ph1 = _wrap(ph1 + w1 * hstep)
-                    ph2 = _wrap(ph2 + w2 * hstep)
-                    cx[C_CP1], cx[C_SP1] = _renorm(cx[C_CE1], cx[C_SE1])
-                    cx[C_CP2], cx[C_SP2] = _renorm(cx[C_CE2], cx[C_SE2])
+                    t, x, v, acc, ph1, ph2 = _carry(cx, t, x1, v1, a1, ph1, ph2, hstep)
                     n_carried += 1
                     fresh = False
                 h = hstep * _step_factor(err2)
@@ -1587,11 +1571,8 @@ def _run_event(P, S, t_span, out_t, stats, max_events, rtol, atol, out_x, out_v,
                 acc = _rhs_acc(cx, mode, x, v, ph1, ph2)
                 fresh = True
                 n_events += 1
-                if ev_t is not None:
-                    if not _record_event(ev_t, ev_kind, ev_x, counts, t, EVENT_SLIP, x):
-                        status = STATUS_BUFFER_FULL
-                if n_events > max_events:
-                    status = STATUS_EVENT_CAP
+                status = _log_event(ev_t, ev_kind, ev_x, counts, t, EVENT_SLIP, x, n_events,
+                                    max_events)
         if not (math.isfinite(x) and math.isfinite(v)):
             status = STATUS_NONFINITE
     # any output times left at the very end (rounding of the last step)
