@@ -7,16 +7,20 @@ Three integrators share one event logic:
   critically damped and resonant cases, plus the particular response to each tone); each
   stick phase is exact. Only switching instants are found numerically, by bracketed
   Newton iteration on the closed form.
-* ``event`` (any friction law): Dormand–Prince 5(4) with dense output inside slip phases,
-  exact stick phases, switching instants polished by re-stepping the Runge–Kutta formula.
+* ``event`` (any friction law): Taylor-series steps inside slip phases (the slip equation
+  is polynomial, so the series' coefficients follow from a recurrence; order about
+  -ln(rtol) / 2, step length from the decay of the last terms, Jorba & Zou 2005), exact
+  stick phases. The series is the step's dense output: switches, extrema and output
+  times are found on it, and the (v - V)^2 integral is exact on it. Stiff stretches of a
+  stats-only run take L-stable Rosenbrock 4(3) steps where no dense output is needed.
 * ``rk4``: the paper's fixed-step RK4 with ``sgn``, kept as the baseline. It cannot
   represent sticking.
 
-Switches (slip -> stick, stick -> slip, reversal) are searched on every scan step: a sign
+Switches (slip -> stick, stick -> slip, reversal) are searched on every step: a sign
 change at the ends, and an interior extremum located from the sign change of the
-derivative. Scan steps are short against the fastest active tone (``PHASE_PER_STEP``
-radians) so that a step holds at most one extremum; that is how grazing contacts, where
-``v`` touches ``V`` tangentially, are caught.
+derivative. A step is halved until it provably holds at most one extremum (curvature
+bounds: ``_one_extremum_at_most``, ``_v_one_extremum``, ``_sign_kept``); that is how
+grazing contacts, where ``v`` touches ``V`` tangentially, are caught.
 
 Public kernels (all ``@njit(cache=True)``, allocation-free in their step loops):
 ``reset_stats``, ``initial_state``, ``advance`` (stats only) and the recording runners used
@@ -66,7 +70,7 @@ from .params import P_B1, P_B3, P_LAM, P_U1, P_U2, P_V, P_W1, P_W2, P_XFK, P_XFS
 # array's shared counter: measured, that was ~40 % of a scan step, and with threads the
 # counters of a batch's common parent array bounce between cores. The caller keeps every
 # array alive for the duration of the call, so no count is needed. Only ``advance``,
-# ``record`` and ``_fresh_workspace``, which allocate, keep the runtime.
+# ``record`` and ``fresh_workspace``, which allocate, keep the runtime.
 TWO_PI = 2.0 * math.pi
 # Scan steps must hold at most one extremum of v (or of f in stick): a tone's extrema are
 # pi / omega apart, so half a radian per step leaves a wide margin (>= 12 steps a period).
@@ -90,41 +94,46 @@ EXTREMUM_REL_TOL = 1e-9
 C_LAM, C_V, C_XFK, C_XFS, C_U1, C_U2, C_W1, C_W2, C_P2 = range(9)
 C_KC1, C_KS1, C_KC2, C_KS2, C_RES1, C_RES2, C_B1, C_B3 = range(9, 17)
 C_XA, C_VA, C_C1A, C_S1A, C_C2A, C_S2A, C_SD, C_DX, C_DV = range(17, 26)
-C_H, C_QX0 = 26, 27  # dense output: step length, then 4 x-coefficients, 4 v-coefficients
-C_QV0 = 31
-C_PH1A, C_PH2A = 35, 36  # tone phases (angles) at the step start, for the RK method
-C_CP1, C_SP1, C_CP2, C_SP2 = 37, 38, 39, 40  # their cos/sin, carried from step to step
-C_CE1, C_SE1, C_CE2, C_SE2 = 41, 42, 43, 44  # cos/sin at the end of the last RK step
+C_TN = 26  # order of the current Taylor slip step (its coefficients: C_TX, C_TV, C_TW)
+C_CP1, C_SP1, C_CP2, C_SP2 = 27, 28, 29, 30  # tones' cos/sin at the step start, carried
+C_CE1, C_SE1, C_CE2, C_SE2 = 31, 32, 33, 34  # ... and at the end of the last slip step
 # Cache kept across calls when the caller passes the same workspace (``advance_ws``): the
 # regular scan step's transition constants, keyed on (lam, w1, w2, h), and each tone's
 # cos/sin, keyed on the phase angle last written to S. Keys start as NaN (never equal).
-W_KEY_LAM, W_KEY_W1, W_KEY_W2, W_KEY_H = 45, 46, 47, 48
-W_R11, W_R12, W_R21, W_R22, W_RC1, W_RS1, W_RC2, W_RS2 = range(49, 57)
-W_PH1, W_C1, W_S1, W_PH2, W_C2, W_S2 = range(57, 63)
+W_KEY_LAM, W_KEY_W1, W_KEY_W2, W_KEY_H = 35, 36, 37, 38
+W_R11, W_R12, W_R21, W_R22, W_RC1, W_RS1, W_RC2, W_RS2 = range(39, 47)
+W_PH1, W_C1, W_S1, W_PH2, W_C2, W_S2 = range(47, 53)
 # 1.0: do not locate extrema of v and x for the statistics (a caller that never reads them,
 # such as an environment step). Contacts are still found: grazing detection locates the
 # extremum of v whenever it could reach V.
-W_SKIP_EXTREMA = 63
+W_SKIP_EXTREMA = 53
 # Curvature bounds of the closed form, for proving a scan step free of switches without a
 # root search: |v_p''| <= C_VDD_P (inf with a resonant tone), |v_h''| <= C_VDD_H |(x_h, v_h)|
-# at the step start, and |g''| <= C_GDD.
-C_VDD_P, C_VDD_H, C_GDD = 64, 65, 66
-C_KX, C_KV = 67, 74  # the 7 stages of x and of v of the current RK step
-# ... and of the third derivatives: |v_p'''| <= C_VDDD_P, |v_h'''| <= C_VDDD_H |(x_h, v_h)|,
-# |g'''| <= C_GDDD.
-C_VDDD_P, C_VDDD_H, C_GDDD = 81, 82, 83
+# at the step start, and |g''| <= C_GDD; likewise for the third derivatives.
+C_VDD_P, C_VDD_H, C_GDD = 54, 55, 56
+C_VDDD_P, C_VDDD_H, C_GDDD = 57, 58, 59
 # Cached with the regular scan step: its transition constants over half a step (midpoint
 # of the (v - V)^2 quadrature).
-W_M11, W_M12, W_M21, W_M22, W_MC1, W_MS1, W_MC2, W_MS2 = range(84, 92)
-N_CX = 92
+W_M11, W_M12, W_M21, W_M22, W_MC1, W_MS1, W_MC2, W_MS2 = range(60, 68)
+# 1.0: do not integrate (v - V)^2 (ST_VR2_INT stays unchanged), for callers that never
+# read it, such as a regime sweep.
+W_SKIP_VR2 = 68
+# Taylor coefficients of the current slip step (event method): x, v, w = v - V and the
+# scratch of the series products, TAYLOR_MAX_ORDER + 1 slots each.
+TAYLOR_MAX_ORDER = 20
+C_TX = 69
+C_TV = C_TX + TAYLOR_MAX_ORDER + 1
+C_TW = C_TV + TAYLOR_MAX_ORDER + 1
+C_TQ = C_TW + TAYLOR_MAX_ORDER + 1
+N_CX = C_TQ + TAYLOR_MAX_ORDER + 1
 N_WORK = N_CX
 
 # What a root search evaluates.
 K_SLIP_H = 0  # slip (closed form): h = sd * (v - V)
 K_SLIP_V = 1  # slip (closed form): v
 K_STICK_F = 2  # stick: f = -lam V - x + g
-K_DENSE_H = 3  # slip (RK dense output): h = sd * (v - V)
-K_DENSE_V = 4  # slip (RK dense output): v
+K_DENSE_H = 3  # slip (Taylor polynomial of the step): h = sd * (v - V)
+K_DENSE_V = 4  # slip (Taylor polynomial of the step): v
 
 
 @njit(cache=True, _nrt=False, inline="always")
@@ -401,29 +410,43 @@ def _stick_at(cx, tau):
 
 
 # ----------------------------------------------------------------------------------------
-# Dense output of a Dormand–Prince step (Shampine's quartic interpolant)
+# Dense output of a Taylor slip step: the series itself, in tau from the step start
 # ----------------------------------------------------------------------------------------
 @njit(cache=True, _nrt=False)
 def _dense_v(cx, tau):
-    """v, v', v'' on the dense output of the current RK step."""
-    h = cx[C_H]
-    th = tau / h
-    q0 = cx[C_QV0]
-    q1 = cx[C_QV0 + 1]
-    q2 = cx[C_QV0 + 2]
-    q3 = cx[C_QV0 + 3]
-    v = cx[C_VA] + h * th * (q0 + th * (q1 + th * (q2 + th * q3)))
-    dv = q0 + th * (2.0 * q1 + th * (3.0 * q2 + th * 4.0 * q3))
-    ddv = (2.0 * q1 + th * (6.0 * q2 + th * 12.0 * q3)) / h
-    return v, dv, ddv
+    """v, v', v'' of the current Taylor step at relative time tau (Horner)."""
+    n = int(cx[C_TN])
+    p = cx[C_TV + n]
+    d1 = 0.0
+    d2 = 0.0
+    for k in range(n - 1, -1, -1):
+        d2 = d2 * tau + d1
+        d1 = d1 * tau + p
+        p = p * tau + cx[C_TV + k]
+    return p, d1, 2.0 * d2
 
 
 @njit(cache=True, _nrt=False)
 def _dense_x(cx, tau):
-    h = cx[C_H]
-    th = tau / h
-    return cx[C_XA] + h * th * (cx[C_QX0] + th * (cx[C_QX0 + 1] + th * (
-        cx[C_QX0 + 2] + th * cx[C_QX0 + 3])))
+    n = int(cx[C_TN])
+    p = cx[C_TX + n]
+    for k in range(n - 1, -1, -1):
+        p = p * tau + cx[C_TX + k]
+    return p
+
+
+@njit(cache=True, _nrt=False, inline="always")
+def _dense_bounds(cx, L):
+    """Bounds on |v''| and |v'''| over [0, L] of the current Taylor step's polynomial."""
+    n = int(cx[C_TN])
+    m2 = 0.0
+    m3 = 0.0
+    for k in range(n, 1, -1):
+        ak = abs(cx[C_TV + k]) * (k * (k - 1))
+        m2 = m2 * L + ak
+        if k >= 3:
+            m3 = m3 * L + ak * (k - 2)
+    return m2, m3
 
 
 @njit(cache=True, _nrt=False)
@@ -598,11 +621,8 @@ def _extremum_matters(cx, stats, sd, v0, v1, a0, a1, L, V, vdd_max):
 
 
 @njit(cache=True, _nrt=False, inline="always")
-def _slip_stats(cx, kind, stats, tau_e, t_ext, v_ext, v0, a0, j0, v1, a1, j1, x1, v_mid, V):
-    """Extrema and the (v - V)^2 integral over a slip step [0, tau_e].
-
-    v, v', v'' at both ends, and v at the midpoint unless ``v_mid`` is NaN.
-    """
+def _slip_extrema(cx, kind, stats, tau_e, t_ext, v_ext, v0, v1, x1):
+    """Extrema of v and x over a slip step [0, tau_e] (t_ext: v's interior extremum)."""
     _note_v(stats, v1)
     _note_x(stats, x1)
     if cx[W_SKIP_EXTREMA] == 1.0:
@@ -614,6 +634,17 @@ def _slip_stats(cx, kind, stats, tau_e, t_ext, v_ext, v0, a0, j0, v1, a1, j1, x1
         _x_extrema_between(cx, kind, stats, t_ext, tau_e, v_ext, v1, vabs)
     else:
         _x_extrema_between(cx, kind, stats, 0.0, tau_e, v0, v1, max(abs(v0), abs(v1)))
+
+
+@njit(cache=True, _nrt=False, inline="always")
+def _slip_stats(cx, kind, stats, tau_e, t_ext, v_ext, v0, a0, j0, v1, a1, j1, x1, v_mid, V):
+    """Extrema and the (v - V)^2 integral over a slip step [0, tau_e].
+
+    v, v', v'' at both ends, and v at the midpoint unless ``v_mid`` is NaN.
+    """
+    _slip_extrema(cx, kind, stats, tau_e, t_ext, v_ext, v0, v1, x1)
+    if cx[W_SKIP_VR2] == 1.0:
+        return
     # Hermite quadrature of y = (v - V)^2 from y, y', y'' at both ends and, if given, y at
     # the midpoint: exact for degree 7 (5 without the midpoint). y' = 2 (v - V) a and
     # y'' = 2 (a^2 + (v - V) j), with a = v', j = v''.
@@ -1017,7 +1048,7 @@ def _run_exact(P, S, t_span, out_t, stats, max_events, out_x, out_v, out_mode, e
 
 
 # ----------------------------------------------------------------------------------------
-# Event-driven Dormand–Prince 5(4) runner
+# Event-driven runner: Taylor steps in slip, exact stick
 # ----------------------------------------------------------------------------------------
 @njit(cache=True, _nrt=False)
 def _rhs_acc(cx, sd, x, v, ph1, ph2):
@@ -1040,8 +1071,6 @@ def _acc(lam, V, sxfk, b1, b3, u1, u2, x, v, ph1, ph2):
     return a
 
 
-# 2^(-r/10), r = 0..9 (step-size controller)
-_POW2_TENTHS = np.array([2.0 ** (-r / 10.0) for r in range(10)])
 # Taylor coefficients (-1)^k / (2k)! and (-1)^k / (2k+1)!, as products (no divisions).
 _C2, _C4, _C6, _C8 = -1.0 / 2.0, 1.0 / 24.0, -1.0 / 720.0, 1.0 / 40320.0
 _C10, _C12, _C14 = -1.0 / 3628800.0, 1.0 / 479001600.0, -1.0 / 87178291200.0
@@ -1068,45 +1097,9 @@ def _sincos(t):
     return c, s
 
 
-@njit(cache=True, _nrt=False, inline="always")
-def _sincos_tiny(t):
-    """cos and sin of |t| <= 0.06 by their Taylor series (relative error < 1e-19)."""
-    z = t * t
-    c = 1.0 + z * (_C2 + z * (_C4 + z * (_C6 + z * _C8)))
-    s = t * (1.0 + z * (_S3 + z * (_S5 + z * (_S7 + z * _S9))))
-    return c, s
-
-
-@njit(cache=True, _nrt=False, inline="always")
-def _stage_rotations(d):
-    """cos and sin of c d at the Dormand–Prince nodes c = 1/5, 3/10, 4/5, 8/9, 1.
-
-    Two short series (d / 10 and d / 9, both tiny because scan steps keep |d| <= 0.5) and
-    angle additions cost a third of five full series; each addition adds about one
-    rounding error.
-    """
-    ca, sa = _sincos_tiny(0.1 * d)
-    cb, sb = _sincos_tiny(d / 9.0)
-    c2 = ca * ca - sa * sa  # 2/10
-    s2 = 2.0 * sa * ca
-    c3 = c2 * ca - s2 * sa  # 3/10
-    s3 = s2 * ca + c2 * sa
-    c4 = c2 * c2 - s2 * s2  # 4/10
-    s4 = 2.0 * s2 * c2
-    c8 = c4 * c4 - s4 * s4  # 8/10
-    s8 = 2.0 * s4 * c4
-    c10 = c8 * c2 - s8 * s2  # 10/10
-    s10 = s8 * c2 + c8 * s2
-    c89 = c10 * cb + s10 * sb  # 1 - 1/9
-    s89 = s10 * cb - c10 * sb
-    return c2, s2, c3, s3, c8, s8, c89, s89, c10, s10
-
-
 @njit(cache=True, _nrt=False)
 def _set_phases(cx, ph1, ph2):
-    """Tone phases at an RK step start, as angles and as cos/sin."""
-    cx[C_PH1A] = ph1
-    cx[C_PH2A] = ph2
+    """cos/sin of the tone phases at a slip step's start, from the angles."""
     cx[C_CP1] = math.cos(ph1)
     cx[C_SP1] = math.sin(ph1)
     cx[C_CP2] = math.cos(ph2)
@@ -1115,7 +1108,7 @@ def _set_phases(cx, ph1, ph2):
 
 @njit(cache=True, _nrt=False, inline="always")
 def _step_inputs(cx, sd):
-    """What a Runge–Kutta or Rosenbrock slip step reads from the context, as scalars (kept
+    """What a Taylor or Rosenbrock slip step reads from the context, as scalars (kept
     in registers: the stages then never reload the array)."""
     return (cx[C_LAM], cx[C_V], sd * cx[C_XFK], cx[C_B1], cx[C_B3], cx[C_U1], cx[C_U2],
             cx[C_CP1], cx[C_SP1], cx[C_CP2], cx[C_SP2])
@@ -1134,132 +1127,141 @@ def _end_phases(cx, cp1, sp1, cp2, sp2, ce1, se1, ce2, se2):
     return c_end1, c_end2
 
 
+# ----------------------------------------------------------------------------------------
+# Taylor-series slip steps (event method)
+# ----------------------------------------------------------------------------------------
+# The slip equation is a polynomial ODE in (x, v) plus two tones, so the Taylor
+# coefficients of its solution follow from a recurrence: Cauchy products for (v - V)^2 and
+# (v - V)^3, and the tones' derivatives cycle through cos, -sin, -cos, sin. One step costs
+# O(n^2) flops at order n, takes steps several times longer than a 5th-order Runge–Kutta
+# method at the same tolerance (~10x at rtol 1e-10), and its dense output is the series
+# itself, exact to the step's accuracy everywhere inside it (switches, extrema and output
+# times are found on it).
+# 1 / k, k = 0 .. 2 TAYLOR_MAX_ORDER + 1 (no divisions in the recurrence and quadrature)
+_INV = np.array([0.0] + [1.0 / k for k in range(1, 2 * TAYLOR_MAX_ORDER + 2)])
+
+
 @njit(cache=True, _nrt=False)
-def _dp5_step(cx, sd, x0, v0, a0, h, kx, kv):
-    """One Dormand–Prince step from (x0, v0) at the step start (phases in cx); fills k.
+def taylor_order(rtol):
+    """Order of the Taylor steps for a tolerance: about -ln(tol) / 2 + 1 (Jorba & Zou 2005,
+    the order that minimises the work per unit time), within [6, TAYLOR_MAX_ORDER]."""
+    n = int(math.ceil(1.0 - 0.5 * math.log(max(rtol, 1e-300))))
+    return min(TAYLOR_MAX_ORDER, max(6, n))
 
-    Everything is kept in scalars and the stage arrays are written once at the end. cos/sin
-    of the tone phases at the step end go to cx[C_CE1..C_SE2] for the next step.
-    """
+
+# The series' sums may be reassociated (split into parallel partial sums): that shortens
+# their dependency chains several-fold, and the result is still deterministic for a given
+# build, only not the left-to-right rounding.
+_SUMS = {"reassoc", "contract"}
+
+
+@njit(cache=True, _nrt=False)
+def _taylor_coeffs(cx, sd, x0, v0, rtol, atol):
+    """Taylor coefficients of x and v at the step start (tone cos/sin in cx[C_CP1..]), to
+    the order in cx[C_TN]; returns the step length at which the last two terms of the
+    series fall to the tolerance (Jorba & Zou's rule, which needs no rejected steps)."""
     lam, V, sxfk, b1, b3, u1, u2, cp1, sp1, cp2, sp2 = _step_inputs(cx, sd)
-    d1 = cx[C_W1] * h
-    d2 = cx[C_W2] * h
-    c21, s21, c31, s31, c81, s81, c91, s91, ce1, se1 = _stage_rotations(d1)
-    c22, s22, c32, s32, c82, s82, c92, s92, ce2, se2 = _stage_rotations(d2)
-    g2 = u1 * (cp1 * c21 - sp1 * s21) + u2 * (cp2 * c22 - sp2 * s22)
-    g3 = u1 * (cp1 * c31 - sp1 * s31) + u2 * (cp2 * c32 - sp2 * s32)
-    g4 = u1 * (cp1 * c81 - sp1 * s81) + u2 * (cp2 * c82 - sp2 * s82)
-    g5 = u1 * (cp1 * c91 - sp1 * s91) + u2 * (cp2 * c92 - sp2 * s92)
-    c_end1, c_end2 = _end_phases(cx, cp1, sp1, cp2, sp2, ce1, se1, ce2, se2)
-    g6 = u1 * c_end1 + u2 * c_end2
-    k1x = v0
-    k1v = a0
-    k2x = v0 + h * (0.2 * k1v)
-    k2v = _acc(lam, V, sxfk, b1, b3, 0.0, 0.0, x0 + h * (0.2 * k1x), k2x, 0.0, 0.0) + g2
-    k3x = v0 + h * (3.0 / 40.0 * k1v + 9.0 / 40.0 * k2v)
-    k3v = _acc(lam, V, sxfk, b1, b3, 0.0, 0.0, x0 + h * (3.0 / 40.0 * k1x + 9.0 / 40.0 * k2x),
-               k3x, 0.0, 0.0) + g3
-    k4x = v0 + h * (44.0 / 45.0 * k1v - 56.0 / 15.0 * k2v + 32.0 / 9.0 * k3v)
-    k4v = _acc(lam, V, sxfk, b1, b3, 0.0, 0.0,
-               x0 + h * (44.0 / 45.0 * k1x - 56.0 / 15.0 * k2x + 32.0 / 9.0 * k3x),
-               k4x, 0.0, 0.0) + g4
-    k5x = v0 + h * (19372.0 / 6561.0 * k1v - 25360.0 / 2187.0 * k2v
-                    + 64448.0 / 6561.0 * k3v - 212.0 / 729.0 * k4v)
-    k5v = _acc(lam, V, sxfk, b1, b3, 0.0, 0.0,
-               x0 + h * (19372.0 / 6561.0 * k1x - 25360.0 / 2187.0 * k2x
-                         + 64448.0 / 6561.0 * k3x - 212.0 / 729.0 * k4x),
-               k5x, 0.0, 0.0) + g5
-    k6x = v0 + h * (9017.0 / 3168.0 * k1v - 355.0 / 33.0 * k2v + 46732.0 / 5247.0 * k3v
-                    + 49.0 / 176.0 * k4v - 5103.0 / 18656.0 * k5v)
-    k6v = _acc(lam, V, sxfk, b1, b3, 0.0, 0.0,
-               x0 + h * (9017.0 / 3168.0 * k1x - 355.0 / 33.0 * k2x + 46732.0 / 5247.0 * k3x
-                         + 49.0 / 176.0 * k4x - 5103.0 / 18656.0 * k5x),
-               k6x, 0.0, 0.0) + g6
-    x1 = x0 + h * (35.0 / 384.0 * k1x + 500.0 / 1113.0 * k3x + 125.0 / 192.0 * k4x
-                   - 2187.0 / 6784.0 * k5x + 11.0 / 84.0 * k6x)
-    v1 = v0 + h * (35.0 / 384.0 * k1v + 500.0 / 1113.0 * k3v + 125.0 / 192.0 * k4v
-                   - 2187.0 / 6784.0 * k5v + 11.0 / 84.0 * k6v)
-    k7v = _acc(lam, V, sxfk, b1, b3, 0.0, 0.0, x1, v1, 0.0, 0.0) + g6
-    kx[0] = k1x
-    kx[1] = k2x
-    kx[2] = k3x
-    kx[3] = k4x
-    kx[4] = k5x
-    kx[5] = k6x
-    kx[6] = v1
-    kv[0] = k1v
-    kv[1] = k2v
-    kv[2] = k3v
-    kv[3] = k4v
-    kv[4] = k5v
-    kv[5] = k6v
-    kv[6] = k7v
-    return x1, v1
+    w1 = cx[C_W1]
+    w2 = cx[C_W2]
+    n = int(cx[C_TN])
+    cubic = b3 != 0.0
+    p1 = u1  # u_i w_i^k / k!
+    p2 = u2
+    xk = x0
+    vk = v0
+    wk = v0 - V
+    cx[C_TX] = x0
+    cx[C_TV] = v0
+    for k in range(n):
+        cx[C_TW + k] = wk
+        fric = b1 * wk
+        if cubic:
+            # (w^2)_k by symmetry, and (w^3)_k; two partial sums each halve the chains
+            q0 = 0.0
+            q1 = 0.0
+            half = (k + 1) // 2
+            i = 0
+            while i + 1 < half:
+                q0 += cx[C_TW + i] * cx[C_TW + k - i]
+                q1 += cx[C_TW + i + 1] * cx[C_TW + k - i - 1]
+                i += 2
+            if i < half:
+                q0 += cx[C_TW + i] * cx[C_TW + k - i]
+            q = 2.0 * (q0 + q1)
+            if k % 2 == 0:
+                q += cx[C_TW + k // 2] * cx[C_TW + k // 2]
+            cx[C_TQ + k] = q
+            c0 = 0.0
+            c1 = 0.0
+            i = 1
+            while i + 1 <= k:
+                c0 += cx[C_TQ + k - i] * cx[C_TW + i]
+                c1 += cx[C_TQ + k - i - 1] * cx[C_TW + i + 1]
+                i += 2
+            if i <= k:
+                c0 += cx[C_TQ + k - i] * cx[C_TW + i]
+            c = (c0 + c1) + q * cx[C_TW]
+            fric -= b3 * c
+        m = k & 3
+        if m == 0:
+            g = p1 * cp1 + p2 * cp2
+        elif m == 1:
+            g = -(p1 * sp1 + p2 * sp2)
+        elif m == 2:
+            g = -(p1 * cp1 + p2 * cp2)
+        else:
+            g = p1 * sp1 + p2 * sp2
+        a = fric + g - lam * vk - xk
+        if k == 0:
+            a -= sxfk
+        r = _INV[k + 1]
+        xk = vk * r
+        vk = a * r
+        wk = vk
+        cx[C_TX + k + 1] = xk
+        cx[C_TV + k + 1] = vk
+        p1 *= w1 * r
+        p2 *= w2 * r
+    cx[C_TW + n] = wk
+    eps = atol + rtol * max(abs(x0), abs(v0))
+    last = max(abs(cx[C_TX + n]), abs(cx[C_TV + n]))
+    prev = max(abs(cx[C_TX + n - 1]), abs(cx[C_TV + n - 1]))
+    # h = min((eps / prev)^(1 / (n - 1)), (eps / last)^(1 / n)) times a safety factor
+    le = math.log(eps)
+    lh = math.inf
+    if prev > 0.0:
+        lh = (le - math.log(prev)) * _INV[n - 1]
+    if last > 0.0:
+        lh = min(lh, (le - math.log(last)) * _INV[n])
+    return math.exp(lh - 0.7 * _INV[n - 1])
+
+
+@njit(cache=True, _nrt=False, fastmath=_SUMS)
+def _taylor_vr2(cx, tau):
+    """Integral of (v - V)^2 over [0, tau] of the current Taylor step, exactly:
+    tau * sum_ij z_i z_j / (i + j + 1) with z_i = w_i tau^i."""
+    n = int(cx[C_TN])
+    z = cx[C_TQ:C_TQ + n + 1]
+    s = 1.0
+    for i in range(n + 1):
+        z[i] = cx[C_TW + i] * s
+        s *= tau
+    total = 0.0
+    for i in range(n + 1):
+        zi = z[i]
+        row = 0.5 * zi * _INV[2 * i + 1]
+        for j in range(i + 1, n + 1):
+            row += z[j] * _INV[i + j + 1]
+        total += zi * row
+    return 2.0 * tau * total
 
 
 @njit(cache=True, _nrt=False, inline="always")
-def _dp5_error_sq(kx, kv, h, x0, v0, x1, v1, rtol, atol):
-    """Square of the RMS of the embedded error estimate scaled by atol + rtol |y| (SciPy's
-    RK45 norm). Squared, with one division: the step-size update lies on the dependency
-    chain from one step to the next, so it is kept short."""
-    ex = (-71.0 / 57600.0 * kx[0] + 71.0 / 16695.0 * kx[2] - 71.0 / 1920.0 * kx[3]
-          + 17253.0 / 339200.0 * kx[4] - 22.0 / 525.0 * kx[5] + 1.0 / 40.0 * kx[6])
-    ev = (-71.0 / 57600.0 * kv[0] + 71.0 / 16695.0 * kv[2] - 71.0 / 1920.0 * kv[3]
-          + 17253.0 / 339200.0 * kv[4] - 22.0 / 525.0 * kv[5] + 1.0 / 40.0 * kv[6])
-    sx = atol + rtol * max(abs(x0), abs(x1))
-    sv = atol + rtol * max(abs(v0), abs(v1))
-    return 0.5 * h * h * ((ex * sv) ** 2 + (ev * sx) ** 2) / ((sx * sv) ** 2)
-
-
-# Shampine's quartic interpolant for DP5 (as in SciPy's RK45), row i = stage i; stage 2
-# has no weight.
-_P01, _P02, _P03 = (-8048581381.0 / 2820520608.0, 8663915743.0 / 2820520608.0,
-                    -12715105075.0 / 11282082432.0)
-_P21, _P22, _P23 = (131558114200.0 / 32700410799.0, -68118460800.0 / 10900136933.0,
-                    87487479700.0 / 32700410799.0)
-_P31, _P32, _P33 = (-1754552775.0 / 470086768.0, 14199869525.0 / 1410260304.0,
-                    -10690763975.0 / 1880347072.0)
-_P41, _P42, _P43 = (127303824393.0 / 49829197408.0, -318862633887.0 / 49829197408.0,
-                    701980252875.0 / 199316789632.0)
-_P51, _P52, _P53 = (-282668133.0 / 205662961.0, 2019193451.0 / 616988883.0,
-                    -1453857185.0 / 822651844.0)
-_P61, _P62, _P63 = (40617522.0 / 29380423.0, -110615467.0 / 29380423.0,
-                    69997945.0 / 29380423.0)
-
-
-@njit(cache=True, _nrt=False, inline="always")
-def _dense_coeffs(k):
-    q0 = k[0]
-    q1 = _P01 * k[0] + _P21 * k[2] + _P31 * k[3] + _P41 * k[4] + _P51 * k[5] + _P61 * k[6]
-    q2 = _P02 * k[0] + _P22 * k[2] + _P32 * k[3] + _P42 * k[4] + _P52 * k[5] + _P62 * k[6]
-    q3 = _P03 * k[0] + _P23 * k[2] + _P33 * k[3] + _P43 * k[4] + _P53 * k[5] + _P63 * k[6]
-    return q0, q1, q2, q3
-
-
-@njit(cache=True, _nrt=False, inline="always")
-def _dp5_dense(cx, kx, kv):
-    """Coefficients of the dense output of the last DP5 step, stored in cx."""
-    cx[C_QX0], cx[C_QX0 + 1], cx[C_QX0 + 2], cx[C_QX0 + 3] = _dense_coeffs(kx)
-    cx[C_QV0], cx[C_QV0 + 1], cx[C_QV0 + 2], cx[C_QV0 + 3] = _dense_coeffs(kv)
-
-
-@njit(cache=True, _nrt=False, inline="always")
-def _step_factor(err2):
-    """0.9 err^(-1/5) clamped to [0.2, 5] from err2 = err^2: a 5th-order pair's update.
-
-    A controller needs a few digits at most, so (err^2)^(-1/10) comes from the binary
-    exponent and a cubic in the mantissa (relative error < 2e-4) instead of a pow call.
-    """
-    if err2 <= 1e-20:
-        return 5.0
-    m, e = math.frexp(err2)  # err2 = m 2^e, m in [0.5, 1)
-    q = e // 10
-    r = e - 10 * q
-    y = 1.2347252968194187 + m * (-0.468421473429636 + m * (
-        0.33554376234102834 - m * 0.10193105956092899))  # ~ m^(-1/10)
-    y *= _POW2_TENTHS[r]
-    y = math.ldexp(0.9 * y, -q)
-    return min(5.0, max(0.2, y))
+def _v_one_extremum(a0, j0, a1, j1, L, m3):
+    """Proof that v has at most one extremum on [0, L]: v' keeps its sign, or v'' does
+    (v' monotone), given v', v'' at both ends and |v'''| <= m3."""
+    s = 1.0 if a0 + a1 >= 0.0 else -1.0
+    return _stays_positive(s * a0, s * j0, s * a1, s * j1, L, m3) or _sign_kept(j0, j1, L, m3)
 
 
 @njit(cache=True, _nrt=False, inline="always")
@@ -1282,7 +1284,8 @@ _RB1, _RB2, _RB3, _RB4 = 19.0 / 9.0, 1.0 / 2.0, 25.0 / 108.0, 125.0 / 108.0
 _RE1, _RE2, _RE4 = 17.0 / 54.0, 7.0 / 36.0, 125.0 / 108.0
 _RG1, _RG2, _RG3, _RG4 = 1.0 / 2.0, -3.0 / 2.0, 121.0 / 50.0, 29.0 / 250.0
 _RALPHA3 = 3.0 / 5.0
-# A slip step is stiff when |df/dv| h exceeds this (DP5 is stable up to about 3.3).
+# A slip step is stiff when |df/dv| h exceeds this: the Taylor steps' length is then set by
+# their stability (the error control holds them near its limit), not by accuracy.
 STIFF_HK = 2.5
 
 
@@ -1300,7 +1303,7 @@ def _ros4_step(cx, sd, x0, v0, a0, h):
 
     Returns x, v and v' at the end and the embedded error of x and v. J is exact: the
     friction law's slope enters only dv'/dv. cos/sin of the tone phases at the step end go
-    to cx[C_CE1..C_SE2], as after a DP5 step.
+    to cx[C_CE1..C_SE2], as after a Taylor step.
     """
     lam, V, sxfk, b1, b3, u1, u2, cp1, sp1, cp2, sp2 = _step_inputs(cx, sd)
     w1 = cx[C_W1]
@@ -1340,11 +1343,13 @@ def _ros4_step(cx, sd, x0, v0, a0, h):
 @njit(cache=True, _nrt=False)
 def _run_event(P, S, t_span, out_t, stats, max_events, rtol, atol, out_x, out_v, out_mode,
                ev_t, ev_kind, ev_x, counts, cx):
-    """Advance S by t_span: adaptive DP5(4) in slip, exact stick; see ``advance``."""
+    """Advance S by t_span: Taylor-series steps in slip, exact stick; see ``advance``."""
     _setup_context(P, cx)
-    kx = cx[C_KX:C_KX + 7]
-    kv = cx[C_KV:C_KV + 7]
+    cx[C_TN] = taylor_order(rtol)
     cap = _scan_cap(P, False)
+    # Slip steps hold at most one extremum of v by proof (halved otherwise), so they may be
+    # as long as the wide scan step; stick steps keep the scan step.
+    cap_slip = _scan_cap(P, True)
     V = cx[C_V]
     w1 = cx[C_W1]
     w2 = cx[C_W2]
@@ -1359,7 +1364,7 @@ def _run_event(P, S, t_span, out_t, stats, max_events, rtol, atol, out_x, out_v,
     n_events = 0
     status = STATUS_OK
     fresh = True
-    h = min(cap, 0.05)
+    h = min(cap, 0.05)  # the last Taylor step's natural length (for the stiffness test)
     h_ros = -1.0  # Rosenbrock step size while in a stiff stretch (-1: not in one)
     phases_stale = True
     n_carried = 0
@@ -1379,23 +1384,21 @@ def _run_event(P, S, t_span, out_t, stats, max_events, rtol, atol, out_x, out_v,
             t = t_stop
             break
         if mode != 0.0:
-            # ---------------- one accepted DP5 step ----------------
+            # ---------------- one slip step ----------------
             if phases_stale or n_carried >= 64:
                 _set_phases(cx, ph1, ph2)  # resync the carried cos/sin with the angles
                 phases_stale = False
                 n_carried = 0
-            else:
-                cx[C_PH1A] = ph1
-                cx[C_PH2A] = ph2
             sd = mode
-            # Stiff stretch (the cubic law's slope |df/dv| h past DP5's stability): on the
-            # stats-only path, a Rosenbrock step, kept only where no switch, extremum or
-            # sign change of v needs a dense output; anything else goes to DP5.
+            # Stiff stretch (the cubic law's slope |df/dv| past what an explicit step of
+            # the tolerance's length can follow): on the stats-only path, a Rosenbrock
+            # step, kept only where no switch, extremum or sign change of v needs a dense
+            # output; anything else goes to the Taylor step.
             vr0 = v - V
             k_stiff = abs(cx[C_B1] - cx[C_LAM] - 3.0 * cx[C_B3] * vr0 * vr0)
             ros_taken = False
             if out_t is None and k_stiff * min(h, cap) >= STIFF_HK:
-                h_stab = 3.0 / k_stiff  # about DP5's longest stable step
+                h_stab = STIFF_HK / k_stiff  # about the Taylor step's stiff limit
                 if not h_ros > 0.0:
                     h_ros = 2.0 * h_stab
                 while h_ros > 1.5 * h_stab:
@@ -1421,22 +1424,23 @@ def _run_event(P, S, t_span, out_t, stats, max_events, rtol, atol, out_x, out_v,
             else:
                 h_ros = -1.0
             if not ros_taken:
-                while True:
-                    h = min(h, cap, t_stop - t)
-                    x1, v1 = _dp5_step(cx, sd, x, v, acc, h, kx, kv)
-                    err2 = _dp5_error_sq(kx, kv, h, x, v, x1, v1, rtol, atol)
-                    if err2 <= 1.0 or h <= 1e-14 * max(1.0, abs(t)):
+                h = _taylor_coeffs(cx, sd, x, v, rtol, atol)
+                a0 = cx[C_TV + 1]
+                j0 = 2.0 * cx[C_TV + 2]
+                hstep = min(h, cap_slip, t_stop - t)
+                while True:  # halved until v provably has one extremum at most
+                    v1, a1, j1 = _dense_v(cx, hstep)
+                    _, m3 = _dense_bounds(cx, hstep)
+                    if _v_one_extremum(a0, j0, a1, j1, hstep, m3) or (
+                            hstep <= MIN_SPLIT * cap_slip):
                         break
-                    h *= _step_factor(err2)
+                    hstep *= 0.5
+                x1 = _dense_x(cx, hstep)
                 stats[ST_N_STEPS] += 1.0
-                hstep = h
-                a1 = kv[6]
                 cx[C_XA] = x
-                cx[C_VA] = v
                 cx[C_SD] = sd
-                cx[C_H] = hstep
                 h0 = sd * (v - V)
-                d0 = sd * acc
+                d0 = sd * a0
                 if fresh and d0 < 0.0 and h0 <= 0.0:
                     d0 = 0.0
                 h1 = sd * (v1 - V)
@@ -1444,45 +1448,19 @@ def _run_event(P, S, t_span, out_t, stats, max_events, rtol, atol, out_x, out_v,
                 t_ext = -1.0
                 v_ext = 0.0
                 h_ext = 0.0
-                # the dense output is built only for steps that need it: an extremum, a contact,
-                # a sign change of v, or an output time inside
-                need_dense = acc * a1 < 0.0 or h1 <= 0.0 or v * v1 < 0.0
-                if out_t is not None:
-                    if j_out < n_out:
-                        if out_t[j_out] <= t + hstep + 1e-13 * max(1.0, abs(t)):
-                            need_dense = True
-                if need_dense:
-                    _dp5_dense(cx, kx, kv)
-                if acc * a1 < 0.0 and _extremum_matters(cx, stats, sd, v, v1, acc, a1, hstep, V,
-                                                        math.inf):
-                    t_ext = _extremum(cx, K_DENSE_V, 0.0, hstep, acc, a1)
-                    v_ext, _, _ = _dense_v(cx, t_ext)
-                    h_ext = sd * (v_ext - V)
+                if a0 * a1 < 0.0:
+                    m2, _ = _dense_bounds(cx, hstep)
+                    if _extremum_matters(cx, stats, sd, v, v1, a0, a1, hstep, V, m2):
+                        t_ext = _extremum(cx, K_DENSE_V, 0.0, hstep, a0, a1)
+                        v_ext, _, _ = _dense_v(cx, t_ext)
+                        h_ext = sd * (v_ext - V)
                 te = _contact_time(cx, K_DENSE_H, hstep, h0, d0, h1, d1, t_ext, h_ext)
                 if te > 0.0:
-                    # polish the switching time on the RK formula itself (order 5, not 4)
-                    for _ in range(3):
-                        xe, ve = _dp5_step(cx, sd, x, v, acc, te, kx, kv)
-                        he = sd * (ve - V)
-                        de = sd * kv[6]
-                        if abs(de) < 1e-8 or abs(he) <= 1e-15 * (1.0 + abs(V)):
-                            break
-                        tn = te - he / de
-                        if not (0.0 < tn <= hstep):
-                            break
-                        te = tn
-                    xe, ve = _dp5_step(cx, sd, x, v, acc, te, kx, kv)
-                    ae = kv[6]
-                    _dp5_dense(cx, kx, kv)  # dense output of [0, te] for stats and outputs
-                    cx[C_H] = te
                     step_end = te
-                    x1 = xe
+                    x1 = _dense_x(cx, te)
                     v1 = V
-                    a1 = ae
                     if not (0.0 <= t_ext <= te):
                         t_ext = -1.0
-                    else:
-                        v_ext, _, _ = _dense_v(cx, t_ext)
                 elif te == 0.0:
                     step_end = 0.0
                 else:
@@ -1493,7 +1471,7 @@ def _run_event(P, S, t_span, out_t, stats, max_events, rtol, atol, out_x, out_v,
                         tau = min(max(out_t[j_out] - t, 0.0), step_end)
                         if tau == step_end:
                             out_x[j_out] = x1
-                            out_v[j_out] = v1 if te < 0.0 else V
+                            out_v[j_out] = v1
                         else:
                             out_x[j_out] = _dense_x(cx, tau)
                             out_v[j_out], _, _ = _dense_v(cx, tau)
@@ -1501,10 +1479,9 @@ def _run_event(P, S, t_span, out_t, stats, max_events, rtol, atol, out_x, out_v,
                         j_out += 1
                         counts[1] = j_out
                 if step_end > 0.0:
-                    j0 = _jerk(cx, v, acc, cx[C_SP1], cx[C_SP2])
-                    j1 = _jerk(cx, v1, a1, cx[C_SE1], cx[C_SE2])  # end of the last RK step
-                    _slip_stats(cx, K_DENSE_V, stats, step_end, t_ext, v_ext, v, acc, j0, v1,
-                                a1, j1, x1, math.nan, V)
+                    _slip_extrema(cx, K_DENSE_V, stats, step_end, t_ext, v_ext, v, v1, x1)
+                    if cx[W_SKIP_VR2] != 1.0:
+                        stats[ST_VR2_INT] += _taylor_vr2(cx, step_end)
                 if te >= 0.0:
                     pe1 = ph1 + w1 * te
                     pe2 = ph2 + w2 * te
@@ -1524,10 +1501,16 @@ def _run_event(P, S, t_span, out_t, stats, max_events, rtol, atol, out_x, out_v,
                     status = _log_event(ev_t, ev_kind, ev_x, counts, t, kind, x, n_events,
                                         max_events)
                 else:
-                    t, x, v, acc, ph1, ph2 = _carry(cx, t, x1, v1, a1, ph1, ph2, hstep)
+                    ce1, se1 = _sincos(w1 * hstep)
+                    ce2, se2 = _sincos(w2 * hstep)
+                    c_end1, c_end2 = _end_phases(cx, cx[C_CP1], cx[C_SP1], cx[C_CP2],
+                                                 cx[C_SP2], ce1, se1, ce2, se2)
+                    # the equation's own acceleration at the end (the next series' v_1)
+                    a_end = _acc(cx[C_LAM], V, sd * cx[C_XFK], cx[C_B1], cx[C_B3], 0.0, 0.0,
+                                 x1, v1, 0.0, 0.0) + cx[C_U1] * c_end1 + cx[C_U2] * c_end2
+                    t, x, v, acc, ph1, ph2 = _carry(cx, t, x1, v1, a_end, ph1, ph2, hstep)
                     n_carried += 1
                     fresh = False
-                h = hstep * _step_factor(err2)
         else:
             # ---------------- exact stick step ----------------
             L = min(cap, t_stop - t)
@@ -1693,23 +1676,28 @@ def run_rk4(P, S, t_span, dt, out_t, stats, out_x, out_v, out_mode):
 # ----------------------------------------------------------------------------------------
 # Public stats-only kernel
 # ----------------------------------------------------------------------------------------
-def new_workspace(n: int | None = None, *, extrema: bool = True) -> np.ndarray:
+def new_workspace(n: int | None = None, *, extrema: bool = True, vr2: bool = True
+                  ) -> np.ndarray:
     """Workspace for ``advance_ws``: one row per plant, caches marked empty (NaN).
 
     ``extrema=False`` skips locating the extrema of v and x (ST_V_MAX ... ST_X_MIN then
-    only see step ends), for callers that do not read them.
+    only see step ends), and ``vr2=False`` the (v - V)^2 integral (ST_VR2_INT), for
+    callers that do not read them.
     """
     shape = N_WORK if n is None else (n, N_WORK)
     work = np.full(shape, np.nan)
     work[..., W_SKIP_EXTREMA] = 0.0 if extrema else 1.0
+    work[..., W_SKIP_VR2] = 0.0 if vr2 else 1.0
     return work
 
 
 @njit(cache=True)
-def _fresh_workspace():
+def fresh_workspace(extrema=True, vr2=True):
+    """``new_workspace`` for one plant, from compiled code."""
     # all NaN: every cache key compares unequal, so nothing stale is ever reused
     work = np.full(N_WORK, np.nan)
-    work[W_SKIP_EXTREMA] = 0.0
+    work[W_SKIP_EXTREMA] = 0.0 if extrema else 1.0
+    work[W_SKIP_VR2] = 0.0 if vr2 else 1.0
     return work
 
 
@@ -1737,7 +1725,7 @@ def advance(P, S, t_span, stats, method, rtol, atol, max_events):
     calls without a jump in the force. Returns a STATUS_* code; at most ``max_events``
     switches are allowed in the call (STATUS_EVENT_CAP beyond).
     """
-    return advance_ws(P, S, t_span, stats, method, rtol, atol, max_events, _fresh_workspace())
+    return advance_ws(P, S, t_span, stats, method, rtol, atol, max_events, fresh_workspace())
 
 
 @njit(cache=True)
@@ -1746,7 +1734,7 @@ def record(P, S, out_t, stats, method, rtol, atol, max_events, out_x, out_v, out
     """Like ``advance`` over [out_t[0], out_t[-1]], recording the state at ``out_t`` and the
     events (time, kind, x); ``counts`` returns (events recorded, outputs written)."""
     t_span = out_t[out_t.shape[0] - 1] - out_t[0]
-    work = _fresh_workspace()
+    work = fresh_workspace()
     if method == METHOD_EXACT:
         return _run_exact(P, S, t_span, out_t, stats, max_events, out_x, out_v, out_mode, ev_t,
                           ev_kind, ev_x, counts, work)

@@ -295,7 +295,7 @@ def run(out: Path, quick: bool = False, docs: Path | None = None, n_threads: int
             "Paper: *Dry Friction with Various Friction Laws: From Wave Modulated Orbit to "
             "Stick-Slip Modulated* (Modern Mechanical Engineering 5, 2015). Our model, "
             "including the corrections listed in MODEL.md, is simulated with the exact "
-            "event-driven kernels of `fricenv` (closed form for Coulomb, Dormand-Prince with "
+            "event-driven kernels of `fricenv` (closed form for Coulomb, Taylor series with "
             "exact switching for the other laws); the paper used fixed-step RK4 with `sgn`, "
             "which cannot hold a stick phase.", "",
             "Regime labels follow `fricenv.regimes` (criteria in its docstring and in the "

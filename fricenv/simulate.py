@@ -269,8 +269,8 @@ def simulate(
 ) -> Trajectory:
     """Simulate from (x0, v0) at t = 0 to ``t_end`` and record the state every ``dt_out``.
 
-    ``method``: ``"exact"`` (closed form, Coulomb law), ``"event"`` (DP5(4) with dense
-    output in slip, any law; ``rtol``/``atol`` set its accuracy), ``"rk4"`` (the paper's
+    ``method``: ``"exact"`` (closed form, Coulomb law), ``"event"`` (Taylor-series
+    steps in slip, any law; ``rtol``/``atol`` set its accuracy), ``"rk4"`` (the paper's
     fixed-step scheme with step ``dt``; it cannot stick) or ``"auto"`` (exact where it
     applies, event otherwise). Output times are 0, dt_out, ... and t_end.
     """

@@ -74,7 +74,7 @@ from .regimes import Regime, _strobe_period, classify, exact_rational, rational_
 FORMAT = "fricenv.regime_map"
 FORMAT_VERSION = 1
 #: Version of the per-cell measurement; a stored map is resumed only if it matches.
-ALGORITHM = 5
+ALGORITHM = 6
 #: Label of a cell that has not been computed yet (not a :class:`Regime`).
 NOT_COMPUTED = -1
 
@@ -215,10 +215,12 @@ def _run_cell(P: np.ndarray, x0: float, v0: float, t_trans: float, t_seg: float,
     S = np.empty(N_STATE)
     core.initial_state(P, x0, v0, S)
     core.reset_stats(stats)
+    # one workspace for the whole cell; the maps never read the (v - V)^2 integral
+    work = core.fresh_workspace(True, False)
     status = STATUS_OK
     if t_trans > 0.0:
-        status = core.advance(P, S, t_trans, stats, method, rtol, atol,
-                              _event_cap(t_trans, rate))
+        status = core.advance_ws(P, S, t_trans, stats, method, rtol, atol,
+                                 _event_cap(t_trans, rate), work)
     xs = np.empty(n_seg)
     vs = np.empty(n_seg)
     period = 0
@@ -226,8 +228,8 @@ def _run_cell(P: np.ndarray, x0: float, v0: float, t_trans: float, t_seg: float,
         core.reset_stats(stats)
         k = 0
         while status == STATUS_OK and k < n_seg:
-            status = core.advance(P, S, t_seg, stats, method, rtol, atol,
-                                  _event_cap(t_seg, rate))
+            status = core.advance_ws(P, S, t_seg, stats, method, rtol, atol,
+                                     _event_cap(t_seg, rate), work)
             xs[k] = S[S_X]
             vs[k] = S[S_V]
             k += 1

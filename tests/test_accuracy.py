@@ -244,13 +244,13 @@ def test_grazing_contact_is_detected(method: str) -> None:
 # --------------------------------------------------------------------------------------
 # order of convergence of the event method
 # --------------------------------------------------------------------------------------
-def test_event_converges_at_fifth_order() -> None:
-    """Error against a tight run versus steps has slope ~ -5 on a pure-slip Stribeck case.
+def test_event_error_follows_tolerance() -> None:
+    """Error against a tight run falls in proportion to rtol on a pure-slip Stribeck case.
 
     Started at the slip equilibrium x = xfk - b1 V + b3 V^3 so that v stays below V and the
-    run has no switches: the slope then measures the integrator alone. The kernel caps the
-    step (0.25 here), so loose tolerances (rtol >~ 1e-6) all take the capped step count;
-    those points measure the cap, not the order, and are left out of the fit.
+    run has no switches: the error then measures the Taylor steps alone. Their order grows
+    with the tolerance (``core.taylor_order``) and their length is capped, so the step
+    count is not a power of the error; what a user relies on is the error tracking rtol.
     """
     simulate = _sim()
     p = C("stribeck", eta=0.6, nu=0.1, u0=0.5)
@@ -267,16 +267,12 @@ def test_event_converges_at_fifth_order() -> None:
                       atol=rtol * 1e-2)
         steps.append(tr.n_steps)
         errs.append(float(np.abs(tr.x - ref.x).max()))
-    free = [i for i, n in enumerate(steps) if n > 1.1 * min(steps)]
-    slope = float(np.polyfit(np.log(np.take(steps, free)), np.log(np.take(errs, free)), 1)[0])
-    print("\n[event convergence] " + ", ".join(
+    print("\n[event tolerance] " + ", ".join(
         f"rtol {r:.0e}: {n} steps, err {e:.2e}" for r, n, e in zip(rtols, steps, errs,
-                                                                    strict=True))
-        + f"; slope over the {len(free)} uncapped points {slope:.2f}")
-    assert len(free) >= 4
-    assert all(b >= a for a, b in zip(steps, steps[1:], strict=False))
-    assert all(e <= 100 * r for r, e in zip(rtols, errs, strict=True))
-    assert -6.5 <= slope <= -3.5
+                                                                    strict=True)))
+    assert all(e <= 10 * r for r, e in zip(rtols, errs, strict=True))
+    assert all(b < a for a, b in zip(errs, errs[1:], strict=False))
+    assert errs[-1] < 1e-4 * errs[0]
 
 
 # --------------------------------------------------------------------------------------
@@ -330,8 +326,9 @@ def test_random_cases_match_scipy_reference() -> None:
 @pytest.mark.parametrize("u0", [2000.0, 5000.0])
 def test_stiff_stretches_on_the_stats_path(u0: float) -> None:
     """At large u0 the cubic law's slope makes slip stiff; the stats-only path then takes
-    Rosenbrock steps (far fewer than DP5's stability-limited ones) and still agrees with the
-    recording path (DP5 throughout) at the same tolerance, switch for switch."""
+    Rosenbrock steps (far fewer than the Taylor steps' stability-limited ones) and still
+    agrees with the recording path (Taylor steps throughout) at the same tolerance, switch
+    for switch."""
     from fricenv import run_stats, simulate
 
     p = C("stribeck", eta=1 / 9, u0=u0, nu=1.3)

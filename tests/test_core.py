@@ -386,3 +386,40 @@ def test_vr2_quadrature_against_a_fine_trajectory(kw):
             y = (tr.v[k * 2000:(k + 1) * 2000 + 1] - p.V) ** 2
             simpson = dt / 2000 / 3 * (y[0] + y[-1] + 4 * y[1:-1:2].sum() + 2 * y[2:-1:2].sum())
             assert stats[ST_VR2_INT] == pytest.approx(simpson, rel=1e-5, abs=1e-8)
+
+
+@pytest.mark.parametrize("law, kw", [("stribeck", {"nu": 1.2, "u0": 2.0}),
+                                     ("viscous", {"eta": 1 / 5, "nu": 2.5, "u0": 1.0}),
+                                     ("stribeck", {"lam": 0.1, "u0": 0.0, "V": 0.3})])
+def test_event_vr2_is_exact_on_the_series(law, kw):
+    """The event method integrates (v - V)^2 exactly on each step's Taylor series: against
+    Simpson's rule on a finely recorded trajectory, to the trajectory's own accuracy.
+    Skipping the integral (vr2=False, as the sweeps do) leaves every other statistic
+    unchanged."""
+    p = OscillatorParams.preset(law, **kw)
+    dt = math.pi / 6.0
+    n_fine = 2000
+    tr = simulate(p, 20 * dt, x0=0.3, v0=-0.2, dt_out=dt / n_fine, method="event", rtol=1e-12,
+                  atol=1e-14)
+    P = p.to_array()
+    states, all_stats = [], []
+    for work in (new_workspace(), new_workspace(vr2=False)):
+        S = np.empty(N_STATE)
+        core.initial_state(P, 0.3, -0.2, S)
+        stats = np.empty(N_STATS)
+        rows = []
+        for _ in range(20):
+            core.reset_stats(stats)
+            core.advance_ws(P, S, dt, stats, 1, 1e-12, 1e-14, 10_000, work)
+            rows.append(stats.copy())
+        states.append(S.copy())
+        all_stats.append(np.array(rows))
+    for k, row in enumerate(all_stats[0]):
+        y = (tr.v[k * n_fine:(k + 1) * n_fine + 1] - p.V) ** 2
+        h = dt / n_fine
+        simpson = h / 3 * (y[0] + y[-1] + 4 * y[1:-1:2].sum() + 2 * y[2:-1:2].sum())
+        assert row[ST_VR2_INT] == pytest.approx(simpson, rel=1e-9, abs=1e-12)
+    np.testing.assert_array_equal(all_stats[1][:, ST_VR2_INT], 0.0)
+    others = [i for i in range(N_STATS) if i != ST_VR2_INT]
+    np.testing.assert_array_equal(all_stats[1][:, others], all_stats[0][:, others])
+    np.testing.assert_array_equal(states[1], states[0])
