@@ -286,7 +286,6 @@ def time_history(controllers: list[tuple[str, Controller]], scene: str, env_kwar
     import matplotlib.pyplot as plt
 
     from fricenv.envs import kernels as K
-    from fricenv.layout import N_STATS
 
     n = len(controllers)
     fig, axes = plt.subplots(n, 2, figsize=(11, 1.6 * n + 0.7), sharex="col", squeeze=False,
@@ -296,23 +295,19 @@ def time_history(controllers: list[tuple[str, Controller]], scene: str, env_kwar
         env = gym.make(SCENE_ENV_IDS[scene], scene=scene, **env_kwargs)
         u = env.unwrapped
         obs, _ = env.reset(seed=seed)
-        stats = np.zeros(N_STATS)
-        tb, vb = np.zeros(samples), np.zeros(samples)
-        sb = np.zeros(samples, dtype=np.bool_)
         ts, vs, ss, tu, us, ns = [], [], [], [], [], []
         total, stuck, done = 0.0, 0.0, False
         while not done:
             a, _ = ctrl.predict(obs, deterministic=True)
             a = np.asarray(a, dtype=np.float32)
-            # Sample the coming interval on copies of the plant (as the renderer does):
-            # exact, and without effect on the real step.
-            K.sample_interval(u._P, u._S, u._ctrl, u._cfg, a, stats, tb, vb, sb)
-            snap = u.snapshot()
+            # the coming interval, exactly and without effect on the real step
+            tb, vb, sb = u.sample_interval(a, samples)
+            t_now = u.snapshot()["t"]
             obs, r, term, trunc, info = env.step(a)
-            ts.append(tb.copy())
-            vs.append(vb - snap["V"])
-            ss.append(sb.copy())
-            tu.append(snap["t"])
+            ts.append(tb)
+            vs.append(vb)
+            ss.append(sb)
+            tu.append(t_now)
             us.append(float(obs[K.O_U0]))
             ns.append(float(obs[K.O_NU]))
             total += r

@@ -176,6 +176,35 @@ def test_reward_formula_range_and_info():
         assert obs[2] in (0.0, 1.0)
 
 
+def test_mean_relative_velocity_and_interval_sampling():
+    """info's interval mean of v - V is the displacement's rate minus V; sample_interval
+    previews exactly what the next step integrates and leaves the environment untouched."""
+    env = gym.make(ENV_ID, action_mode="both").unwrapped
+    env.reset(seed=4)
+    rng = np.random.default_rng(2)
+    for _ in range(20):
+        a = rng.uniform(-1, 1, 2).astype(np.float32)
+        before = env.snapshot()
+        t, v_rel, stuck = env.sample_interval(a, 50)
+        assert env.snapshot() == before
+        assert t.shape == v_rel.shape == stuck.shape == (50,) and stuck.dtype == np.bool_
+        np.testing.assert_allclose(t, before["t"] + env.dt * np.arange(1, 51) / 50, rtol=1e-12)
+        info = env.step(a)[4]
+        after = env.snapshot()
+        assert v_rel[-1] == pytest.approx(after["v"] - after["V"], abs=1e-9)
+        assert info["mean_relative_velocity"] == pytest.approx(
+            (after["x"] - before["x"]) / env.dt - before["V"], abs=1e-12)
+    with pytest.raises(ValueError, match="n_samples"):
+        env.sample_interval(np.zeros(2, np.float32), 0)
+    with pytest.raises(ValueError, match="n_samples"):
+        env.sample_interval(np.zeros(2, np.float32), 2.5)
+    with pytest.raises(ValueError, match="finite"):
+        env.sample_interval(np.array([np.nan, 0.0], np.float32))
+    fresh = gym.make(ENV_ID).unwrapped
+    with pytest.raises(gym.error.ResetNeeded):
+        fresh.sample_interval(np.zeros(1, np.float32))
+
+
 def test_self_excited_scene_sticks_unforced_and_can_be_quenched():
     def mean_stick(u_action):
         env = gym.make(SELF_ID, action_mode="amplitude").unwrapped

@@ -81,8 +81,8 @@ N_CFG = 23
 METHOD_AUTO = -1
 
 # Per-step results (float64 row): reward, stick fraction, effort, velocity variance, terminated.
-R_REWARD, R_STICK, R_EFFORT, R_VAR, R_TERM = range(5)
-N_RES = 5
+R_REWARD, R_STICK, R_EFFORT, R_VAR, R_MEAN_VR, R_TERM = range(6)
+N_RES = 6
 
 # Layout of the per-episode starting vector (mirrors scenes.I_*).
 I_X0, I_V0, I_PHI1, I_PHI2, I_U0, I_NU = range(6)
@@ -191,6 +191,7 @@ def control_interval(P, S, ctrl, cfg, a, stats, res, work) -> int:
     res[R_STICK] = stick
     res[R_EFFORT] = effort
     res[R_VAR] = var
+    res[R_MEAN_VR] = mean_vr
     return 0
 
 

@@ -57,9 +57,11 @@ class StickSlipSB3VecEnv(VecEnv):
         sf = res[:, K.R_STICK].tolist()
         ef = res[:, K.R_EFFORT].tolist()
         qv = res[:, K.R_VAR].tolist()
+        mv = res[:, K.R_MEAN_VR].tolist()
         infos = [
-            {"stick_fraction": s, "effort": e, "velocity_variance": q}
-            for s, e, q in zip(sf, ef, qv, strict=True)
+            {"stick_fraction": s, "effort": e, "velocity_variance": q,
+             "mean_relative_velocity": m}
+            for s, e, q, m in zip(sf, ef, qv, mv, strict=True)
         ]
         if dones.any():
             final_obs = info["final_obs"]

@@ -8,6 +8,7 @@ numba kernel (``kernels.step_single``) that integrates exactly to the next contr
 from __future__ import annotations
 
 import math
+import operator
 from dataclasses import dataclass
 from typing import Any
 
@@ -279,7 +280,8 @@ class StickSlipEnv(gym.Env):
 
     So `r` lies in `[-(w_stick + w_velocity + w_effort), 0]`; the presets' weights
     `(1, 0.5, 0.1)` give `[-1.6, 0]`. Weights are set by the scene or by ``reward_weights``.
-    `info` carries `stick_fraction` (`s`), `effort` (`e`) and `velocity_variance` (`q`).
+    `info` carries `stick_fraction` (`s`), `effort` (`e`), `velocity_variance` (`q`) and
+    `mean_relative_velocity` (the interval's mean of `v - V`).
 
     ## Starting State
 
@@ -421,6 +423,7 @@ class StickSlipEnv(gym.Env):
                 "stick_fraction": float(res[K.R_STICK]),
                 "effort": float(res[K.R_EFFORT]),
                 "velocity_variance": float(res[K.R_VAR]),
+                "mean_relative_velocity": float(res[K.R_MEAN_VR]),
             },
         )
 
@@ -489,12 +492,43 @@ class StickSlipEnv(gym.Env):
             "x_limit": self.scene.x_limit,
         }
 
+    def sample_interval(
+        self, action: np.ndarray, n_samples: int = 64
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The coming control interval under ``action``, without stepping the environment.
+
+        Returns ``(t, v_rel, stuck)`` at ``n_samples`` equally spaced instants ending at the
+        next control instant: time, velocity relative to the belt ``v - V``, and whether
+        the block is stuck there. Computed on copies of the plant with the step's own
+        kernels, so it is what ``step(action)`` will integrate, and the environment's
+        state is left untouched (for plotting a policy's motion, as the renderer does).
+        """
+        if self._needs_reset:
+            raise gym.error.ResetNeeded("Cannot call sample_interval() before calling reset()")
+        try:
+            n = operator.index(n_samples)
+        except TypeError:
+            n = 0
+        if n < 1:
+            raise ValueError(f"n_samples must be a positive integer, got {n_samples!r}")
+        a = coerce_action(action, self._act_shape)
+        if not K.actions_finite(a):
+            raise_status(K.STATUS_BAD_ACTION, action)
+        t, v = np.empty(n), np.empty(n)
+        stuck = np.empty(n, dtype=np.bool_)
+        status = self._sample_into(a, t, v, stuck)
+        if status != 0:
+            raise_status(status, action)
+        return t, v - self._P[P_V], stuck
+
+    def _sample_into(self, a: np.ndarray, t: np.ndarray, v: np.ndarray,
+                     stuck: np.ndarray) -> int:
+        return K.sample_interval(self._P, self._S, self._ctrl, self._cfg, a, self._stats, t, v,
+                                 stuck)
+
     def _record_trace(self, a: np.ndarray) -> None:
         r = self._renderer
         if not K.actions_finite(a):
             return  # the step itself raises
-        status = K.sample_interval(
-            self._P, self._S, self._ctrl, self._cfg, a, self._stats, r.buf_t, r.buf_v, r.buf_s
-        )
-        if status == 0:
+        if self._sample_into(a, r.buf_t, r.buf_v, r.buf_s) == 0:
             r.push()

@@ -32,8 +32,8 @@ _AUTORESET = {
 }
 #: Info keys, in the order of their columns in the kernel's results (adjacent: one slice
 #: takes them all).
-_INFO_KEYS = ("stick_fraction", "effort", "velocity_variance")
-_INFO_COLS = slice(K.R_STICK, K.R_VAR + 1)
+_INFO_KEYS = ("stick_fraction", "effort", "velocity_variance", "mean_relative_velocity")
+_INFO_COLS = slice(K.R_STICK, K.R_MEAN_VR + 1)
 
 
 def _info_dict(vals: np.ndarray, masks: np.ndarray) -> dict[str, Any]:
@@ -45,6 +45,8 @@ def _info_dict(vals: np.ndarray, masks: np.ndarray) -> dict[str, Any]:
         "_effort": masks[1],
         "velocity_variance": vals[2],
         "_velocity_variance": masks[2],
+        "mean_relative_velocity": vals[3],
+        "_mean_relative_velocity": masks[3],
     }
 
 
