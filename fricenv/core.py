@@ -1427,7 +1427,10 @@ def _run_event(P, S, t_span, out_t, stats, max_events, rtol, atol, out_x, out_v,
                 h = _taylor_coeffs(cx, sd, x, v, rtol, atol)
                 a0 = cx[C_TV + 1]
                 j0 = 2.0 * cx[C_TV + 2]
-                hstep = min(h, cap_slip, t_stop - t)
+                # (a floor keeps time moving if the series blows up; the state then turns
+                # non-finite and the run stops with STATUS_NONFINITE)
+                h_floor = 1e-13 * max(1.0, abs(t))
+                hstep = min(h if h > h_floor else h_floor, cap_slip, t_stop - t)
                 while True:  # halved until v provably has one extremum at most
                     v1, a1, j1 = _dense_v(cx, hstep)
                     _, m3 = _dense_bounds(cx, hstep)

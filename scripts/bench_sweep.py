@@ -139,11 +139,11 @@ def main(argv: list[str] | None = None) -> int:
     out: dict = {"threads": a.threads or numba.config.NUMBA_NUM_THREADS}
 
     print("== per-cell throughput vs SciPy solve_ivp (DOP853, event-driven) ==", flush=True)
-    # Stribeck: ours and SciPy at the same rtol, so each line compares like with like
-    # (both errors are printed: ours is the smaller at equal rtol)
+    # Stribeck: each SciPy tolerance against ours at the loosest rtol whose end-state error
+    # is no larger than SciPy's (both errors are printed), i.e. at equal or better accuracy
     for law, ours_rtol, sc in (("coulomb", 1e-10, [1e-10, 1e-8]),
                                ("stribeck", 1e-10, [1e-10]),
-                               ("stribeck", 1e-8, [1e-8])):
+                               ("stribeck", 1e-9, [1e-8])):
         r = compare_with_scipy(law, ours_rtol, sc, a.reps, a.threads)
         out[f"cells_{law}_rtol{ours_rtol:g}"] = r
         keys = [k for k in r if k.startswith("ours_s_per_cell")]
