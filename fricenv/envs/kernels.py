@@ -538,9 +538,10 @@ def start_batch(P, S, ctrl, cfg, P_new, init, mask, obs, steps, autoreset, work)
 
 @njit(cache=True)
 def sample_interval(P, S, ctrl, cfg, a, stats, t_out, v_out, stick_out) -> int:
-    """Rendering only: the coming interval's velocity at ``len(t_out)`` instants.
+    """The coming interval's velocity at ``len(t_out)`` instants (the renderer's trace and
+    ``StickSlipEnv.sample_interval``).
 
-    Works on copies, so drawing never perturbs the dynamics of the real step.
+    Works on copies, so sampling never perturbs the dynamics of the real step.
     """
     Pc = P.copy()
     Sc = S.copy()
