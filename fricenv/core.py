@@ -1433,7 +1433,7 @@ def _run_event(P, S, t_span, out_t, stats, max_events, rtol, atol, out_x, out_v,
                 hstep = min(h if h > h_floor else h_floor, cap_slip, t_stop - t)
                 while True:  # halved until v provably has one extremum at most
                     v1, a1, j1 = _dense_v(cx, hstep)
-                    _, m3 = _dense_bounds(cx, hstep)
+                    m2, m3 = _dense_bounds(cx, hstep)  # m2 serves the extremum test below
                     if _v_one_extremum(a0, j0, a1, j1, hstep, m3) or (
                             hstep <= MIN_SPLIT * cap_slip):
                         break
@@ -1451,12 +1451,11 @@ def _run_event(P, S, t_span, out_t, stats, max_events, rtol, atol, out_x, out_v,
                 t_ext = -1.0
                 v_ext = 0.0
                 h_ext = 0.0
-                if a0 * a1 < 0.0:
-                    m2, _ = _dense_bounds(cx, hstep)
-                    if _extremum_matters(cx, stats, sd, v, v1, a0, a1, hstep, V, m2):
-                        t_ext = _extremum(cx, K_DENSE_V, 0.0, hstep, a0, a1)
-                        v_ext, _, _ = _dense_v(cx, t_ext)
-                        h_ext = sd * (v_ext - V)
+                if a0 * a1 < 0.0 and _extremum_matters(cx, stats, sd, v, v1, a0, a1, hstep, V,
+                                                       m2):
+                    t_ext = _extremum(cx, K_DENSE_V, 0.0, hstep, a0, a1)
+                    v_ext, _, _ = _dense_v(cx, t_ext)
+                    h_ext = sd * (v_ext - V)
                 te = _contact_time(cx, K_DENSE_H, hstep, h0, d0, h1, d1, t_ext, h_ext)
                 if te > 0.0:
                     step_end = te
