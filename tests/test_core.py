@@ -423,3 +423,82 @@ def test_event_vr2_is_exact_on_the_series(law, kw):
     others = [i for i in range(N_STATS) if i != ST_VR2_INT]
     np.testing.assert_array_equal(all_stats[1][:, others], all_stats[0][:, others])
     np.testing.assert_array_equal(states[1], states[0])
+
+
+# -- whole-call closed-form steps -----------------------------------------------------------
+def _random_call(rng, lam_max=1.9):
+    """Parameters, a state and a span for one stats-only call of the closed form."""
+    xfk = rng.uniform(1.0, 3.0)
+    P = OscillatorParams.preset(
+        "coulomb", lam=rng.uniform(0.0, lam_max), eta=rng.uniform(0.2, 9.0),
+        nu=rng.uniform(0.0, 1.8), u0=rng.uniform(0.0, 2.5), V=rng.uniform(0.5, 1.5), xfk=xfk,
+        xfs=xfk + rng.uniform(0.0, 1.5)).to_array()
+    S = np.empty(N_STATE)
+    v0 = P[fricenv.params.P_V] if rng.random() < 0.4 else rng.uniform(-2.0, 2.0)
+    core.initial_state(P, rng.uniform(-3.0, 3.0), v0, S)
+    S[4:6] = rng.uniform(0.0, 2 * np.pi, 2)
+    S[3] = core.initial_mode(P, S[1], S[2], S[4], S[5])
+    return P, S, float(rng.choice([math.pi / 6, 1.0, 2.5]))
+
+
+def _one_call(P, S, span, work):
+    S = S.copy()
+    stats = np.empty(N_STATS)
+    core.reset_stats(stats)
+    assert core.advance_ws(P, S, span, stats, 0, 1e-9, 1e-9, 10_000, work) == 0
+    return S, stats
+
+
+@settings(max_examples=60, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1))
+def test_whole_call_step_is_sound_and_exact(seed):
+    """A call that several scan steps would cover is first tried as one closed-form step,
+    guarded by a proof that it holds no switch. Whenever that step is taken (one step
+    counted), the fine scan finds no switch either, and state, stick time and the exact
+    (v - V)^2 integral agree with many short calls of the fine scan."""
+    rng = np.random.default_rng(seed)
+    taken = 0
+    for _ in range(300):
+        if taken == 4:
+            break
+        P, S, span = _random_call(rng)
+        S_fast, fast = _one_call(P, S, span, new_workspace(extrema=False))
+        if fast[fricenv.layout.ST_N_STEPS] != 1.0 or span <= core._scan_cap(P, True):
+            continue
+        taken += 1
+        S_ref, ref = S.copy(), np.zeros(N_STATS)
+        work = new_workspace()
+        for _ in range(50):
+            S_ref, part = _one_call(P, S_ref, span / 50, work)
+            ref[:5] += part[:5]
+            ref[ST_VR2_INT] += part[ST_VR2_INT]
+        assert ref[ST_N_STICK] == ref[fricenv.layout.ST_N_SLIP] == ref[ST_N_REVERSAL] == 0
+        np.testing.assert_allclose(S_fast[:4], S_ref[:4], rtol=0, atol=1e-11)
+        assert fast[ST_STICK_TIME] == pytest.approx(ref[ST_STICK_TIME], abs=1e-12)
+        assert fast[ST_VR2_INT] == pytest.approx(ref[ST_VR2_INT], rel=1e-9, abs=1e-12)
+    assert taken > 0
+
+
+@pytest.mark.parametrize("s", [0.0, 1e-9j, 0.004 - 0.007j, 0.0099j, 0.0101, -0.03 + 0.2j,
+                               -0.3 + 2.0j, 1.5j])
+def test_e1_matches_its_series(s):
+    """E(s) = (e^s - 1) / s on both sides of the switch to its series (|s| = 0.01)."""
+    ref = sum(complex(s) ** k / math.factorial(k + 1) for k in range(30))
+    got = core._e1(complex(s), complex(np.exp(complex(s))))
+    assert abs(got - ref) <= 1e-13 * abs(ref)
+
+
+@settings(max_examples=400, deadline=None)
+@given(psi0=st.floats(-10.0, 10.0), alpha=st.floats(0.0, 8.0))
+def test_arc_test_never_misses_the_angle(psi0, alpha):
+    """_arc_passes_zero says yes whenever the arc [psi0, psi0 + alpha] holds a multiple of
+    2 pi (the proofs depend on that), and no when it stays clearly away from one."""
+    mid = psi0 + 0.5 * alpha
+    end = psi0 + alpha
+    got = core._arc_passes_zero(math.cos(psi0), math.sin(psi0), math.cos(mid), math.sin(mid),
+                                math.cos(end), math.sin(end), alpha, 1e-12)
+    to_go = (-psi0) % (2 * math.pi)  # arc length from psi0 to the next multiple of 2 pi
+    if to_go <= alpha or to_go >= 2 * math.pi - 1e-12:
+        assert got
+    elif to_go > alpha + 1e-6 and to_go < 2 * math.pi - 1e-6 and alpha < 2 * math.pi:
+        assert not got

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 from typing import Any
 
+import numba
 import numpy as np
 from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
@@ -270,6 +271,7 @@ class StickSlipVectorEnv(VectorEnv):
             a = coerce_action(actions, self._act_shape)
         if self._traces is not None:
             self._record_traces(a)
+        self._ivars[K.IV_N_BLOCKS] = numba.get_num_threads()
         n_failed = self._step_kernel(
             self._P,
             self._S,
