@@ -6,7 +6,10 @@ Three integrators share one event logic:
   linear slip equation (homogeneous transition matrix for any damping, including the
   critically damped and resonant cases, plus the particular response to each tone); each
   stick phase is exact. Only switching instants are found numerically, by bracketed
-  Newton iteration on the closed form.
+  Halley iteration on the closed form. A stats-only call that reads no extrema (an
+  environment's control interval) is first tried as one closed-form step, taken when a
+  bound on each part of the motion proves it switch-free; its (v - V)^2 integral is then
+  exact too.
 * ``event`` (any friction law): Taylor-series steps inside slip phases (the slip equation
   is polynomial, so the series' coefficients follow from a recurrence; order about
   -ln(rtol) / 2, step length from the decay of the last terms, Jorba & Zou 2005), exact
@@ -84,7 +87,7 @@ PHASE_PER_STEP_WIDE = 1.0
 # Steps are halved until the proofs hold, at most down to this fraction of the scan step.
 MIN_SPLIT = 1.0 / 1024.0
 MAX_ROOT_ITER = 200
-EVENT_REL_TOL = 4e-16  # switching instants: to rounding
+EVENT_REL_TOL = 1e-15  # switching instants: to rounding (a few ulps of the step time)
 GRAZE_ULPS = 8.0  # a velocity extremum this many ulps of V short of V still touches it
 # An extremum's value is insensitive to its position (error ~ f'' dt^2), so 1e-9 in time
 # already gives the value to rounding.
@@ -491,8 +494,9 @@ def _bracket(cx, kind, deriv, offset, lo, hi, flo, fhi, rel_tol):
     """Shrink a bracket [lo, hi] of a root of F to rounding level; return (lo, hi).
 
     F is ``value - offset`` (deriv = 0) or the first derivative (deriv = 1) of ``kind``;
-    ``flo`` and ``fhi`` have opposite signs or ``fhi`` is 0. Newton steps from the last
-    point, kept inside the bracket, fall back to bisection; once a Newton step is below the
+    ``flo`` and ``fhi`` have opposite signs or ``fhi`` is 0. Halley steps (Newton steps for
+    a derivative's root) from the last point, kept inside the bracket, fall back to
+    bisection; once a step is below the
     tolerance the next point is placed just past the root so the bracket closes from both
     sides. The returned ``hi`` is on ``fhi``'s side of the root.
     """
@@ -502,7 +506,7 @@ def _bracket(cx, kind, deriv, offset, lo, hi, flo, fhi, rel_tol):
         return lo, lo
     tol = rel_tol * (abs(lo) + abs(hi)) + 1e-300
     # start at the secant point (kept off the ends): a step is short against the curvature,
-    # so this is already close and Newton needs few iterations
+    # so this is already close and Halley needs few iterations
     frac = flo / (flo - fhi)
     t = lo + (hi - lo) * min(0.95, max(0.05, frac))
     pos_lo = flo > 0.0
@@ -524,7 +528,10 @@ def _bracket(cx, kind, deriv, offset, lo, hi, flo, fhi, rel_tol):
             break
         tn = -1.0
         if df != 0.0:
-            tn = t - f / df
+            # Halley's step where the second derivative is known (value searches), Newton's
+            # otherwise
+            den = df if deriv != 0 else df - 0.5 * f * f2 / df
+            tn = t - f / den
             if abs(tn - t) < tol:  # converged from one side: step just across the root
                 tn = tn + (tol if tn > t else -tol)
         if not (lo < tn < hi):

@@ -501,7 +501,7 @@ def step_batch(
     return _count(status, did_reset, cursor, draws.shape[1], ivars)
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True, _nrt=False)
 def step_batch_parallel(
     P,
     S,
@@ -531,9 +531,10 @@ def step_batch_parallel(
 
     Each plant reads and writes only its own rows, so the result is identical to the
     serial kernel whatever the thread count; worth it from a few dozen plants up. Blocks
-    rather than single plants: each iteration of a ``prange`` body runs with numba's
-    reference counting, whose atomic updates on the shared batch arrays the threads would
-    otherwise fight over plant by plant.
+    rather than single plants, so each thread makes one call into the inlined per-plant
+    body; and like the other kernels it allocates nothing, so it runs without numba's
+    reference counting (``_nrt=False``), whose atomic updates on the shared batch arrays
+    the threads would otherwise fight over.
     """
     bad = _first_bad_action(A, autoreset, ivars[IV_MODE])
     if bad >= 0:
