@@ -142,6 +142,8 @@ class StickSlipVectorEnv(VectorEnv):
         self._ivars = np.zeros(K.N_IVARS, dtype=np.int64)
         self._ivars[K.IV_MAX_STEPS] = self.max_episode_steps
         self._ivars[K.IV_MODE] = _AUTORESET[self.autoreset_mode]
+        # one block of plants per thread (more threads set later only share the blocks out)
+        self._ivars[K.IV_N_BLOCKS] = numba.get_num_threads()
         self._work = new_workspace(n, extrema=False)  # core cache kept across intervals
         # Threads pay off from a few dozen plants; both kernels give identical results.
         self._step_kernel = K.step_batch_parallel if n >= PARALLEL_MIN_ENVS else K.step_batch
@@ -271,7 +273,6 @@ class StickSlipVectorEnv(VectorEnv):
             a = coerce_action(actions, self._act_shape)
         if self._traces is not None:
             self._record_traces(a)
-        self._ivars[K.IV_N_BLOCKS] = numba.get_num_threads()
         n_failed = self._step_kernel(
             self._P,
             self._S,
