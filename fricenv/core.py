@@ -974,6 +974,20 @@ def _tone_dir(w, kc, ks, c, s):
     return w * (ks * c - kc * s), w * (ks * s + kc * c)
 
 
+@njit(cache=True, _nrt=False, inline="always")
+def _end_call(S, cx, t, x, v, mode, ph1, c1, s1, ph2, c2, s2):
+    """Write the state reached back to S, and the tones' cos/sin to the workspace's cache
+    (keyed on the phase angles, so the next call starting there skips four libm calls)."""
+    S[S_T] = t
+    S[S_X] = x
+    S[S_V] = v
+    S[S_MODE] = mode
+    S[S_PHI1] = ph1
+    S[S_PHI2] = ph2
+    cx[W_PH1], cx[W_C1], cx[W_S1] = ph1, c1, s1
+    cx[W_PH2], cx[W_C2], cx[W_S2] = ph2, c2, s2
+
+
 @njit(cache=True, _nrt=False)
 def _whole_interval(cx, S, T, stats, c1, s1, c2, s2):
     """Advance S over the whole call [t, t + T] in one closed-form step when a proof shows
@@ -1072,15 +1086,8 @@ def _whole_interval(cx, S, T, stats, c1, s1, c2, s2):
     _note_x(stats, x)
     _note_v(stats, v1)
     _note_x(stats, x1)
-    ph1 = _wrap(S[S_PHI1] + w1 * T)
-    ph2 = _wrap(S[S_PHI2] + w2 * T)
-    S[S_T] += T
-    S[S_X] = x1
-    S[S_V] = v1
-    S[S_PHI1] = ph1
-    S[S_PHI2] = ph2
-    cx[W_PH1], cx[W_C1], cx[W_S1] = ph1, nc1, ns1
-    cx[W_PH2], cx[W_C2], cx[W_S2] = ph2, nc2, ns2
+    _end_call(S, cx, S[S_T] + T, x1, v1, sd, _wrap(S[S_PHI1] + w1 * T), nc1, ns1,
+              _wrap(S[S_PHI2] + w2 * T), nc2, ns2)
     return True
 
 
@@ -1337,14 +1344,7 @@ def _run_exact(P, S, t_span, out_t, stats, max_events, out_x, out_v, out_mode, e
             out_mode[j + 1] = mode
             counts[1] = j + 2
     stats[ST_DURATION] += t - t0
-    S[S_T] = t
-    S[S_X] = x
-    S[S_V] = v
-    S[S_MODE] = mode
-    S[S_PHI1] = ph1
-    S[S_PHI2] = ph2
-    cx[W_PH1], cx[W_C1], cx[W_S1] = ph1, c1, s1
-    cx[W_PH2], cx[W_C2], cx[W_S2] = ph2, c2, s2
+    _end_call(S, cx, t, x, v, mode, ph1, c1, s1, ph2, c2, s2)
     return status
 
 
