@@ -1094,14 +1094,15 @@ def _whole_interval(cx, S, T, stats, c1, s1, c2, s2):
 # ----------------------------------------------------------------------------------------
 # Exact (closed-form) runner
 # ----------------------------------------------------------------------------------------
-@njit(cache=True, _nrt=False)
+@njit(cache=True, _nrt=False, inline="always")
 def _run_exact(P, S, t_span, out_t, stats, max_events, out_x, out_v, out_mode, ev_t, ev_kind,
                ev_x, counts, cx):
     """Advance S by t_span with the closed-form solver; see ``advance``.
 
-    Steps are aligned with the output grid (``out_t``, or the single interval [t, t +
-    t_span] when it is None), each output interval split into equal scan steps whose
-    transition constants are computed once, so recording costs nothing extra.
+    A stats-only call that reads no extrema and that the scan would split into several
+    steps is first tried as one whole-call step (a call the scan covers in one step gains
+    nothing from it); otherwise, or when its proof fails, the scan runs. Kept small and
+    inlined, so a whole-call step never pays the call into the scan's large function.
     """
     _setup_context(P, cx)
     ph1 = S[S_PHI1]
@@ -1115,11 +1116,25 @@ def _run_exact(P, S, t_span, out_t, stats, max_events, out_x, out_v, out_mode, e
     else:
         c2, s2 = math.cos(ph2), math.sin(ph2)
     cap = _scan_cap(P, cx[W_SKIP_EXTREMA] == 1.0)
-    # a call the scan would split into several steps is first tried as one (a call the scan
-    # covers in one step gains nothing from the whole-call proof)
     if (out_t is None and cx[W_SKIP_EXTREMA] == 1.0 and t_span > cap
             and _whole_interval(cx, S, t_span, stats, c1, s1, c2, s2)):
         return STATUS_OK
+    return _scan_exact(S, t_span, out_t, stats, max_events, out_x, out_v, out_mode, ev_t,
+                       ev_kind, ev_x, counts, cx, cap, c1, s1, c2, s2)
+
+
+@njit(cache=True, _nrt=False)
+def _scan_exact(S, t_span, out_t, stats, max_events, out_x, out_v, out_mode, ev_t, ev_kind,
+                ev_x, counts, cx, cap, c1, s1, c2, s2):
+    """The closed-form scan of ``_run_exact``, from its context (``cx``), the scan cap and
+    the tones' cos/sin at the start.
+
+    Steps are aligned with the output grid (``out_t``, or the single interval [t, t +
+    t_span] when it is None), each output interval split into equal scan steps whose
+    transition constants are computed once, so recording costs nothing extra.
+    """
+    ph1 = S[S_PHI1]
+    ph2 = S[S_PHI2]
     V = cx[C_V]
     lam = cx[C_LAM]
     w1 = cx[C_W1]
