@@ -882,7 +882,7 @@ def _cset(cx, k, z):
     cx[k + 1] = z.imag
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, _nrt=False, inline="always")
 def _interval_constants(cx, T, lam, p2):
     """The whole-call transition and rotations for span T, each recomputed only when its
     own key changed (retuning a tone redoes that tone's rotation alone)."""
@@ -912,7 +912,7 @@ def _interval_constants(cx, T, lam, p2):
             cx[W_I_KEY_W1 + i] = w
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, _nrt=False, inline="always")
 def _interval_e(cx, T):
     """The E values of the (v - V)^2 integral involving the tones (after
     ``_interval_constants``), recomputed for a retuned tone only."""
@@ -1099,9 +1099,11 @@ def _run_exact(P, S, t_span, out_t, stats, max_events, out_x, out_v, out_mode, e
                ev_x, counts, cx):
     """Advance S by t_span with the closed-form solver; see ``advance``.
 
-    A stats-only call that reads no extrema and that the scan would split into several
-    steps is first tried as one whole-call step (a call the scan covers in one step gains
-    nothing from it); otherwise, or when its proof fails, the scan runs. Kept small and
+    A stats-only call that reads no extrema is first tried as one whole-call step when
+    the scan would split it into several steps, or when it starts stuck (the stick proof
+    is cheaper than a scan step). A slip call the scan covers in one step gains nothing
+    from it: the (v - V)^2 constants a retuned tone needs cost more than that step.
+    Otherwise, or when its proof fails, the scan runs. Kept small and
     inlined, so a whole-call step never pays the call into the scan's large function.
     """
     _setup_context(P, cx)
@@ -1116,7 +1118,7 @@ def _run_exact(P, S, t_span, out_t, stats, max_events, out_x, out_v, out_mode, e
     else:
         c2, s2 = math.cos(ph2), math.sin(ph2)
     cap = _scan_cap(P, cx[W_SKIP_EXTREMA] == 1.0)
-    if (out_t is None and cx[W_SKIP_EXTREMA] == 1.0 and t_span > cap
+    if (out_t is None and cx[W_SKIP_EXTREMA] == 1.0 and (t_span > cap or S[S_MODE] == 0.0)
             and _whole_interval(cx, S, t_span, stats, c1, s1, c2, s2)):
         return STATUS_OK
     return _scan_exact(S, t_span, out_t, stats, max_events, out_x, out_v, out_mode, ev_t,
