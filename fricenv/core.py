@@ -710,13 +710,23 @@ def _sign_kept(k0, k1, L, M):
 def _one_extremum_at_most(h0, d0, h1, d1, hdd0, hdd1, L, M2, M3, cap):
     """May a slip step [0, L] go to the contact search, which handles one extremum of h?
 
-    Yes if h = sd (v - V) provably stays positive (no contact at all), or h'' provably
-    keeps its sign (h' monotone: one extremum at most), or the step is already tiny.
-    Otherwise the caller halves the step, so no dip of h to 0 can hide between two
-    extrema, however long the scan step.
+    Yes if h = sd (v - V) provably stays positive (no contact at all), or h' provably
+    keeps its sign (h monotone: no extremum), or h'' does (h' monotone: one extremum at
+    most), or the step is already tiny. Otherwise the caller halves the step, so no dip
+    of h to 0 can hide between two extrema, however long the scan step.
     """
-    return (_stays_positive(h0, d0, h1, d1, L, M2) or _sign_kept(hdd0, hdd1, L, M3)
-            or L <= MIN_SPLIT * cap)
+    return (_stays_positive(h0, d0, h1, d1, L, M2) or _monotone(d0, hdd0, d1, hdd1, L, M3)
+            or _sign_kept(hdd0, hdd1, L, M3) or L <= MIN_SPLIT * cap)
+
+
+@njit(cache=True, _nrt=False, inline="always")
+def _monotone(d0, dd0, d1, dd1, L, M):
+    """Proof that a function keeps a monotone course on [0, L]: its derivative (d0, d1 at
+    the ends, with derivatives dd0, dd1 and |third derivative| <= M) keeps one sign. The
+    usual case at a contact, where a step that ends past the switch would otherwise be
+    halved."""
+    return _stays_positive(d0, dd0, d1, dd1, L, M) or _stays_positive(-d0, -dd0, -d1, -dd1,
+                                                                     L, M)
 
 
 @njit(cache=True, _nrt=False, inline="always")
@@ -1310,8 +1320,9 @@ def _scan_exact(S, t_span, out_t, stats, max_events, out_x, out_v, out_mode, ev_
                         f1 = -lam * V - x1 + g1
                         fd1 = -V + gd1
                         held = _stick_held(cx, L, f0, fd0, f1, fd1)
-                        if held or _sign_kept(gdd0, gdd1, L, cx[C_GDDD]) or (
-                                L <= MIN_SPLIT * cap):
+                        m3 = cx[C_GDDD]  # bounds |f'''| = |g'''|
+                        if (held or _monotone(fd0, gdd0, fd1, gdd1, L, m3)
+                                or _sign_kept(gdd0, gdd1, L, m3) or L <= MIN_SPLIT * cap):
                             break
                         L *= 0.5
                         full = False

@@ -326,6 +326,28 @@ def test_positivity_certificate_is_sound(k0, d0, c2, c3, L):
         assert _stays_positive(k0, d0, k1, d1, L, M)
 
 
+@settings(max_examples=300, deadline=None)
+@given(
+    d0=st.floats(-20.0, 20.0),
+    c2=st.floats(-10.0, 10.0),
+    c3=st.floats(-10.0, 10.0),
+    c4=st.floats(-10.0, 10.0),
+    L=st.floats(0.01, 1.0),
+)
+def test_monotone_certificate_is_sound(d0, c2, c3, c4, L):
+    """_monotone never certifies a function whose derivative changes sign (here a quartic
+    h = d0 t + c2 t^2 + c3 t^3 + c4 t^4, whose third derivative 6 c3 + 24 c4 t is bounded
+    by M on [0, L]); and it does certify a clearly monotone one."""
+    t = np.linspace(0.0, L, 2001)
+    dh = d0 + 2 * c2 * t + 3 * c3 * t**2 + 4 * c4 * t**3
+    ddh = 2 * c2 + 6 * c3 * t + 12 * c4 * t**2
+    M = 6 * abs(c3) + 24 * abs(c4) * L
+    if core._monotone(dh[0], ddh[0], dh[-1], ddh[-1], L, M):
+        assert dh.min() > 0.0 or dh.max() < 0.0
+    if c3 == 0.0 and c4 == 0.0 and min(abs(dh[0]), abs(dh[-1])) > 1e-9 and dh[0] * dh[-1] > 0:
+        assert core._monotone(dh[0], ddh[0], dh[-1], ddh[-1], L, M)
+
+
 def _intervals(P, work, n, dt):
     S = np.empty(N_STATE)
     core.initial_state(P, 0.3, -0.2, S)
