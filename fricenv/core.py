@@ -415,9 +415,17 @@ def _slip_with(cx, tau, h11, h12, h21, h22, c1, s1, c2, s2):
 
 @njit(cache=True, _nrt=False)
 def _slip_at(cx, tau):
+    x, v, acc, jerk, _, _, _, _ = _slip_and_phases_at(cx, tau)
+    return x, v, acc, jerk
+
+
+@njit(cache=True, _nrt=False, inline="always")
+def _slip_and_phases_at(cx, tau):
+    """``_slip_at`` plus the tones' cos/sin there (a switch needs both)."""
     h11, h12, h21, h22 = _homog(tau, cx[C_LAM], cx[C_P2])
     c1, s1, c2, s2 = _rotate_by(cx, tau)
-    return _slip_with(cx, tau, h11, h12, h21, h22, c1, s1, c2, s2)
+    x, v, acc, jerk = _slip_with(cx, tau, h11, h12, h21, h22, c1, s1, c2, s2)
+    return x, v, acc, jerk, c1, s1, c2, s2
 
 
 @njit(cache=True, _nrt=False)
@@ -1258,8 +1266,7 @@ def _scan_exact(S, t_span, out_t, stats, max_events, out_x, out_v, out_mode, ev_
                         h_ext = sd * (v_ext - V)
                     te = _contact_time(cx, K_SLIP_H, L, h0, d0, h1, d1, t_ext, h_ext)
                     if te >= 0.0:
-                        xe, _, ae, je = _slip_at(cx, te)
-                        ec1, es1, ec2, es2 = _rotate_by(cx, te)
+                        xe, _, ae, je, ec1, es1, ec2, es2 = _slip_and_phases_at(cx, te)
                         _, v_mid, _, _ = _slip_at(cx, 0.5 * te)
                         _slip_stats(cx, K_SLIP_V, stats, te, t_ext, v_ext, v, acc, j0, V, ae,
                                     je, xe, v_mid, V)
