@@ -9,8 +9,12 @@ Targets (ratios, so that machine speed cancels):
 
 Timings alternate between the contenders in rounds and report medians, because the machine
 may be shared. Every contender is warmed up first (numba compilation and cache loading are
-excluded). The physics floor (``core.advance_ws`` alone, per control interval, in a numba loop)
-is printed too: no vector env can be cheaper per plant-step than that on one thread.
+excluded). A vector round is 200 steps (about 10 ms), so that the one-off cost of waking
+numba's worker threads after the other contenders' rounds (printed separately as the first
+step after 20 ms idle; a few hundred microseconds on a virtual machine) is amortised as in
+a rollout, not charged to every 50th step. The physics floor (``core.advance_ws`` alone,
+per control interval, in a numba loop) is printed too: no vector env can be cheaper per
+plant-step than that on one thread.
 
 Usage: ``python scripts/bench_env.py [--quick] [--no-ppo] [--json out.json]``
 """
@@ -100,10 +104,23 @@ def physics_floor(env_id: str, snapshots: int) -> float:
     return total / snapshots / 256
 
 
+def _first_step_after_idle(vec, repeats: int = 15) -> float:
+    """Median seconds of one vector step after 20 ms without any (threads gone to sleep)."""
+    a = np.zeros((vec.num_envs, *vec.single_action_space.shape), dtype=np.float32)
+    vec.reset(seed=1)
+    times = []
+    for _ in range(repeats):
+        time.sleep(0.02)
+        t = time.perf_counter()
+        vec.step(a)
+        times.append(time.perf_counter() - t)
+    return statistics.median(times)
+
+
 def bench_steps(quick: bool) -> dict:
     rounds = 5 if quick else 15
     n_single = 2_000 if quick else 5_000
-    n_vec = 20 if quick else 50
+    n_vec = 50 if quick else 200
     results = {}
     pendulum = gym.make("Pendulum-v1").unwrapped
     for env_id in ENV_IDS:
@@ -120,6 +137,7 @@ def bench_steps(quick: bool) -> dict:
             rounds,
         )
         per_plant = t["vector"] / 256
+        cold = _first_step_after_idle(vec)
         floor = physics_floor(env_id, 50 if quick else 200)
         results[env_id] = {
             "pendulum_step_us": t["pendulum"] * 1e6,
@@ -127,6 +145,8 @@ def bench_steps(quick: bool) -> dict:
             "made_step_us": t["made"] * 1e6,
             "vector_per_plant_us": per_plant * 1e6,
             "physics_floor_us": floor * 1e6,
+            "vector_first_step_after_idle_us": cold * 1e6,
+            "vector_step_us": t["vector"] * 1e6,
             "single_over_pendulum": t["single"] / t["pendulum"],
             "single_over_vector_plant": t["single"] / per_plant,
             "made_over_vector_plant": t["made"] / per_plant,
@@ -209,6 +229,11 @@ def main() -> None:
         print(f"    StickSlip unwrapped step       {r['single_step_us']:8.2f} us")
         print(f"    StickSlip gym.make'd step      {r['made_step_us']:8.2f} us")
         print(f"    native vector, per plant-step  {r['vector_per_plant_us']:8.3f} us (256 plants)")
+        cold = r["vector_first_step_after_idle_us"]
+        print(
+            f"    native vector, first step after 20 ms idle {cold:.0f} us "
+            f"(steady: {r['vector_step_us']:.0f} us)"
+        )
         print(f"    physics alone, 1 thread        {r['physics_floor_us']:8.3f} us (floor)")
         ok1 = r["single_over_pendulum"] <= 1.0
         ok2 = r["single_over_vector_plant"] >= 20.0
