@@ -39,16 +39,11 @@ _INFO_COLS = slice(K.R_STICK, K.R_MEAN_VR + 1)
 
 def _info_dict(vals: np.ndarray, masks: np.ndarray) -> dict[str, Any]:
     """SyncVectorEnv's layout of the infos: each key's values, then its ``_key`` mask."""
-    return {
-        "stick_fraction": vals[0],
-        "_stick_fraction": masks[0],
-        "effort": vals[1],
-        "_effort": masks[1],
-        "velocity_variance": vals[2],
-        "_velocity_variance": masks[2],
-        "mean_relative_velocity": vals[3],
-        "_mean_relative_velocity": masks[3],
-    }
+    infos: dict[str, Any] = {}
+    for k, key in enumerate(_INFO_KEYS):
+        infos[key] = vals[k]
+        infos["_" + key] = masks[k]
+    return infos
 
 
 #: From this many plants on, a step spreads them over threads (numba prange).
