@@ -144,7 +144,12 @@ N_I_TONE = 10
 W_I_E12 = W_I_TONE1 + 2 * N_I_TONE  # E(i (w1 + w2) T), E(i (w1 - w2) T)
 W_I_KEY_E1, W_I_KEY_E2 = W_I_E12 + 4, W_I_E12 + 5  # the E values' own keys (slip only)
 W_I_AMP1, W_I_AMP2 = W_I_E12 + 6, W_I_E12 + 7  # tones' velocity amplitudes (per call)
-N_CX = W_I_E12 + 8
+# Each tone's context constants (``_setup_context``), keyed on its (u, w) and lam: an agent
+# retuning one tone recomputes that tone alone. Per tone (W_T_KEY + i * N_T): the keys u, w,
+# then its shares of C_VDD_P, C_VDDD_P, C_GDD, C_GDDD.
+W_T_KEY = W_I_E12 + 8
+N_T = 6
+N_CX = W_T_KEY + 2 * N_T
 N_WORK = N_CX
 
 # What a root search evaluates.
@@ -259,9 +264,15 @@ def _homog(tau, lam, p2):
 
 @njit(cache=True, _nrt=False)
 def _setup_context(P, cx):
-    """Constants of the run: particular-solution coefficients of each tone."""
+    """Constants of the run: particular-solution coefficients of each tone.
+
+    A tone's constants are recomputed only when its (u, w) or lam changed since the last
+    call on this workspace (a fresh one's NaN keys never match); the tones' shares of the
+    bounds are summed in one fixed order, so the results never depend on the cache.
+    """
     lam = P[P_LAM]
-    if not cx[C_LAM] == lam:  # (NaN in a fresh workspace) the damping's bounds, kept
+    same_lam = cx[C_LAM] == lam
+    if not same_lam:  # (NaN in a fresh workspace) the damping's bounds, kept
         # x^2 + v^2 never grows in the homogeneous motion (its rate is -2 lam v^2), and
         # v_h'' = lam x_h + (lam^2 - 1) v_h, v_h''' = (1 - lam^2) x_h + (2 lam - lam^3) v_h.
         cx[C_VDD_H] = math.sqrt(lam * lam + (lam * lam - 1.0) ** 2)
@@ -277,13 +288,12 @@ def _setup_context(P, cx):
     cx[C_B1] = P[P_B1]
     cx[C_B3] = P[P_B3]
     cx[C_P2] = 1.0 - 0.25 * lam * lam
-    vdd_p = 0.0
-    vddd_p = 0.0
-    gdd = 0.0
-    gddd = 0.0
     for i in range(2):
         u = P[P_U1 + i]
         w = P[P_W1 + i]
+        key = W_T_KEY + i * N_T
+        if same_lam and cx[key] == u and cx[key + 1] == w:
+            continue
         re = 1.0 - w * w
         im = lam * w
         d2 = re * re + im * im
@@ -299,19 +309,22 @@ def _setup_context(P, cx):
         if res != 0.0:
             # x_p = u tau sin(phi) / 2 (w = 1, tau from the step start, steps <= 1 long):
             # |v_p''| <= |u| (3 + tau) / 2, |v_p'''| <= |u| (4 + tau) / 2
-            vdd_p += 2.0 * abs(u)
-            vddd_p += 2.5 * abs(u)
+            cx[key + 2] = 2.0 * abs(u)
+            cx[key + 3] = 2.5 * abs(u)
         else:
             amp = math.sqrt(kc * kc + ks * ks)
-            vdd_p += amp * w * w * abs(w)
-            vddd_p += amp * w * w * w * w
+            cx[key + 2] = amp * w * w * abs(w)
+            cx[key + 3] = amp * w * w * w * w
             cx[W_I_AMP1 + i] = amp * abs(w)
-        gdd += abs(u) * w * w
-        gddd += abs(u) * w * w * abs(w)
-    cx[C_VDD_P] = vdd_p
-    cx[C_VDDD_P] = vddd_p
-    cx[C_GDD] = gdd
-    cx[C_GDDD] = gddd
+        cx[key + 4] = abs(u) * w * w
+        cx[key + 5] = abs(u) * w * w * abs(w)
+        cx[key] = u
+        cx[key + 1] = w
+    b2 = W_T_KEY + N_T
+    cx[C_VDD_P] = cx[W_T_KEY + 2] + cx[b2 + 2]
+    cx[C_VDDD_P] = cx[W_T_KEY + 3] + cx[b2 + 3]
+    cx[C_GDD] = cx[W_T_KEY + 4] + cx[b2 + 4]
+    cx[C_GDDD] = cx[W_T_KEY + 5] + cx[b2 + 5]
 
 
 @njit(cache=True, _nrt=False)
@@ -1246,8 +1259,7 @@ def _scan_exact(S, t_span, out_t, stats, max_events, out_x, out_v, out_mode, ev_
                             x1, v1, a1, j1 = _slip_with(cx, L, r11, r12, r21, r22, nc1, ns1,
                                                         nc2, ns2)
                         else:
-                            nc1, ns1, nc2, ns2 = _rotate_by(cx, L)
-                            x1, v1, a1, j1 = _slip_at(cx, L)
+                            x1, v1, a1, j1, nc1, ns1, nc2, ns2 = _slip_and_phases_at(cx, L)
                         h1 = sd * (v1 - V)
                         d1 = sd * a1
                         if _one_extremum_at_most(h0, d0, h1, d1, sd * j0, sd * j1, L, vdd,
@@ -1425,11 +1437,19 @@ def _sincos(t):
     """
     if abs(t) > 1.0:
         return math.cos(t), math.sin(t)
+    # Estrin's scheme (pairs of terms joined by z^2, z^4, z^8) for all but the leading
+    # term, added last: the same polynomials as Horner's rule with half its chain of
+    # dependent operations, which root searches wait on.
     z = t * t
-    c = 1.0 + z * (_C2 + z * (_C4 + z * (_C6 + z * (_C8 + z * (_C10 + z * (_C12 + z * (
-        _C14 + z * (_C16 + z * _C18))))))))
-    s = t * (1.0 + z * (_S3 + z * (_S5 + z * (_S7 + z * (_S9 + z * (_S11 + z * (_S13 + z * (
-        _S15 + z * (_S17 + z * _S19)))))))))
+    z2 = z * z
+    z4 = z2 * z2
+    z8 = z4 * z4
+    pc = ((_C2 + _C4 * z) + (_C6 + _C8 * z) * z2) + ((_C10 + _C12 * z) + (_C14 + _C16 * z)
+                                                     * z2) * z4 + _C18 * z8
+    ps = ((_S3 + _S5 * z) + (_S7 + _S9 * z) * z2) + ((_S11 + _S13 * z) + (_S15 + _S17 * z)
+                                                     * z2) * z4 + _S19 * z8
+    c = 1.0 + z * pc
+    s = t + (t * z) * ps
     return c, s
 
 

@@ -80,7 +80,9 @@ MODE_AMPLITUDE, MODE_FREQUENCY, MODE_BOTH = 0, 1, 2
 N_CFG = 23
 METHOD_AUTO = -1
 
-# Per-step results (float64 row): reward, stick fraction, effort, velocity variance, terminated.
+# Per-step results (float64): reward, stick fraction, effort, velocity variance, mean of
+# v - V, terminated. A single env's ``res`` is one such vector; the batch kernels' ``res``
+# is (N_RES, n), a row per result, so the vector env returns each as one contiguous copy.
 R_REWARD, R_STICK, R_EFFORT, R_VAR, R_MEAN_VR, R_TERM = range(6)
 N_RES = 6
 
@@ -321,8 +323,8 @@ def _plant_step(
     """
     did_reset[i] = False
     if mode == AUTORESET_NEXT_STEP and autoreset[i]:
-        for k in range(res.shape[1]):
-            res[i, k] = 0.0
+        for k in range(res.shape[0]):
+            res[k, i] = 0.0
         terminated[i] = False
         truncated[i] = False
         autoreset[i] = False
@@ -332,11 +334,11 @@ def _plant_step(
     Si = S[i]
     ci = ctrl[i]
     wi = work[i]
-    status = control_interval(Pi, Si, ci, cfg, A[i], stats[i], res[i], wi)
+    status = control_interval(Pi, Si, ci, cfg, A[i], stats[i], res[:, i], wi)
     if status != 0:
         return status
     term = write_obs(Pi, Si, ci, cfg, obs[i], wi)
-    res[i, R_TERM] = 1.0 if term else 0.0
+    res[R_TERM, i] = 1.0 if term else 0.0
     steps[i] += 1
     trunc = steps[i] >= max_steps
     terminated[i] = term

@@ -54,10 +54,10 @@ class StickSlipSB3VecEnv(VecEnv):
         obs, rewards, terminated, truncated, info = self.venv.step(self._actions)
         dones = terminated | truncated
         res = self.venv._res  # this step's values, also for plants reset just now
-        sf = res[:, K.R_STICK].tolist()
-        ef = res[:, K.R_EFFORT].tolist()
-        qv = res[:, K.R_VAR].tolist()
-        mv = res[:, K.R_MEAN_VR].tolist()
+        sf = res[K.R_STICK].tolist()
+        ef = res[K.R_EFFORT].tolist()
+        qv = res[K.R_VAR].tolist()
+        mv = res[K.R_MEAN_VR].tolist()
         infos = [
             {"stick_fraction": s, "effort": e, "velocity_variance": q,
              "mean_relative_velocity": m}
