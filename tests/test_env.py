@@ -387,6 +387,27 @@ def test_vector_env_matches_single_envs_across_draw_buffer_refills(mode):
             _assert_same_step(native.step(a), singles.step(a))
 
 
+def test_vector_step_returns_outlive_the_next_step():
+    """A step's arrays are the caller's: the next step changes none of them, and the shared
+    all-True info mask cannot be written."""
+    vec = StickSlipVectorEnv(num_envs=5, scene="self_excited", max_episode_steps=50)
+    vec.reset(seed=3)
+    rng = np.random.default_rng(1)
+    first = vec.step(rng.uniform(-1, 1, vec.action_space.shape).astype(np.float32))
+    kept = [x.copy() for x in first[:4]] + [{k: v.copy() for k, v in first[4].items()}]
+    for _ in range(3):
+        vec.step(rng.uniform(-1, 1, vec.action_space.shape).astype(np.float32))
+    for x, y in zip(first[:4], kept[:4], strict=True):
+        assert np.array_equal(x, y)
+    assert first[4].keys() == kept[4].keys()
+    for key, value in first[4].items():
+        assert np.array_equal(value, kept[4][key]), key
+    mask = first[4]["_stick_fraction"]
+    assert mask.all() and mask.shape == (5,)
+    with pytest.raises(ValueError, match="read-only"):
+        mask[0] = False
+
+
 def test_vector_reset_mask_and_seed_list():
     vec = StickSlipVectorEnv(num_envs=3, autoreset_mode="Disabled")
     obs, _ = vec.reset(seed=[1, None, 3])

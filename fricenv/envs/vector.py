@@ -69,9 +69,11 @@ class StickSlipVectorEnv(VectorEnv):
     the scene's horizon; ``gymnasium.make_vec`` passes the registered one) and
     ``autoreset_mode`` (``AutoresetMode`` or its value; default next-step, as Gymnasium's).
     Observations ``(num_envs, 9)`` float32, actions ``(num_envs, n)`` in [-1, 1], rewards
-    float64, and ``info`` keys ``stick_fraction``, ``effort``, ``velocity_variance`` with their
-    ``_key`` masks, exactly as ``SyncVectorEnv`` would batch them (same-step mode adds
-    ``final_obs`` and ``final_info``). ``render_mode="rgb_array"`` returns one frame per plant.
+    float64, and ``info`` keys ``stick_fraction``, ``effort``, ``velocity_variance``,
+    ``mean_relative_velocity`` with their ``_key`` masks, as ``SyncVectorEnv`` would batch
+    them (same-step mode adds ``final_obs`` and ``final_info``). One difference: on a step
+    where every plant reports, the masks are one shared read-only all-True array, which
+    spares a copy per key. ``render_mode="rgb_array"`` returns one frame per plant.
     """
 
     metadata = {
