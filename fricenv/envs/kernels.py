@@ -22,6 +22,7 @@ import numpy as np
 from numba import njit, prange
 
 from fricenv.core import (
+    N_WORK,
     W_C1,
     W_C2,
     W_PH1,
@@ -37,6 +38,8 @@ from fricenv.core import (
 from fricenv.layout import (
     METHOD_EVENT,
     METHOD_EXACT,
+    N_STATE,
+    N_STATS,
     S_MODE,
     S_PHI1,
     S_PHI2,
@@ -46,7 +49,7 @@ from fricenv.layout import (
     ST_STICK_TIME,
     ST_VR2_INT,
 )
-from fricenv.params import P_B1, P_B3, P_LAM, P_U1, P_U2, P_V, P_W1, P_W2, P_XFK, P_XFS
+from fricenv.params import N_PARAMS, P_B1, P_B3, P_LAM, P_U1, P_U2, P_V, P_W1, P_W2, P_XFK, P_XFS
 
 # Action modes (index into scenes.ACTION_MODES).
 MODE_AMPLITUDE, MODE_FREQUENCY, MODE_BOTH = 0, 1, 2
@@ -88,6 +91,7 @@ N_RES = 6
 
 # Layout of the per-episode starting vector (mirrors scenes.I_*).
 I_X0, I_V0, I_PHI1, I_PHI2, I_U0, I_NU = range(6)
+N_INIT = 6
 
 # Layout of one episode's uniform draws (mirrors scenes.RANDOMIZABLE + scenes.INITIAL).
 D_LAM, D_ETA, D_V, D_XFK, D_XFS, D_B1, D_B3, D_X0, D_V0, D_PHI1, D_PHI2 = range(11)
@@ -108,6 +112,29 @@ AUTORESET_NEXT_STEP, AUTORESET_SAME_STEP, AUTORESET_DISABLED = 0, 1, 2
 # numba's ``get_num_threads`` inside the kernel would make it uncacheable).
 IV_MAX_STEPS, IV_MODE, IV_N_RESET, IV_N_EMPTY, IV_N_BLOCKS = range(5)
 N_IVARS = 5
+
+# Vector kernels' arrays. The batch is laid out in few arrays, because numba's dispatch and
+# the hand-off to the threads cost per array argument (~1.4 us a call for the fifteen
+# per-plant arrays these merge):
+# * ``table`` (n, N_TABLE) float64, a row per plant: its parameters, state, excitation
+#   (u0, nu), interval stats, next episode's parameter and starting vectors, and core
+#   workspace, in the column ranges below (the kernels take views of them);
+# * ``obs`` (2, n, N_OBS) float32: the current observations and, in same-step autoreset,
+#   the final ones of episodes that ended (OB_NOW, OB_FINAL);
+# * ``flags`` (N_FLAGS, n) bool and ``counters`` (N_COUNTERS, n) int64, a row per quantity.
+T_P = 0
+T_S = T_P + N_PARAMS
+T_CTRL = T_S + N_STATE
+T_STATS = T_CTRL + 2
+T_NEW_P = T_STATS + N_STATS
+T_NEW_INIT = T_NEW_P + N_PARAMS
+T_WORK = T_NEW_INIT + N_INIT
+N_TABLE = T_WORK + N_WORK
+OB_NOW, OB_FINAL = range(2)
+F_TERMINATED, F_TRUNCATED, F_AUTORESET, F_DID_RESET = range(4)
+N_FLAGS = 4
+CT_STEPS, CT_CURSOR, CT_STATUS = range(3)
+N_COUNTERS = 3
 
 
 @njit(cache=True, _nrt=False)
@@ -296,75 +323,64 @@ def step_single(P, S, ctrl, cfg, a, stats, obs, res, work) -> int:
 
 
 @njit(cache=True, _nrt=False, inline="always")
-def _plant_step(
-    i,
-    P,
-    S,
-    ctrl,
-    cfg,
-    A,
-    stats,
-    obs,
-    res,
-    terminated,
-    truncated,
-    steps,
-    autoreset,
-    did_reset,
-    final_obs,
-    max_steps,
-    mode,
-    work,
-) -> int:
+def _plant_rows(table, i):
+    """Plant ``i``'s parameters, state, excitation, stats and workspace: views of its row."""
+    row = table[i]
+    return (row[T_P:T_S], row[T_S:T_CTRL], row[T_CTRL:T_STATS], row[T_STATS:T_NEW_P],
+            row[T_WORK:])
+
+
+@njit(cache=True, _nrt=False, inline="always")
+def _plant_step(i, table, cfg, A, obs, res, flags, counters, max_steps, mode) -> int:
     """Body of the batch step for plant ``i`` (see ``step_batch``).
 
-    Marks in ``did_reset[i]`` a plant whose next episode must start now; the caller starts
-    it (``_start_next``), which keeps the draw buffers out of this call's long argument list.
+    Marks in ``flags[F_DID_RESET, i]`` a plant whose next episode must start now; the
+    caller starts it (``_start_next``).
     """
-    did_reset[i] = False
-    if mode == AUTORESET_NEXT_STEP and autoreset[i]:
+    flags[F_DID_RESET, i] = False
+    if mode == AUTORESET_NEXT_STEP and flags[F_AUTORESET, i]:
         for k in range(res.shape[0]):
             res[k, i] = 0.0
-        terminated[i] = False
-        truncated[i] = False
-        autoreset[i] = False
-        did_reset[i] = True
+        flags[F_TERMINATED, i] = False
+        flags[F_TRUNCATED, i] = False
+        flags[F_AUTORESET, i] = False
+        flags[F_DID_RESET, i] = True
         return 0
-    Pi = P[i]
-    Si = S[i]
-    ci = ctrl[i]
-    wi = work[i]
-    status = control_interval(Pi, Si, ci, cfg, A[i], stats[i], res[:, i], wi)
+    Pi, Si, ci, sti, wi = _plant_rows(table, i)
+    status = control_interval(Pi, Si, ci, cfg, A[i], sti, res[:, i], wi)
     if status != 0:
         return status
-    term = write_obs(Pi, Si, ci, cfg, obs[i], wi)
+    term = write_obs(Pi, Si, ci, cfg, obs[OB_NOW, i], wi)
     res[R_TERM, i] = 1.0 if term else 0.0
-    steps[i] += 1
-    trunc = steps[i] >= max_steps
-    terminated[i] = term
-    truncated[i] = trunc
+    counters[CT_STEPS, i] += 1
+    trunc = counters[CT_STEPS, i] >= max_steps
+    flags[F_TERMINATED, i] = term
+    flags[F_TRUNCATED, i] = trunc
     done = term or trunc
     if mode == AUTORESET_SAME_STEP and done:
-        for k in range(obs.shape[1]):
-            final_obs[i, k] = obs[i, k]
-        did_reset[i] = True
+        for k in range(obs.shape[2]):
+            obs[OB_FINAL, i, k] = obs[OB_NOW, i, k]
+        flags[F_DID_RESET, i] = True
     else:
-        autoreset[i] = done
+        flags[F_AUTORESET, i] = done
     return 0
 
 
 @njit(cache=True, _nrt=False)
-def _start_next(i, P, S, ctrl, cfg, obs, steps, draws, cursor, bounds, new_P, new_init, work):
+def _start_next(i, table, cfg, obs, counters, draws, bounds):
     """Start plant ``i``'s next episode from its next buffered row of draws.
 
     The caller refills a spent buffer before the next call; the modulo only keeps a caller
     that forgets from reading outside the buffer.
     """
-    row = cursor[i] % draws.shape[1]
-    episode_from_uniforms(draws[i, row], bounds, cfg, new_P[i], new_init[i])
-    cursor[i] += 1
-    start_episode(P[i], S[i], ctrl[i], cfg, new_P[i], new_init[i], obs[i], work[i])
-    steps[i] = 0
+    row = counters[CT_CURSOR, i] % draws.shape[1]
+    new_P = table[i, T_NEW_P:T_NEW_INIT]
+    new_init = table[i, T_NEW_INIT:T_WORK]
+    episode_from_uniforms(draws[i, row], bounds, cfg, new_P, new_init)
+    counters[CT_CURSOR, i] += 1
+    Pi, Si, ci, _, wi = _plant_rows(table, i)
+    start_episode(Pi, Si, ci, cfg, new_P, new_init, obs[OB_NOW, i], wi)
+    counters[CT_STEPS, i] = 0
 
 
 @njit(cache=True, _nrt=False)
@@ -378,17 +394,17 @@ def _first_bad_action(A, autoreset, mode) -> int:
 
 
 @njit(cache=True, _nrt=False)
-def _count(status, did_reset, cursor, n_rows, ivars) -> int:
+def _count(flags, counters, n_rows, ivars) -> int:
     """Write the reset and empty-buffer counts to ``ivars``; return the failure count."""
     n_failed = 0
     n_reset = 0
     n_empty = 0
-    for i in range(status.shape[0]):
-        if status[i] != 0:
+    for i in range(flags.shape[1]):
+        if counters[CT_STATUS, i] != 0:
             n_failed += 1
-        if did_reset[i]:
+        if flags[F_DID_RESET, i]:
             n_reset += 1
-            if cursor[i] >= n_rows:
+            if counters[CT_CURSOR, i] >= n_rows:
                 n_empty += 1
     ivars[IV_N_RESET] = n_reset
     ivars[IV_N_EMPTY] = n_empty
@@ -396,169 +412,83 @@ def _count(status, did_reset, cursor, n_rows, ivars) -> int:
 
 
 @njit(cache=True, _nrt=False)
-def _step_range(
-    lo,
-    hi,
-    P,
-    S,
-    ctrl,
-    cfg,
-    A,
-    stats,
-    obs,
-    res,
-    terminated,
-    truncated,
-    steps,
-    autoreset,
-    draws,
-    cursor,
-    bounds,
-    new_P,
-    new_init,
-    did_reset,
-    final_obs,
-    status,
-    max_steps,
-    mode,
-    work,
-) -> None:
+def _step_range(lo, hi, table, cfg, A, obs, res, flags, counters, draws, bounds, max_steps,
+                mode) -> None:
     """Step plants ``lo`` to ``hi - 1`` (the body of both batch kernels).
 
-    The per-plant body is inlined here: a call per plant would pass some twenty array
+    The per-plant body is inlined here: a call per plant would pass the batch's array
     structures each time, which measured as much as a sixth of a plant-step.
     """
     for i in range(lo, hi):
-        status[i] = _plant_step(
-            i,
-            P,
-            S,
-            ctrl,
-            cfg,
-            A,
-            stats,
-            obs,
-            res,
-            terminated,
-            truncated,
-            steps,
-            autoreset,
-            did_reset,
-            final_obs,
-            max_steps,
-            mode,
-            work,
-        )
-        if did_reset[i]:
-            _start_next(
-                i, P, S, ctrl, cfg, obs, steps, draws, cursor, bounds, new_P, new_init, work
-            )
+        counters[CT_STATUS, i] = _plant_step(i, table, cfg, A, obs, res, flags, counters,
+                                             max_steps, mode)
+        if flags[F_DID_RESET, i]:
+            _start_next(i, table, cfg, obs, counters, draws, bounds)
 
 
 @njit(cache=True, _nrt=False)
-def step_batch(
-    P,
-    S,
-    ctrl,
-    cfg,
-    A,
-    stats,
-    obs,
-    res,
-    terminated,
-    truncated,
-    steps,
-    autoreset,
-    draws,
-    cursor,
-    bounds,
-    new_P,
-    new_init,
-    did_reset,
-    final_obs,
-    status,
-    ivars,
-    work,
-) -> int:
+def step_batch(table, cfg, A, obs, res, flags, counters, draws, bounds, ivars) -> int:
     """Step N plants with autoreset in one call.
 
-    ``ivars`` = [max_episode_steps, autoreset mode, n_reset, n_empty]. ``autoreset[i]`` marks
+    The batch's arrays (see "Vector kernels' arrays" above): plant ``table``, ``obs``
+    (current and final observations), ``res``, ``flags``, ``counters``; ``ivars`` =
+    [max_episode_steps, autoreset mode, n_reset, n_empty, n_blocks]. ``F_AUTORESET`` marks
     a plant whose episode ended on the previous call. NEXT_STEP: such a plant is reset
     instead of stepped, with reward 0. SAME_STEP: a plant whose episode ends now is reset at
-    once, its last observation saved in ``final_obs``. DISABLED: the caller resets. A reset
-    starts the episode made of the uniforms ``draws[i, cursor[i]]`` (scaled by ``bounds``,
-    built in ``new_P[i]``, ``new_init[i]``) and advances ``cursor[i]``. ``did_reset`` marks
-    the plants reset now; the kernel writes their number to ``ivars[2]`` and, in
-    ``ivars[3]``, how many of them used their last buffered row (the caller refills those
-    before the next call). Actions are all checked before any plant moves: a non-finite one
-    returns its plant's index + 1 as a negative number. Otherwise returns the number of
-    plants whose integration failed (their codes are in ``status``).
+    once, its last observation saved in ``obs[OB_FINAL]``. DISABLED: the caller resets. A
+    reset starts the episode made of the uniforms ``draws[i, cursor]`` (scaled by
+    ``bounds``, built in the plant's next-episode columns) and advances its cursor.
+    ``F_DID_RESET`` marks the plants reset now; the kernel writes their number to
+    ``ivars[2]`` and, in ``ivars[3]``, how many of them used their last buffered row (the
+    caller refills those before the next call). Actions are all checked before any plant
+    moves: a non-finite one returns its plant's index + 1 as a negative number. Otherwise
+    returns the number of plants whose integration failed (their codes are in
+    ``counters[CT_STATUS]``).
     """
-    bad = _first_bad_action(A, autoreset, ivars[IV_MODE])
+    mode = ivars[IV_MODE]
+    bad = _first_bad_action(A, flags[F_AUTORESET], mode)
     if bad >= 0:
         return -(bad + 1)
-    _step_range(0, P.shape[0], P, S, ctrl, cfg, A, stats, obs, res, terminated, truncated,
-                steps, autoreset, draws, cursor, bounds, new_P, new_init, did_reset, final_obs,
-                status, ivars[IV_MAX_STEPS], ivars[IV_MODE], work)
-    return _count(status, did_reset, cursor, draws.shape[1], ivars)
+    _step_range(0, table.shape[0], table, cfg, A, obs, res, flags, counters, draws, bounds,
+                ivars[IV_MAX_STEPS], mode)
+    return _count(flags, counters, draws.shape[1], ivars)
 
 
 @njit(cache=True, parallel=True, _nrt=False)
-def step_batch_parallel(
-    P,
-    S,
-    ctrl,
-    cfg,
-    A,
-    stats,
-    obs,
-    res,
-    terminated,
-    truncated,
-    steps,
-    autoreset,
-    draws,
-    cursor,
-    bounds,
-    new_P,
-    new_init,
-    did_reset,
-    final_obs,
-    status,
-    ivars,
-    work,
-) -> int:
+def step_batch_parallel(table, cfg, A, obs, res, flags, counters, draws, bounds, ivars) -> int:
     """``step_batch`` with the plants split into ``ivars[4]`` contiguous blocks, one per
     thread (numba ``prange`` over the blocks).
 
-    Each plant reads and writes only its own rows, so the result is identical to the
+    Each plant reads and writes only its own slots, so the result is identical to the
     serial kernel whatever the thread count; worth it from a few dozen plants up. Blocks
     rather than single plants, so each thread makes one call into the inlined per-plant
     body; and like the other kernels it allocates nothing, so it runs without numba's
     reference counting (``_nrt=False``), whose atomic updates on the shared batch arrays
     the threads would otherwise fight over.
     """
-    bad = _first_bad_action(A, autoreset, ivars[IV_MODE])
+    mode = ivars[IV_MODE]
+    bad = _first_bad_action(A, flags[F_AUTORESET], mode)
     if bad >= 0:
         return -(bad + 1)
-    n = P.shape[0]
+    n = table.shape[0]
     n_blocks = max(1, min(n, ivars[IV_N_BLOCKS]))
+    max_steps = ivars[IV_MAX_STEPS]
     for b in prange(n_blocks):
-        _step_range(b * n // n_blocks, (b + 1) * n // n_blocks, P, S, ctrl, cfg, A, stats, obs,
-                    res, terminated, truncated, steps, autoreset, draws, cursor, bounds, new_P,
-                    new_init, did_reset, final_obs, status, ivars[IV_MAX_STEPS],
-                    ivars[IV_MODE], work)
-    return _count(status, did_reset, cursor, draws.shape[1], ivars)
+        _step_range(b * n // n_blocks, (b + 1) * n // n_blocks, table, cfg, A, obs, res, flags,
+                    counters, draws, bounds, max_steps, mode)
+    return _count(flags, counters, draws.shape[1], ivars)
 
 
 @njit(cache=True, _nrt=False)
-def start_batch(P, S, ctrl, cfg, P_new, init, mask, obs, steps, autoreset, work) -> None:
-    """Begin episodes for the plants selected by ``mask``."""
-    for i in range(P.shape[0]):
+def start_batch(table, cfg, mask, obs, flags, counters) -> None:
+    """Begin episodes for the plants selected by ``mask``, from their next-episode columns."""
+    for i in range(table.shape[0]):
         if mask[i]:
-            start_episode(P[i], S[i], ctrl[i], cfg, P_new[i], init[i], obs[i], work[i])
-            steps[i] = 0
-            autoreset[i] = False
+            Pi, Si, ci, _, wi = _plant_rows(table, i)
+            start_episode(Pi, Si, ci, cfg, table[i, T_NEW_P:T_NEW_INIT],
+                          table[i, T_NEW_INIT:T_WORK], obs[OB_NOW, i], wi)
+            counters[CT_STEPS, i] = 0
+            flags[F_AUTORESET, i] = False
 
 
 @njit(cache=True)

@@ -23,8 +23,8 @@ from fricenv.core import new_workspace
 from fricenv.envs import kernels as K
 from fricenv.envs.scenes import N_DRAWS, N_INIT, Scene
 from fricenv.envs.stick_slip import EnvSetup, coerce_action, raise_status
-from fricenv.layout import METHOD_EXACT, N_STATE, N_STATS, S_MODE, S_PHI1, S_PHI2, S_T, S_V, S_X
-from fricenv.params import N_PARAMS, P_U1, P_U2, P_V, P_XFK
+from fricenv.layout import METHOD_EXACT, S_MODE, S_PHI1, S_PHI2, S_T, S_V, S_X
+from fricenv.params import P_U1, P_U2, P_V, P_XFK
 
 _AUTORESET = {
     AutoresetMode.NEXT_STEP: K.AUTORESET_NEXT_STEP,
@@ -39,6 +39,10 @@ _INFO_ROWS = slice(K.R_STICK, K.R_MEAN_VR + 1)
 # The reward's row and the info rows, adjacent too: a step copies them in one go.
 _OUT_ROWS = slice(K.R_REWARD, K.R_MEAN_VR + 1)
 assert K.R_REWARD + 1 == K.R_STICK
+# terminated and truncated: adjacent rows of the flags, copied in one go as well.
+_END_ROWS = slice(K.F_TERMINATED, K.F_TRUNCATED + 1)
+assert K.F_TERMINATED + 1 == K.F_TRUNCATED
+assert K.N_INIT == N_INIT
 # Spelled out for the step's common case (a dict display and plain indexing cost a third of
 # a loop over the keys, which measured ~1 us a step).
 _K0, _K1, _K2, _K3 = _INFO_KEYS
@@ -132,35 +136,43 @@ class StickSlipVectorEnv(VectorEnv):
         self.observation_space = batch_space(self.single_observation_space, n)
 
         self._cfg = self.setup.cfg
-        self._P = np.zeros((n, N_PARAMS))
-        self._S = np.zeros((n, N_STATE))
-        self._ctrl = np.zeros((n, 2))
-        self._stats = np.zeros((n, N_STATS))
-        self._obs = np.zeros((n, K.N_OBS), dtype=np.float32)
-        self._final_obs = np.zeros((n, K.N_OBS), dtype=np.float32)
+        # The kernels' few batch arrays (kernels.T_* and friends); the per-plant arrays the
+        # Python side works with are views of them.
+        self._table = np.zeros((n, K.N_TABLE))
+        self._P = self._table[:, K.T_P : K.T_S]
+        self._S = self._table[:, K.T_S : K.T_CTRL]
+        self._ctrl = self._table[:, K.T_CTRL : K.T_STATS]
+        self._stats = self._table[:, K.T_STATS : K.T_NEW_P]
+        # the episode being started is built in _new_P, _new_init
+        self._new_P = self._table[:, K.T_NEW_P : K.T_NEW_INIT]
+        self._new_init = self._table[:, K.T_NEW_INIT : K.T_WORK]
+        self._work = self._table[:, K.T_WORK :]  # core cache kept across intervals
+        self._work[:] = new_workspace(n, extrema=False)
+        self._obs_pair = np.zeros((2, n, K.N_OBS), dtype=np.float32)
+        self._obs = self._obs_pair[K.OB_NOW]
+        self._final_obs = self._obs_pair[K.OB_FINAL]
         self._res = np.zeros((K.N_RES, n))  # a row per result (contiguous copies)
-        self._terminated = np.zeros(n, dtype=np.bool_)
-        self._truncated = np.zeros(n, dtype=np.bool_)
-        self._steps = np.zeros(n, dtype=np.int64)
-        self._autoreset = np.zeros(n, dtype=np.bool_)
-        self._did_reset = np.zeros(n, dtype=np.bool_)
-        self._status = np.zeros(n, dtype=np.int64)
+        self._flags = np.zeros((K.N_FLAGS, n), dtype=np.bool_)
+        self._terminated = self._flags[K.F_TERMINATED]
+        self._truncated = self._flags[K.F_TRUNCATED]
+        self._autoreset = self._flags[K.F_AUTORESET]
+        self._did_reset = self._flags[K.F_DID_RESET]
+        self._counters = np.zeros((K.N_COUNTERS, n), dtype=np.int64)
+        self._steps = self._counters[K.CT_STEPS]
+        self._cursor = self._counters[K.CT_CURSOR]
+        self._status = self._counters[K.CT_STATUS]
         self._ivars = np.zeros(K.N_IVARS, dtype=np.int64)
         self._ivars[K.IV_MAX_STEPS] = self.max_episode_steps
         self._ivars[K.IV_MODE] = _AUTORESET[self.autoreset_mode]
         # one block of plants per thread (more threads set later only share the blocks out)
         self._ivars[K.IV_N_BLOCKS] = numba.get_num_threads()
-        self._work = new_workspace(n, extrema=False)  # core cache kept across intervals
         # Threads pay off from a few dozen plants; both kernels give identical results.
         self._step_kernel = K.step_batch_parallel if n >= PARALLEL_MIN_ENVS else K.step_batch
 
-        # Each plant's buffered uniforms (DRAW_ROWS episodes ahead) and its next row; the
-        # episode being started is built in _new_P, _new_init.
+        # Each plant's buffered uniforms (DRAW_ROWS episodes ahead) and its next row.
         self._draws = np.zeros((n, DRAW_ROWS, N_DRAWS))
-        self._cursor = np.full(n, DRAW_ROWS, dtype=np.int64)
+        self._cursor[:] = DRAW_ROWS
         self._bounds = np.stack([self.setup.draw_lo, self.setup.draw_hi])
-        self._new_P = np.zeros((n, N_PARAMS))
-        self._new_init = np.zeros((n, N_INIT))
         self._rngs: list[np.random.Generator | None] = [None] * n
         # Episodes started in the kernel skip EnvSetup.episode's check: it cannot fail
         # without options when b1 and b3 are drawn from [0, 0].
@@ -234,19 +246,7 @@ class StickSlipVectorEnv(VectorEnv):
             cursor[i] += 1
             setup.episode(values, opt or None, P_new[i], init[i])
             mask[i] = True
-        K.start_batch(
-            self._P,
-            self._S,
-            self._ctrl,
-            self._cfg,
-            P_new,
-            init,
-            mask,
-            self._obs,
-            self._steps,
-            self._autoreset,
-            self._work,
-        )
+        K.start_batch(self._table, self._cfg, mask, self._obs_pair, self._flags, self._counters)
         self._terminated[mask] = False
         self._truncated[mask] = False
         self._needs_reset = False
@@ -282,28 +282,16 @@ class StickSlipVectorEnv(VectorEnv):
         if self._traces is not None:
             self._record_traces(a)
         n_failed = self._step_kernel(
-            self._P,
-            self._S,
-            self._ctrl,
+            self._table,
             self._cfg,
             a,
-            self._stats,
-            self._obs,
+            self._obs_pair,
             self._res,
-            self._terminated,
-            self._truncated,
-            self._steps,
-            self._autoreset,
+            self._flags,
+            self._counters,
             self._draws,
-            self._cursor,
             self._bounds,
-            self._new_P,
-            self._new_init,
-            self._did_reset,
-            self._final_obs,
-            self._status,
             self._ivars,
-            self._work,
         )
         if n_failed != 0:
             if n_failed < 0:
@@ -320,13 +308,8 @@ class StickSlipVectorEnv(VectorEnv):
                      _K3: out[4], _M3: m}
         else:
             infos = self._after_resets()
-        return (
-            self._obs.copy(),
-            out[K.R_REWARD],
-            self._terminated.copy(),
-            self._truncated.copy(),
-            infos,
-        )
+        ends = self._flags[_END_ROWS].copy()
+        return self._obs.copy(), out[K.R_REWARD], ends[0], ends[1], infos
 
     def _after_resets(self) -> dict[str, Any]:
         """After a step that reset plants: refill spent buffers, restart traces, and batch
