@@ -332,11 +332,14 @@ def _scan_cap(P, wide):
     """Longest scan step: short against the fastest active tone and the damping rate."""
     cap = DELTA_WIDE if wide else DELTA_MAX
     phase = PHASE_PER_STEP_WIDE if wide else PHASE_PER_STEP
+    # one division, for the fastest tone (rounding is monotone, so it is the smallest
+    # of the tones' own caps): every call starts here, and divisions are slow
+    w_max = 0.0
     for i in range(2):
         if P[P_U1 + i] != 0.0:
-            w = abs(P[P_W1 + i])
-            if w * cap > phase:
-                cap = phase / w
+            w_max = max(w_max, abs(P[P_W1 + i]))
+    if w_max * cap > phase:
+        cap = phase / w_max
     lam = P[P_LAM]
     if lam > 2.0:
         rate = 0.5 * lam + math.sqrt(0.25 * lam * lam - 1.0)
