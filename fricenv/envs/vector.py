@@ -157,6 +157,9 @@ class StickSlipVectorEnv(VectorEnv):
         self._truncated = self._flags[K.F_TRUNCATED]
         self._autoreset = self._flags[K.F_AUTORESET]
         self._did_reset = self._flags[K.F_DID_RESET]
+        # what a step returns is copied from these views, made once (a slice costs as much)
+        self._step_out = self._res[_OUT_ROWS]
+        self._step_ends = self._flags[_END_ROWS]
         self._counters = np.zeros((K.N_COUNTERS, n), dtype=np.int64)
         self._steps = self._counters[K.CT_STEPS]
         self._cursor = self._counters[K.CT_CURSOR]
@@ -300,7 +303,7 @@ class StickSlipVectorEnv(VectorEnv):
             self._needs_reset = True
             i = int(np.flatnonzero(self._status)[0])
             raise_status(int(self._status[i]), None, f" {i}")
-        out = self._res[_OUT_ROWS].copy()  # callers may keep what a step returns
+        out = self._step_out.copy()  # callers may keep what a step returns
         if self._ivars[K.IV_N_RESET] == 0:
             # The common case: every plant reports this step's values (_info_dict's layout).
             m = self._all_true
@@ -308,7 +311,7 @@ class StickSlipVectorEnv(VectorEnv):
                      _K3: out[4], _M3: m}
         else:
             infos = self._after_resets()
-        ends = self._flags[_END_ROWS].copy()
+        ends = self._step_ends.copy()
         return self._obs.copy(), out[K.R_REWARD], ends[0], ends[1], infos
 
     def _after_resets(self) -> dict[str, Any]:
