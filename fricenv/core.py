@@ -444,6 +444,24 @@ def _slip_and_phases_at(cx, tau):
     return x, v, acc, jerk, c1, s1, c2, s2
 
 
+@njit(cache=True, _nrt=False, inline="always")
+def _slip_mid_and_end(cx, tau):
+    """v at tau / 2 and the state and tones' cos/sin at tau, from one evaluation at tau / 2:
+    the transition over tau is its square and the rotations are doubled (a few ulps), so
+    a step whose (v - V)^2 quadrature needs its midpoint pays for one evaluation, not two."""
+    hm = 0.5 * tau
+    m11, m12, m21, m22 = _homog(hm, cx[C_LAM], cx[C_P2])
+    cm1, sm1 = _sincos(cx[C_W1] * hm)
+    cm2, sm2 = _sincos(cx[C_W2] * hm)
+    mc1, ms1, mc2, ms2 = _rotate(cx, cm1, sm1, cm2, sm2)
+    _, v_mid, _, _ = _slip_with(cx, hm, m11, m12, m21, m22, mc1, ms1, mc2, ms2)
+    c1, s1, c2, s2 = _rotate(cx, cm1 * cm1 - sm1 * sm1, 2.0 * sm1 * cm1, cm2 * cm2 - sm2 * sm2,
+                             2.0 * sm2 * cm2)
+    x, v, acc, jerk = _slip_with(cx, tau, m11 * m11 + m12 * m21, m11 * m12 + m12 * m22,
+                                 m21 * m11 + m22 * m21, m21 * m12 + m22 * m22, c1, s1, c2, s2)
+    return v_mid, x, v, acc, jerk, c1, s1, c2, s2
+
+
 @njit(cache=True, _nrt=False)
 def _stick_at(cx, tau):
     """Stick state at relative time tau: x and f, f', f''."""
@@ -1254,6 +1272,7 @@ def _scan_exact(S, t_span, out_t, stats, max_events, out_x, out_v, out_mode, ev_
                     r_h = math.sqrt(cx[C_DX] * cx[C_DX] + cx[C_DV] * cx[C_DV])
                     vdd = cx[C_VDD_P] + cx[C_VDD_H] * r_h  # bounds |v''| on the step
                     vddd = cx[C_VDDD_P] + cx[C_VDDD_H] * r_h  # bounds |v'''|
+                    v_mid = 0.0  # off the grid: from the end's evaluation
                     while True:
                         if on_grid:
                             nc1, ns1, nc2, ns2 = _rotate(cx, rc1, rs1, rc2, rs2)
@@ -1262,7 +1281,8 @@ def _scan_exact(S, t_span, out_t, stats, max_events, out_x, out_v, out_mode, ev_
                             x1, v1, a1, j1 = _slip_with(cx, L, r11, r12, r21, r22, nc1, ns1,
                                                         nc2, ns2)
                         else:
-                            x1, v1, a1, j1, nc1, ns1, nc2, ns2 = _slip_and_phases_at(cx, L)
+                            v_mid, x1, v1, a1, j1, nc1, ns1, nc2, ns2 = _slip_mid_and_end(cx,
+                                                                                         L)
                         h1 = sd * (v1 - V)
                         d1 = sd * a1
                         if _one_extremum_at_most(h0, d0, h1, d1, sd * j0, sd * j1, L, vdd,
@@ -1281,8 +1301,7 @@ def _scan_exact(S, t_span, out_t, stats, max_events, out_x, out_v, out_mode, ev_
                         h_ext = sd * (v_ext - V)
                     te = _contact_time(cx, K_SLIP_H, L, h0, d0, h1, d1, t_ext, h_ext)
                     if te >= 0.0:
-                        xe, _, ae, je, ec1, es1, ec2, es2 = _slip_and_phases_at(cx, te)
-                        _, v_mid, _, _ = _slip_at(cx, 0.5 * te)
+                        v_mid, xe, _, ae, je, ec1, es1, ec2, es2 = _slip_mid_and_end(cx, te)
                         _slip_stats(cx, K_SLIP_V, stats, te, t_ext, v_ext, v, acc, j0, V, ae,
                                     je, xe, v_mid, V)
                         new_mode, kind = _contact_outcome(cx, stats, xe, ec1, ec2, sd)
@@ -1310,8 +1329,6 @@ def _scan_exact(S, t_span, out_t, stats, max_events, out_x, out_v, out_mode, ev_
                                                      cx[W_MS2])
                         _, v_mid, _, _ = _slip_with(cx, 0.5 * L, cx[W_M11], cx[W_M12],
                                                     cx[W_M21], cx[W_M22], mc1, ms1, mc2, ms2)
-                    else:
-                        _, v_mid, _, _ = _slip_at(cx, 0.5 * L)
                     _slip_stats(cx, K_SLIP_V, stats, L, t_ext, v_ext, v, acc, j0, v1, a1, j1,
                                 x1, v_mid, V)
                     x = x1
