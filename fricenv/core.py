@@ -531,14 +531,40 @@ def _feval(cx, kind, tau):
     return v, dv, ddv
 
 
+@njit(cache=True, _nrt=False, inline="always")
+def _hermite_root(flo, fhi, dlo, dhi, qlo, qhi, H):
+    """Fraction of a bracket of length H where the quintic Hermite interpolant of F (value,
+    slope dlo/dhi and curvature qlo/qhi at both ends) vanishes: two Halley steps on it from
+    the secant point, no evaluation of F. The interpolant is within H^6 |F^(6)| / 46080 of
+    F, so on a scan step this lies within ~1e-6 H of the root, close enough that one
+    Halley step of F itself lands on it to rounding (NaN data give NaN)."""
+    df = fhi - flo
+    d0 = dlo * H
+    d1 = dhi * H
+    q0 = qlo * H * H
+    q1 = qhi * H * H
+    a2 = 0.5 * q0
+    a3 = 10.0 * df - 6.0 * d0 - 4.0 * d1 - 1.5 * q0 + 0.5 * q1
+    a4 = -15.0 * df + 8.0 * d0 + 7.0 * d1 + 1.5 * q0 - q1
+    a5 = 6.0 * df - 3.0 * (d0 + d1) - 0.5 * (q0 - q1)
+    s = flo / (flo - fhi)
+    for _ in range(2):
+        p = flo + s * (d0 + s * (a2 + s * (a3 + s * (a4 + s * a5))))
+        dp = d0 + s * (2.0 * a2 + s * (3.0 * a3 + s * (4.0 * a4 + s * (5.0 * a5))))
+        ddp = 2.0 * a2 + s * (6.0 * a3 + s * (12.0 * a4 + s * (20.0 * a5)))
+        s = s - 2.0 * p * dp / (2.0 * dp * dp - p * ddp)
+    return s
+
+
 @njit(cache=True, _nrt=False)
-def _bracket(cx, kind, deriv, offset, lo, hi, flo, fhi, rel_tol):
+def _bracket(cx, kind, deriv, offset, lo, hi, flo, fhi, dlo, dhi, qlo, qhi, rel_tol):
     """Shrink a bracket [lo, hi] of a root of F to rounding level; return (lo, hi).
 
     F is ``value - offset`` (deriv = 0) or the first derivative (deriv = 1) of ``kind``;
-    ``flo`` and ``fhi`` have opposite signs or ``fhi`` is 0. Halley steps (Newton steps for
-    a derivative's root) from the last point, kept inside the bracket, fall back to
-    bisection; once a step is below the
+    ``flo`` and ``fhi`` have opposite signs or ``fhi`` is 0; F' and F'' at the ends
+    (``dlo``, ``dhi``, ``qlo``, ``qhi``, NaN if unknown) place the first point. Halley
+    steps (Newton steps for a derivative's root) from the last point, kept inside the
+    bracket, fall back to bisection; once a step is below half the
     tolerance the next point is placed just past the root so the bracket closes from both
     sides. The returned ``hi`` is on ``fhi``'s side of the root.
     """
@@ -547,10 +573,13 @@ def _bracket(cx, kind, deriv, offset, lo, hi, flo, fhi, rel_tol):
     if flo == 0.0:
         return lo, lo
     tol = rel_tol * (abs(lo) + abs(hi)) + 1e-300
-    # start at the secant point (kept off the ends): a step is short against the curvature,
-    # so this is already close and Halley needs few iterations
-    frac = flo / (flo - fhi)
-    t = lo + (hi - lo) * min(0.95, max(0.05, frac))
+    # start at the root of the ends' Hermite interpolant, else at the secant point (kept
+    # off the ends): a step is short against the curvature, so either is already close
+    # and Halley needs few iterations (measured: 2.7 evaluations a contact instead of 4)
+    frac = _hermite_root(flo, fhi, dlo, dhi, qlo, qhi, hi - lo)
+    if not 0.0 < frac < 1.0:
+        frac = min(0.95, max(0.05, flo / (flo - fhi)))
+    t = lo + (hi - lo) * frac
     pos_lo = flo > 0.0
     for _ in range(MAX_ROOT_ITER):
         f0, f1, f2 = _feval(cx, kind, t)
@@ -574,8 +603,11 @@ def _bracket(cx, kind, deriv, offset, lo, hi, flo, fhi, rel_tol):
             # otherwise
             den = df if deriv != 0 else df - 0.5 * f * f2 / df
             tn = t - f / den
-            if abs(tn - t) < tol:  # converged from one side: step just across the root
-                tn = tn + (tol if tn > t else -tol)
+            # converged from one side: probe just across the root, half a tolerance past
+            # it, so the bracket with t closes at once (a whole one often left it wider
+            # than the tolerance, costing another evaluation)
+            if abs(tn - t) < 0.5 * tol:
+                tn = tn + (0.5 * tol if tn > t else -0.5 * tol)
         if not (lo < tn < hi):
             tn = 0.5 * (lo + hi)
         t = tn
@@ -583,24 +615,28 @@ def _bracket(cx, kind, deriv, offset, lo, hi, flo, fhi, rel_tol):
 
 
 @njit(cache=True, _nrt=False)
-def _root(cx, kind, deriv, offset, lo, hi, flo, fhi):
-    """Point of a bracket of a root on ``fhi``'s side (where the switch has happened)."""
-    _, b = _bracket(cx, kind, deriv, offset, lo, hi, flo, fhi, EVENT_REL_TOL)
+def _root(cx, kind, offset, lo, hi, flo, fhi, dlo, dhi, qlo, qhi):
+    """Point of a bracket of a root of ``kind`` - offset on ``fhi``'s side (where the
+    switch has happened); its derivatives at the ends as in ``_bracket``."""
+    _, b = _bracket(cx, kind, 0, offset, lo, hi, flo, fhi, dlo, dhi, qlo, qhi, EVENT_REL_TOL)
     return b
 
 
 @njit(cache=True, _nrt=False)
-def _extremum(cx, kind, lo, hi, dlo, dhi):
-    """Relative time of the extremum of ``kind`` in [lo, hi], from its derivative's signs."""
-    a, b = _bracket(cx, kind, 1, 0.0, lo, hi, dlo, dhi, EXTREMUM_REL_TOL)
+def _extremum(cx, kind, lo, hi, dlo, dhi, ddlo, ddhi, dddlo, dddhi):
+    """Relative time of the extremum of ``kind`` in [lo, hi], from its derivative's signs
+    (``dlo``, ``dhi``), and its second and third derivatives there (NaN if unknown)."""
+    a, b = _bracket(cx, kind, 1, 0.0, lo, hi, dlo, dhi, ddlo, ddhi, dddlo, dddhi,
+                    EXTREMUM_REL_TOL)
     return 0.5 * (a + b)
 
 
 @njit(cache=True, _nrt=False, inline="always")
-def _contact_time(cx, kind, L, h0, d0, h1, d1, t_ext, h_ext):
+def _contact_time(cx, kind, L, h0, d0, q0, h1, d1, q1, t_ext, h_ext, q_ext):
     """First relative time in (0, L] where h = sd (v - V) reaches 0, or -1.
 
-    ``t_ext``/``h_ext`` describe the interior extremum of h (t_ext < 0: none). A phase
+    ``t_ext``/``h_ext`` describe the interior extremum of h (t_ext < 0: none); q0, q1 and
+    q_ext are h'' at 0, L and t_ext (they place the root search's first point). A phase
     that starts on the switching surface (h0 = 0, d0 clamped to >= 0 by the caller) only
     ends once h has been positive.
     """
@@ -608,13 +644,13 @@ def _contact_time(cx, kind, L, h0, d0, h1, d1, t_ext, h_ext):
         if h1 <= 0.0:
             if h_ext <= 0.0:
                 return 0.0
-            return _root(cx, kind, 0, 0.0, t_ext, L, h_ext, h1)
+            return _root(cx, kind, 0.0, t_ext, L, h_ext, h1, 0.0, d1, q_ext, q1)
         return -1.0
     if t_ext >= 0.0 and d0 < 0.0:  # h falls to a minimum (grazing if it only touches 0)
         if h_ext <= 0.0:
             if h0 <= 0.0:
                 return 0.0
-            return _root(cx, kind, 0, 0.0, 0.0, t_ext, h0, h_ext)
+            return _root(cx, kind, 0.0, 0.0, t_ext, h0, h_ext, d0, 0.0, q0, q_ext)
         # a minimum within rounding of 0 is a touch: which side of 0 the computed value
         # lands on is an accident of the last bit
         if h_ext <= GRAZE_ULPS * 2.220446049250313e-16 * max(1.0, abs(cx[C_V])):
@@ -623,7 +659,7 @@ def _contact_time(cx, kind, L, h0, d0, h1, d1, t_ext, h_ext):
     if h1 <= 0.0:
         if h0 <= 0.0:
             return 0.0
-        return _root(cx, kind, 0, 0.0, 0.0, L, h0, h1)
+        return _root(cx, kind, 0.0, 0.0, L, h0, h1, d0, d1, q0, q1)
     return -1.0
 
 
@@ -640,7 +676,8 @@ def _x_extrema_between(cx, kind, stats, a, b, va, vb, vabs):
         reach = vabs * b * 1.0000001
         if x0 + reach <= stats[ST_X_MAX] and x0 - reach >= stats[ST_X_MIN]:
             return
-        t = _bracket(cx, kind, 0, 0.0, a, b, va, vb, EXTREMUM_REL_TOL)[1]
+        t = _bracket(cx, kind, 0, 0.0, a, b, va, vb, math.nan, math.nan, math.nan, math.nan,
+                     EXTREMUM_REL_TOL)[1]
         if kind == K_SLIP_V:
             x, _, _, _ = _slip_at(cx, t)
         else:
@@ -781,7 +818,7 @@ def _stick_held(cx, L, f0, fd0, f1, fd1):
 
 
 @njit(cache=True, _nrt=False, inline="always")
-def _stick_exit_time(cx, L, f0, fd0, f1, fd1):
+def _stick_exit_time(cx, L, f0, fd0, fdd0, f1, fd1, fdd1):
     """First relative time in [0, L] where |f| exceeds xfs during a stick, or -1.
 
     Each side (f > xfs, f < -xfs) is checked on the monotone pieces of f, split at the
@@ -791,9 +828,10 @@ def _stick_exit_time(cx, L, f0, fd0, f1, fd1):
     xfs = cx[C_XFS]
     t_ext = -1.0
     f_ext = 0.0
+    fdd_ext = 0.0
     if fd0 * fd1 < 0.0:
-        t_ext = _extremum(cx, K_STICK_F, 0.0, L, fd0, fd1)
-        _, f_ext, _, _ = _stick_at(cx, t_ext)
+        t_ext = _extremum(cx, K_STICK_F, 0.0, L, fd0, fd1, fdd0, fdd1, math.nan, math.nan)
+        _, f_ext, _, fdd_ext = _stick_at(cx, t_ext)
     best = -1.0
     for side in (1.0, -1.0):
         off = side * xfs  # the root searched is f = off; violated where side * f > xfs
@@ -803,11 +841,13 @@ def _stick_exit_time(cx, L, f0, fd0, f1, fd1):
         if t_ext >= 0.0:
             if side * fd0 > 0.0:  # f heads to this side first and turns inside the step
                 if side * f_ext > xfs:
-                    te = _root(cx, K_STICK_F, 0, off, 0.0, t_ext, f0 - off, f_ext - off)
+                    te = _root(cx, K_STICK_F, off, 0.0, t_ext, f0 - off, f_ext - off, fd0,
+                               0.0, fdd0, fdd_ext)
             elif side * f1 > xfs:  # f turns back towards this side and crosses after
-                te = _root(cx, K_STICK_F, 0, off, t_ext, L, f_ext - off, f1 - off)
+                te = _root(cx, K_STICK_F, off, t_ext, L, f_ext - off, f1 - off, 0.0, fd1,
+                           fdd_ext, fdd1)
         elif side * f1 > xfs:
-            te = _root(cx, K_STICK_F, 0, off, 0.0, L, f0 - off, f1 - off)
+            te = _root(cx, K_STICK_F, off, 0.0, L, f0 - off, f1 - off, fd0, fd1, fdd0, fdd1)
         if te >= 0.0 and (best < 0.0 or te < best):
             best = te
     return best
@@ -1294,12 +1334,19 @@ def _scan_exact(S, t_span, out_t, stats, max_events, out_x, out_v, out_mode, ev_
                     t_ext = -1.0
                     v_ext = 0.0
                     h_ext = 0.0
+                    q_ext = 0.0
                     if acc * a1 < 0.0 and _extremum_matters(cx, stats, sd, v, v1, acc, a1, L,
                                                             V, vdd):
-                        t_ext = _extremum(cx, K_SLIP_V, 0.0, L, acc, a1)
-                        _, v_ext, _, _ = _slip_at(cx, t_ext)
+                        # third derivative of v: -lam v'' - v' + g''
+                        _, _, gdd0 = _forcing(cx, c1, s1, c2, s2)
+                        _, _, gdd1 = _forcing(cx, nc1, ns1, nc2, ns2)
+                        t_ext = _extremum(cx, K_SLIP_V, 0.0, L, acc, a1, j0, j1,
+                                          gdd0 - lam * j0 - acc, gdd1 - lam * j1 - a1)
+                        _, v_ext, _, j_ext = _slip_at(cx, t_ext)
                         h_ext = sd * (v_ext - V)
-                    te = _contact_time(cx, K_SLIP_H, L, h0, d0, h1, d1, t_ext, h_ext)
+                        q_ext = sd * j_ext
+                    te = _contact_time(cx, K_SLIP_H, L, h0, d0, sd * j0, h1, d1, sd * j1, t_ext,
+                                       h_ext, q_ext)
                     if te >= 0.0:
                         v_mid, xe, _, ae, je, ec1, es1, ec2, es2 = _slip_mid_and_end(cx, te)
                         _slip_stats(cx, K_SLIP_V, stats, te, t_ext, v_ext, v, acc, j0, V, ae,
@@ -1366,7 +1413,8 @@ def _scan_exact(S, t_span, out_t, stats, max_events, out_x, out_v, out_mode, ev_
                         L *= 0.5
                         full = False
                         on_grid = False
-                    te = -1.0 if held else _stick_exit_time(cx, L, f0, fd0, f1, fd1)
+                    te = -1.0 if held else _stick_exit_time(cx, L, f0, fd0, gdd0, f1, fd1,
+                                                            gdd1)
                     if te >= 0.0:
                         xe = x + V * te
                         stats[ST_STICK_TIME] += te
@@ -1827,12 +1875,16 @@ def _run_event(P, S, t_span, out_t, stats, max_events, rtol, atol, out_x, out_v,
                 t_ext = -1.0
                 v_ext = 0.0
                 h_ext = 0.0
+                q_ext = 0.0
                 if a0 * a1 < 0.0 and _extremum_matters(cx, stats, sd, v, v1, a0, a1, hstep, V,
                                                        m2):
-                    t_ext = _extremum(cx, K_DENSE_V, 0.0, hstep, a0, a1)
-                    v_ext, _, _ = _dense_v(cx, t_ext)
+                    t_ext = _extremum(cx, K_DENSE_V, 0.0, hstep, a0, a1, j0, j1, math.nan,
+                                      math.nan)
+                    v_ext, _, j_ext = _dense_v(cx, t_ext)
                     h_ext = sd * (v_ext - V)
-                te = _contact_time(cx, K_DENSE_H, hstep, h0, d0, h1, d1, t_ext, h_ext)
+                    q_ext = sd * j_ext
+                te = _contact_time(cx, K_DENSE_H, hstep, h0, d0, sd * j0, h1, d1, sd * j1, t_ext,
+                                   h_ext, q_ext)
                 if te > 0.0:
                     step_end = te
                     x1 = _dense_x(cx, te)
@@ -1905,7 +1957,7 @@ def _run_event(P, S, t_span, out_t, stats, max_events, rtol, atol, out_x, out_v,
                 if held or _sign_kept(fdd0, fdd1, L, cx[C_GDDD]) or L <= MIN_SPLIT * cap:
                     break
                 L *= 0.5
-            te = -1.0 if held else _stick_exit_time(cx, L, f0, fd0, f1, fd1)
+            te = -1.0 if held else _stick_exit_time(cx, L, f0, fd0, fdd0, f1, fd1, fdd1)
             step_end = L if te < 0.0 else te
             if out_t is not None:
                 while j_out < n_out and out_t[j_out] <= t + step_end + 1e-13 * max(1.0,
