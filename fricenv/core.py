@@ -1335,8 +1335,12 @@ def _scan_exact(S, t_span, out_t, stats, max_events, out_x, out_v, out_mode, ev_
                     v_ext = 0.0
                     h_ext = 0.0
                     q_ext = 0.0
-                    if acc * a1 < 0.0 and _extremum_matters(cx, stats, sd, v, v1, acc, a1, L,
-                                                            V, vdd):
+                    # a caller that reads no extrema needs v's extremum only to tell whether
+                    # and where h first reaches 0: not when h changes sign over the step, as
+                    # h (one extremum at most) then crosses 0 once, bracketed by the step
+                    crossing = h0 > 0.0 and h1 < 0.0 and cx[W_SKIP_EXTREMA] == 1.0
+                    if acc * a1 < 0.0 and not crossing and _extremum_matters(
+                            cx, stats, sd, v, v1, acc, a1, L, V, vdd):
                         # third derivative of v: -lam v'' - v' + g''
                         _, _, gdd0 = _forcing(cx, c1, s1, c2, s2)
                         _, _, gdd1 = _forcing(cx, nc1, ns1, nc2, ns2)
