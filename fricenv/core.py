@@ -575,7 +575,8 @@ def _bracket(cx, kind, deriv, offset, lo, hi, flo, fhi, dlo, dhi, qlo, qhi, rel_
     tol = rel_tol * (abs(lo) + abs(hi)) + 1e-300
     # start at the root of the ends' Hermite interpolant, else at the secant point (kept
     # off the ends): a step is short against the curvature, so either is already close
-    # and Halley needs few iterations (measured: 2.7 evaluations a contact instead of 4)
+    # and Halley needs few iterations (measured, self_excited: 2.5 evaluations a contact
+    # search and 2.4 a stick exit's, instead of 4.2 and 4.1 from the secant point)
     frac = _hermite_root(flo, fhi, dlo, dhi, qlo, qhi, hi - lo)
     if not 0.0 < frac < 1.0:
         frac = min(0.95, max(0.05, flo / (flo - fhi)))
