@@ -74,7 +74,7 @@ from .regimes import Regime, _strobe_period, classify, exact_rational, rational_
 FORMAT = "fricenv.regime_map"
 FORMAT_VERSION = 1
 #: Version of the per-cell measurement; a stored map is resumed only if it matches.
-ALGORITHM = 8
+ALGORITHM = 9
 #: Label of a cell that has not been computed yet (not a :class:`Regime`).
 NOT_COMPUTED = -1
 
