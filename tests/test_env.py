@@ -530,17 +530,28 @@ def test_ppo_learns_to_quench_self_excited_stick_slip():
     assert learned > idle + 40.0  # measured: about -3 against -82 idle (200 steps)
 
 
-def test_parallel_batch_kernel_matches_serial():
-    """Plants spread over threads give bit-identical results to the serial kernel."""
+@pytest.mark.parametrize("n_threads", [1, 2, 5])
+def test_parallel_batch_kernel_matches_serial(n_threads):
+    """Plants shared out over threads give bit-identical results to the serial kernel.
+
+    Every plant must be stepped exactly once whatever the thread count (pairs of threads
+    meet inside their region) and however the plants fall into chunks (77 plants leave a
+    partial chunk at each region's end).
+    """
     from fricenv.envs import kernels
     from fricenv.envs import vector as vec_mod
 
-    n = vec_mod.PARALLEL_MIN_ENVS
+    n = vec_mod.PARALLEL_MIN_ENVS + 13
     kw = {"scene": "self_excited", "randomize": True, "max_episode_steps": 9}
     par = gym.make_vec(ENV_ID, num_envs=n, **kw)
     ser = gym.make_vec(ENV_ID, num_envs=n, **kw)
     ser._step_kernel = kernels.step_batch
     assert par._step_kernel is kernels.step_batch_parallel
+    # the kernel's view of the thread count, with a work counter per pair of threads
+    ivars = np.zeros(kernels.N_IVARS + (n_threads + 1) // 2, dtype=np.int64)
+    ivars[: kernels.N_IVARS] = par._ivars[: kernels.N_IVARS]
+    ivars[kernels.IV_N_THREADS] = n_threads
+    par._ivars = ivars
     assert np.array_equal(par.reset(seed=3)[0], ser.reset(seed=3)[0])
     rng = np.random.default_rng(1)
     for _ in range(20):

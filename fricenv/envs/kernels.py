@@ -19,7 +19,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit, prange
+from numba import njit, prange, types
+from numba.core import cgutils
+from numba.extending import intrinsic
 
 from fricenv.core import (
     N_WORK,
@@ -108,10 +110,15 @@ STATUS_BAD_ACTION = -1
 AUTORESET_NEXT_STEP, AUTORESET_SAME_STEP, AUTORESET_DISABLED = 0, 1, 2
 
 # Slots of the vector kernel's int64 ``ivars``: two inputs, two counts it writes, and the
-# number of blocks the parallel kernel splits the plants into (its caller's thread count:
-# numba's ``get_num_threads`` inside the kernel would make it uncacheable).
-IV_MAX_STEPS, IV_MODE, IV_N_RESET, IV_N_EMPTY, IV_N_BLOCKS = range(5)
+# parallel kernel's thread count (set by the caller: numba's ``get_num_threads`` inside the
+# kernel would make it uncacheable). The parallel kernel's work counters, one per pair of
+# threads, follow these N_IVARS slots.
+IV_MAX_STEPS, IV_MODE, IV_N_RESET, IV_N_EMPTY, IV_N_THREADS = range(5)
 N_IVARS = 5
+
+# Plants a thread of the parallel kernel claims at a time: small, so that the threads finish
+# together, yet each claim (an atomic add on a shared counter) stays rare.
+CHUNK = 8
 
 # Vector kernels' arrays. The batch is laid out in few arrays, because numba's dispatch and
 # the hand-off to the threads cost per array argument (~1.4 us a call for the fifteen
@@ -432,7 +439,7 @@ def step_batch(table, cfg, A, obs, res, flags, counters, draws, bounds, ivars) -
 
     The batch's arrays (see "Vector kernels' arrays" above): plant ``table``, ``obs``
     (current and final observations), ``res``, ``flags``, ``counters``; ``ivars`` =
-    [max_episode_steps, autoreset mode, n_reset, n_empty, n_blocks]. ``F_AUTORESET`` marks
+    [max_episode_steps, autoreset mode, n_reset, n_empty, n_threads, work counters...]. ``F_AUTORESET`` marks
     a plant whose episode ended on the previous call. NEXT_STEP: such a plant is reset
     instead of stepped, with reward 0. SAME_STEP: a plant whose episode ends now is reset at
     once, its last observation saved in ``obs[OB_FINAL]``. DISABLED: the caller resets. A
@@ -454,28 +461,67 @@ def step_batch(table, cfg, A, obs, res, flags, counters, draws, bounds, ivars) -
     return _count(flags, counters, draws.shape[1], ivars)
 
 
+@intrinsic
+def _fetch_add(typingctx, arr, idx, inc):
+    """Atomically add ``inc`` to ``arr[idx]`` (an int64 array) and return the old value.
+
+    numba has no atomics of its own; this is LLVM's ``atomicrmw add``. Monotonic ordering
+    suffices: the counter only hands out plant indices, and the data each plant writes is
+    published by the barrier that ends the parallel loop.
+    """
+    if not (isinstance(arr, types.Array) and arr.dtype == types.int64 and arr.ndim == 1):
+        return None
+    sig = types.int64(arr, types.intp, types.int64)
+
+    def codegen(context, builder, signature, args):
+        arr_t = signature.args[0]
+        ary = context.make_array(arr_t)(context, builder, args[0])
+        ptr = cgutils.get_item_pointer(context, builder, arr_t, ary, [args[1]])
+        return builder.atomic_rmw("add", ptr, args[2], "monotonic")
+
+    return sig, codegen
+
+
 @njit(cache=True, parallel=True, _nrt=False)
 def step_batch_parallel(table, cfg, A, obs, res, flags, counters, draws, bounds, ivars) -> int:
-    """``step_batch`` with the plants split into ``ivars[4]`` contiguous blocks, one per
-    thread (numba ``prange`` over the blocks).
+    """``step_batch`` on ``ivars[4]`` threads that share the plants out as they go.
+
+    Plants differ in cost (a switch interval costs several whole-interval steps), and the
+    host may slow one thread, so a fixed split leaves one thread waiting for the other.
+    Instead the plants are split into one region per pair of threads; in a region, one
+    thread steps chunks of ``CHUNK`` plants from the front and the other from the back,
+    each claiming its next chunk from the region's counter (``ivars[N_IVARS + r]``, bumped
+    atomically), until they meet. Working from opposite ends keeps the two threads off each
+    other's cache lines of the per-plant rows of ``res``, ``flags`` and ``counters`` (chunks
+    handed out in turn from one end made the kernel twice as slow as the serial one).
 
     Each plant reads and writes only its own slots, so the result is identical to the
-    serial kernel whatever the thread count; worth it from a few dozen plants up. Blocks
-    rather than single plants, so each thread makes one call into the inlined per-plant
-    body; and like the other kernels it allocates nothing, so it runs without numba's
-    reference counting (``_nrt=False``), whose atomic updates on the shared batch arrays
-    the threads would otherwise fight over.
+    serial kernel whatever the thread count or order. Like the other kernels it allocates
+    nothing, so it runs without numba's reference counting (``_nrt=False``), whose atomic
+    updates on the shared batch arrays the threads would otherwise fight over.
     """
     mode = ivars[IV_MODE]
     bad = _first_bad_action(A, flags[F_AUTORESET], mode)
     if bad >= 0:
         return -(bad + 1)
     n = table.shape[0]
-    n_blocks = max(1, min(n, ivars[IV_N_BLOCKS]))
+    n_regions = max(1, min(ivars.shape[0] - N_IVARS, (ivars[IV_N_THREADS] + 1) // 2))
     max_steps = ivars[IV_MAX_STEPS]
-    for b in prange(n_blocks):
-        _step_range(b * n // n_blocks, (b + 1) * n // n_blocks, table, cfg, A, obs, res, flags,
-                    counters, draws, bounds, max_steps, mode)
+    for r in range(n_regions):
+        ivars[N_IVARS + r] = 0
+    for worker in prange(2 * n_regions):
+        r = worker // 2
+        lo = r * n // n_regions
+        hi = (r + 1) * n // n_regions
+        n_chunks = (hi - lo + CHUNK - 1) // CHUNK
+        from_back = worker % 2 == 1
+        done = 0
+        while _fetch_add(ivars, N_IVARS + r, 1) < n_chunks:
+            k = n_chunks - 1 - done if from_back else done
+            start = lo + k * CHUNK
+            _step_range(start, min(hi, start + CHUNK), table, cfg, A, obs, res, flags, counters, draws, bounds,
+                        max_steps, mode)
+            done += 1
     return _count(flags, counters, draws.shape[1], ivars)
 
 

@@ -164,11 +164,13 @@ class StickSlipVectorEnv(VectorEnv):
         self._steps = self._counters[K.CT_STEPS]
         self._cursor = self._counters[K.CT_CURSOR]
         self._status = self._counters[K.CT_STATUS]
-        self._ivars = np.zeros(K.N_IVARS, dtype=np.int64)
+        # The parallel kernel's thread count (more threads set later only share its work
+        # out) and, after the N_IVARS slots, a work counter per pair of threads.
+        n_threads = numba.get_num_threads()
+        self._ivars = np.zeros(K.N_IVARS + (n_threads + 1) // 2, dtype=np.int64)
         self._ivars[K.IV_MAX_STEPS] = self.max_episode_steps
         self._ivars[K.IV_MODE] = _AUTORESET[self.autoreset_mode]
-        # one block of plants per thread (more threads set later only share the blocks out)
-        self._ivars[K.IV_N_BLOCKS] = numba.get_num_threads()
+        self._ivars[K.IV_N_THREADS] = n_threads
         # Threads pay off from a few dozen plants; both kernels give identical results.
         self._step_kernel = K.step_batch_parallel if n >= PARALLEL_MIN_ENVS else K.step_batch
 
