@@ -439,13 +439,13 @@ def step_batch(table, cfg, A, obs, res, flags, counters, draws, bounds, ivars) -
 
     The batch's arrays (see "Vector kernels' arrays" above): plant ``table``, ``obs``
     (current and final observations), ``res``, ``flags``, ``counters``; ``ivars`` =
-    [max_episode_steps, autoreset mode, n_reset, n_empty, n_threads, work counters...]. ``F_AUTORESET`` marks
-    a plant whose episode ended on the previous call. NEXT_STEP: such a plant is reset
-    instead of stepped, with reward 0. SAME_STEP: a plant whose episode ends now is reset at
-    once, its last observation saved in ``obs[OB_FINAL]``. DISABLED: the caller resets. A
-    reset starts the episode made of the uniforms ``draws[i, cursor]`` (scaled by
-    ``bounds``, built in the plant's next-episode columns) and advances its cursor.
-    ``F_DID_RESET`` marks the plants reset now; the kernel writes their number to
+    [max_episode_steps, autoreset mode, n_reset, n_empty, n_threads, work counters...].
+    ``F_AUTORESET`` marks a plant whose episode ended on the previous call. NEXT_STEP: such
+    a plant is reset instead of stepped, with reward 0. SAME_STEP: a plant whose episode
+    ends now is reset at once, its last observation saved in ``obs[OB_FINAL]``. DISABLED:
+    the caller resets. A reset starts the episode made of the uniforms ``draws[i, cursor]``
+    (scaled by ``bounds``, built in the plant's next-episode columns) and advances its
+    cursor. ``F_DID_RESET`` marks the plants reset now; the kernel writes their number to
     ``ivars[2]`` and, in ``ivars[3]``, how many of them used their last buffered row (the
     caller refills those before the next call). Actions are all checked before any plant
     moves: a non-finite one returns its plant's index + 1 as a negative number. Otherwise
@@ -519,8 +519,8 @@ def step_batch_parallel(table, cfg, A, obs, res, flags, counters, draws, bounds,
         while _fetch_add(ivars, N_IVARS + r, 1) < n_chunks:
             k = n_chunks - 1 - done if from_back else done
             start = lo + k * CHUNK
-            _step_range(start, min(hi, start + CHUNK), table, cfg, A, obs, res, flags, counters, draws, bounds,
-                        max_steps, mode)
+            _step_range(start, min(hi, start + CHUNK), table, cfg, A, obs, res, flags,
+                        counters, draws, bounds, max_steps, mode)
             done += 1
     return _count(flags, counters, draws.shape[1], ivars)
 
