@@ -3,7 +3,8 @@
 Each grid cell is one independent run from the same initial state: a transient, then a
 measurement window split into stroboscopic segments, all through the stats-only kernel
 ``core.advance`` (no trajectory is stored, so memory is O(grid) whatever the horizon). Cells
-run in a numba ``prange`` loop; a cell depends only on its own parameters, so the result is
+run on numba threads that each claim the next cell as soon as they are free (cells differ
+in cost by orders of magnitude); a cell depends only on its own parameters, so the result is
 bit-identical for any thread count, chunking, order or resumption.
 
 Time spans per cell (defaults of :class:`SweepSettings`)
@@ -50,6 +51,7 @@ import numpy as np
 from numba import njit, prange
 
 from . import core
+from .atomic import fetch_add
 from .layout import (
     METHOD_EVENT,
     METHOD_EXACT,
@@ -269,15 +271,26 @@ def _cells_kernel(P_cells: np.ndarray, t_trans: np.ndarray, t_seg: np.ndarray,
                   n_seg: np.ndarray, tries: np.ndarray, x0: float, v0: float, method: int,
                   rtol: float, atol: float, rate: float, m_max: int, tol: float,
                   out_stats: np.ndarray, out_status: np.ndarray,
-                  out_period: np.ndarray) -> None:
-    for c in prange(P_cells.shape[0]):
-        P = P_cells[c].copy()
-        stats = np.empty(N_STATS)
-        st, per = _run_cell(P, x0, v0, t_trans[c], t_seg[c], n_seg[c], tries[c], method,
-                            rtol, atol, rate, m_max, tol, stats)
-        out_stats[c, :] = stats
-        out_status[c] = st
-        out_period[c] = per
+                  out_period: np.ndarray, n_workers: int, next_cell: np.ndarray) -> None:
+    """Run the cells on ``n_workers`` workers (one ``prange`` iteration each).
+
+    Cells differ in cost by orders of magnitude (a stiff or slowly locking cell runs long
+    transients), so rather than take a fixed share, each worker claims the next cell from
+    the counter ``next_cell[0]`` (bumped atomically) as soon as it is free.
+    """
+    n = P_cells.shape[0]
+    next_cell[0] = 0
+    for _ in prange(n_workers):
+        c = fetch_add(next_cell, 0, 1)
+        while c < n:
+            P = P_cells[c].copy()
+            stats = np.empty(N_STATS)
+            st, per = _run_cell(P, x0, v0, t_trans[c], t_seg[c], n_seg[c], tries[c], method,
+                                rtol, atol, rate, m_max, tol, stats)
+            out_stats[c, :] = stats
+            out_status[c] = st
+            out_period[c] = per
+            c = fetch_add(next_cell, 0, 1)
 
 
 class _Threads:
@@ -318,7 +331,7 @@ def run_cells(P_cells: np.ndarray, t_transient: np.ndarray, t_segment: np.ndarra
     out_period = np.empty(n, dtype=np.int64)
     if n == 0:
         return out_stats, out_status, out_period
-    with _Threads(n_threads), numba.parallel_chunksize(1):
+    with _Threads(n_threads):
         _cells_kernel(P_cells,
                       np.ascontiguousarray(t_transient, dtype=np.float64),
                       np.ascontiguousarray(t_segment, dtype=np.float64),
@@ -327,7 +340,8 @@ def run_cells(P_cells: np.ndarray, t_transient: np.ndarray, t_segment: np.ndarra
                       float(settings.x0), float(settings.v0), int(method),
                       float(settings.rtol), float(settings.atol),
                       float(settings.max_event_rate), int(settings.m_max),
-                      float(settings.strobe_tol), out_stats, out_status, out_period)
+                      float(settings.strobe_tol), out_stats, out_status, out_period,
+                      numba.get_num_threads(), np.zeros(1, dtype=np.int64))
     return out_stats, out_status, out_period
 
 

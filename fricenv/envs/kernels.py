@@ -19,10 +19,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit, prange, types
-from numba.core import cgutils
-from numba.extending import intrinsic
+from numba import njit, prange
 
+from fricenv.atomic import fetch_add
 from fricenv.core import (
     N_WORK,
     W_C1,
@@ -461,27 +460,6 @@ def step_batch(table, cfg, A, obs, res, flags, counters, draws, bounds, ivars) -
     return _count(flags, counters, draws.shape[1], ivars)
 
 
-@intrinsic
-def _fetch_add(typingctx, arr, idx, inc):
-    """Atomically add ``inc`` to ``arr[idx]`` (an int64 array) and return the old value.
-
-    numba has no atomics of its own; this is LLVM's ``atomicrmw add``. Monotonic ordering
-    suffices: the counter only hands out plant indices, and the data each plant writes is
-    published by the barrier that ends the parallel loop.
-    """
-    if not (isinstance(arr, types.Array) and arr.dtype == types.int64 and arr.ndim == 1):
-        return None
-    sig = types.int64(arr, types.intp, types.int64)
-
-    def codegen(context, builder, signature, args):
-        arr_t = signature.args[0]
-        ary = context.make_array(arr_t)(context, builder, args[0])
-        ptr = cgutils.get_item_pointer(context, builder, arr_t, ary, [args[1]])
-        return builder.atomic_rmw("add", ptr, args[2], "monotonic")
-
-    return sig, codegen
-
-
 @njit(cache=True, parallel=True, _nrt=False)
 def step_batch_parallel(table, cfg, A, obs, res, flags, counters, draws, bounds, ivars) -> int:
     """``step_batch`` on ``ivars[4]`` threads that share the plants out as they go.
@@ -516,7 +494,7 @@ def step_batch_parallel(table, cfg, A, obs, res, flags, counters, draws, bounds,
         n_chunks = (hi - lo + CHUNK - 1) // CHUNK
         from_back = worker % 2 == 1
         done = 0
-        while _fetch_add(ivars, N_IVARS + r, 1) < n_chunks:
+        while fetch_add(ivars, N_IVARS + r, 1) < n_chunks:
             k = n_chunks - 1 - done if from_back else done
             start = lo + k * CHUNK
             _step_range(start, min(hi, start + CHUNK), table, cfg, A, obs, res, flags,
