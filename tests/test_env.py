@@ -548,7 +548,8 @@ def test_parallel_batch_kernel_matches_serial(n_threads):
     ser._step_kernel = kernels.step_batch
     assert par._step_kernel is kernels.step_batch_parallel
     # the kernel's view of the thread count, with a work counter per pair of threads
-    ivars = np.zeros(kernels.N_IVARS + (n_threads + 1) // 2, dtype=np.int64)
+    n_pairs = (n_threads + 1) // 2
+    ivars = np.zeros(kernels.N_IVARS + n_pairs * kernels.COUNTER_STRIDE, dtype=np.int64)
     ivars[: kernels.N_IVARS] = par._ivars[: kernels.N_IVARS]
     ivars[kernels.IV_N_THREADS] = n_threads
     par._ivars = ivars

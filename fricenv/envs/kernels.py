@@ -111,13 +111,14 @@ AUTORESET_NEXT_STEP, AUTORESET_SAME_STEP, AUTORESET_DISABLED = 0, 1, 2
 # Slots of the vector kernel's int64 ``ivars``: two inputs, two counts it writes, and the
 # parallel kernel's thread count (set by the caller: numba's ``get_num_threads`` inside the
 # kernel would make it uncacheable). The parallel kernel's work counters, one per pair of
-# threads, follow these N_IVARS slots.
+# threads, follow these N_IVARS slots, COUNTER_STRIDE slots (a cache line) apart.
 IV_MAX_STEPS, IV_MODE, IV_N_RESET, IV_N_EMPTY, IV_N_THREADS = range(5)
 N_IVARS = 5
 
 # Plants a thread of the parallel kernel claims at a time: small, so that the threads finish
 # together, yet each claim (an atomic add on a shared counter) stays rare.
 CHUNK = 8
+COUNTER_STRIDE = 8
 
 # Vector kernels' arrays. The batch is laid out in few arrays, because numba's dispatch and
 # the hand-off to the threads cost per array argument (~1.4 us a call for the fifteen
@@ -468,10 +469,10 @@ def step_batch_parallel(table, cfg, A, obs, res, flags, counters, draws, bounds,
     host may slow one thread, so a fixed split leaves one thread waiting for the other.
     Instead the plants are split into one region per pair of threads; in a region, one
     thread steps chunks of ``CHUNK`` plants from the front and the other from the back,
-    each claiming its next chunk from the region's counter (``ivars[N_IVARS + r]``, bumped
-    atomically), until they meet. Working from opposite ends keeps the two threads off each
+    each claiming its next chunk from the region's counter in ``ivars`` (bumped atomically),
+    until they meet. Working from opposite ends keeps the two threads off each
     other's cache lines of the per-plant rows of ``res``, ``flags`` and ``counters`` (chunks
-    handed out in turn from one end made the kernel twice as slow as the serial one).
+    handed out in turn from one end made the kernel slower than the serial one).
 
     Each plant reads and writes only its own slots, so the result is identical to the
     serial kernel whatever the thread count or order. Like the other kernels it allocates
@@ -483,10 +484,11 @@ def step_batch_parallel(table, cfg, A, obs, res, flags, counters, draws, bounds,
     if bad >= 0:
         return -(bad + 1)
     n = table.shape[0]
-    n_regions = max(1, min(ivars.shape[0] - N_IVARS, (ivars[IV_N_THREADS] + 1) // 2))
+    n_regions = max(1, min((ivars.shape[0] - N_IVARS) // COUNTER_STRIDE,
+                           (ivars[IV_N_THREADS] + 1) // 2))
     max_steps = ivars[IV_MAX_STEPS]
     for r in range(n_regions):
-        ivars[N_IVARS + r] = 0
+        ivars[N_IVARS + r * COUNTER_STRIDE] = 0
     for worker in prange(2 * n_regions):
         r = worker // 2
         lo = r * n // n_regions
@@ -494,7 +496,7 @@ def step_batch_parallel(table, cfg, A, obs, res, flags, counters, draws, bounds,
         n_chunks = (hi - lo + CHUNK - 1) // CHUNK
         from_back = worker % 2 == 1
         done = 0
-        while fetch_add(ivars, N_IVARS + r, 1) < n_chunks:
+        while fetch_add(ivars, N_IVARS + r * COUNTER_STRIDE, 1) < n_chunks:
             k = n_chunks - 1 - done if from_back else done
             start = lo + k * CHUNK
             _step_range(start, min(hi, start + CHUNK), table, cfg, A, obs, res, flags,

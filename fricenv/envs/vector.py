@@ -167,7 +167,8 @@ class StickSlipVectorEnv(VectorEnv):
         # The parallel kernel's thread count (more threads set later only share its work
         # out) and, after the N_IVARS slots, a work counter per pair of threads.
         n_threads = numba.get_num_threads()
-        self._ivars = np.zeros(K.N_IVARS + (n_threads + 1) // 2, dtype=np.int64)
+        n_pairs = (n_threads + 1) // 2
+        self._ivars = np.zeros(K.N_IVARS + n_pairs * K.COUNTER_STRIDE, dtype=np.int64)
         self._ivars[K.IV_MAX_STEPS] = self.max_episode_steps
         self._ivars[K.IV_MODE] = _AUTORESET[self.autoreset_mode]
         self._ivars[K.IV_N_THREADS] = n_threads
