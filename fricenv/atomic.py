@@ -15,13 +15,16 @@ from numba.extending import intrinsic
 
 @intrinsic
 def fetch_add(typingctx, arr, idx, inc):
-    """Atomically add ``inc`` to ``arr[idx]`` (a 1-d int64 array); return the old value.
+    """Atomically add ``inc`` to ``arr[idx]`` (a writable, contiguous 1-d int64 array);
+    return the old value.
 
     numba has no atomics of its own; this is LLVM's ``atomicrmw add``. Monotonic ordering
     suffices: the counter only hands out indices, and what the workers write is published
-    by the barrier that ends the parallel loop.
+    by the barrier that ends the parallel loop. Like a raw pointer, ``idx`` is neither
+    bounds-checked nor wrapped when negative: the caller owns the slot.
     """
-    if not (isinstance(arr, types.Array) and arr.dtype == types.int64 and arr.ndim == 1):
+    if not (isinstance(arr, types.Array) and arr.dtype == types.int64 and arr.ndim == 1
+            and arr.layout == "C" and arr.mutable):
         return None
     sig = types.int64(arr, types.intp, types.int64)
 

@@ -13,7 +13,7 @@ def _claim_all(n, n_workers, counter, hits):
     for _ in prange(n_workers):
         i = fetch_add(counter, 0, 1)
         while i < n:
-            hits[i] += 1
+            fetch_add(hits, i, 1)  # atomic too, so a doubly claimed index shows as 2
             i = fetch_add(counter, 0, 1)
 
 
@@ -38,6 +38,11 @@ def test_returns_the_old_value_and_adds():
     assert arr.tolist() == [3, 13]
 
 
-def test_rejects_other_than_a_1d_int64_array():
+@pytest.mark.parametrize(
+    "arr",
+    [np.zeros(2), np.zeros((2, 2), dtype=np.int64), np.zeros(4, dtype=np.int64)[::2]],
+    ids=["float", "2-d", "strided"],
+)
+def test_rejects_other_than_a_contiguous_1d_int64_array(arr):
     with pytest.raises(TypingError):
-        _add(np.zeros(2), 0, 1)
+        _add(arr, 0, 1)

@@ -8,6 +8,7 @@ import sys
 import warnings
 
 import gymnasium as gym
+import numba
 import numpy as np
 import pytest
 from gymnasium.vector import AutoresetMode
@@ -530,31 +531,91 @@ def test_ppo_learns_to_quench_self_excited_stick_slip():
     assert learned > idle + 40.0  # measured: about -3 against -82 idle (200 steps)
 
 
-@pytest.mark.parametrize("n_threads", [1, 2, 5])
-def test_parallel_batch_kernel_matches_serial(n_threads):
-    """Plants shared out over threads give bit-identical results to the serial kernel.
-
-    Every plant must be stepped exactly once whatever the thread count (pairs of threads
-    meet inside their region) and however the plants fall into chunks (77 plants leave a
-    partial chunk at each region's end).
-    """
+def _parallel_and_serial(n, **kw):
+    """Two vector envs alike but for their kernel: (parallel, serial)."""
     from fricenv.envs import kernels
-    from fricenv.envs import vector as vec_mod
 
-    n = vec_mod.PARALLEL_MIN_ENVS + 13
-    kw = {"scene": "self_excited", "randomize": True, "max_episode_steps": 9}
+    kw = {"scene": "self_excited", "randomize": True, "max_episode_steps": 9, **kw}
     par = gym.make_vec(ENV_ID, num_envs=n, **kw)
     ser = gym.make_vec(ENV_ID, num_envs=n, **kw)
+    par._step_kernel = kernels.step_batch_parallel
     ser._step_kernel = kernels.step_batch
-    assert par._step_kernel is kernels.step_batch_parallel
-    # the kernel's view of the thread count, with a work counter per pair of threads
-    n_pairs = (n_threads + 1) // 2
-    ivars = np.zeros(kernels.N_IVARS + n_pairs * kernels.COUNTER_STRIDE, dtype=np.int64)
-    ivars[: kernels.N_IVARS] = par._ivars[: kernels.N_IVARS]
-    ivars[kernels.IV_N_THREADS] = n_threads
-    par._ivars = ivars
+    return par, ser
+
+
+def _run_both(par, ser, steps=20):
     assert np.array_equal(par.reset(seed=3)[0], ser.reset(seed=3)[0])
     rng = np.random.default_rng(1)
-    for _ in range(20):
+    for _ in range(steps):
         a = rng.uniform(-1, 1, par.action_space.shape).astype(np.float32)
         _assert_same_step(par.step(a), ser.step(a))
+
+
+@pytest.mark.parametrize(
+    ("n", "n_workers", "pairs"),
+    [(77, 1, 1), (77, 2, 1), (77, 5, 3), (3, 8, 4), (77, 4, 0)],
+    ids=["1-worker", "2-workers", "5-workers", "3-plants-8-workers", "no-counter-slots"],
+)
+def test_parallel_batch_kernel_matches_serial(n, n_workers, pairs):
+    """Plants shared out over workers give bit-identical results to the serial kernel.
+
+    Every plant must be stepped exactly once whatever the worker count (pairs meet inside
+    their region, an odd one out has a region alone), however the plants fall into chunks
+    (77 leave partial chunks; 3 plants leave most regions empty), and without counter slots
+    in ``ivars`` (the kernel then steps the plants in order).
+    """
+    from fricenv.envs import kernels
+
+    par, ser = _parallel_and_serial(n)
+    ivars = np.zeros(kernels.N_IVARS + pairs * kernels.COUNTER_STRIDE, dtype=np.int64)
+    ivars[: kernels.N_IVARS] = par._ivars[: kernels.N_IVARS]
+    ivars[kernels.IV_N_WORKERS] = n_workers
+    par._ivars = ivars
+    _run_both(par, ser)
+
+
+def test_parallel_batch_kernel_after_thread_count_changes():
+    """The env's own workers stay correct when numba's thread count changes after it is
+    built (fewer threads run some workers in turn)."""
+    from fricenv.envs import vector as vec_mod
+
+    before = numba.get_num_threads()
+    par, ser = _parallel_and_serial(vec_mod.PARALLEL_MIN_ENVS)
+    try:
+        numba.set_num_threads(1)
+        _run_both(par, ser, steps=5)
+    finally:
+        numba.set_num_threads(before)
+    _run_both(par, ser, steps=5)
+
+
+@pytest.mark.parametrize("size", [0, 1, 7, 8, 9, 16, 23, 40])
+def test_chunks_of_a_region_cover_it_once_for_any_meeting_point(size):
+    """Whatever share of a region's claims the front worker wins, its chunks and the back
+    worker's tile the region exactly."""
+    from fricenv.envs import kernels
+
+    lo, hi = 5, 5 + size
+    n_chunks = -(-size // kernels.CHUNK)
+    for a in range(n_chunks + 1):
+        hits = np.zeros(hi, dtype=np.int64)
+        for done in range(a):
+            start, end = kernels._chunk(lo, hi, done, False)
+            hits[start:end] += 1
+        for done in range(n_chunks - a):
+            start, end = kernels._chunk(lo, hi, done, True)
+            hits[start:end] += 1
+        assert np.all(hits[lo:hi] == 1) and np.all(hits[:lo] == 0)
+
+
+@pytest.mark.parametrize("n_workers", [1, 2, 3, 5, 8])
+def test_regions_tile_the_plants(n_workers):
+    from fricenv.envs import kernels
+
+    for n in (0, 1, 3, 64, 77, 256):
+        hits = np.zeros(n, dtype=np.int64)
+        for first in range(0, n_workers, 2):
+            lo, hi = kernels._region(first, n_workers, n)
+            assert kernels._region(min(first + 1, n_workers - 1), n_workers, n) == (lo, hi)
+            hits[lo:hi] += 1
+        assert np.all(hits == 1)

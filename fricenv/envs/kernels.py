@@ -10,8 +10,8 @@ Kernels that allocate nothing are compiled without numba's reference-counting ru
 (``_nrt=False``, see ``fricenv.core``): otherwise every per-plant call does atomic count
 updates on the batch arrays, which threads then fight over.
 
-Note for developers: numba's on-disk cache does not notice edits to ``fricenv.core``; after
-changing the core, delete ``fricenv/envs/__pycache__/*.nb[ic]``.
+Note for developers: numba's on-disk cache does not notice edits to ``fricenv.core`` or
+``fricenv.atomic``; after changing them, delete ``fricenv/envs/__pycache__/*.nb[ic]``.
 """
 
 from __future__ import annotations
@@ -109,10 +109,10 @@ STATUS_BAD_ACTION = -1
 AUTORESET_NEXT_STEP, AUTORESET_SAME_STEP, AUTORESET_DISABLED = 0, 1, 2
 
 # Slots of the vector kernel's int64 ``ivars``: two inputs, two counts it writes, and the
-# parallel kernel's thread count (set by the caller: numba's ``get_num_threads`` inside the
+# parallel kernel's worker count (set by the caller: numba's ``get_num_threads`` inside the
 # kernel would make it uncacheable). The parallel kernel's work counters, one per pair of
-# threads, follow these N_IVARS slots, COUNTER_STRIDE slots (a cache line) apart.
-IV_MAX_STEPS, IV_MODE, IV_N_RESET, IV_N_EMPTY, IV_N_THREADS = range(5)
+# workers, follow these N_IVARS slots, COUNTER_STRIDE slots (a cache line) apart.
+IV_MAX_STEPS, IV_MODE, IV_N_RESET, IV_N_EMPTY, IV_N_WORKERS = range(5)
 N_IVARS = 5
 
 # Plants a thread of the parallel kernel claims at a time: small, so that the threads finish
@@ -439,7 +439,7 @@ def step_batch(table, cfg, A, obs, res, flags, counters, draws, bounds, ivars) -
 
     The batch's arrays (see "Vector kernels' arrays" above): plant ``table``, ``obs``
     (current and final observations), ``res``, ``flags``, ``counters``; ``ivars`` =
-    [max_episode_steps, autoreset mode, n_reset, n_empty, n_threads, work counters...].
+    [max_episode_steps, autoreset mode, n_reset, n_empty, n_workers, work counters...].
     ``F_AUTORESET`` marks a plant whose episode ended on the previous call. NEXT_STEP: such
     a plant is reset instead of stepped, with reward 0. SAME_STEP: a plant whose episode
     ends now is reset at once, its last observation saved in ``obs[OB_FINAL]``. DISABLED:
@@ -461,46 +461,72 @@ def step_batch(table, cfg, A, obs, res, flags, counters, draws, bounds, ivars) -
     return _count(flags, counters, draws.shape[1], ivars)
 
 
+@njit(cache=True, _nrt=False, inline="always")
+def _region(worker, n_workers, n):
+    """Plants [lo, hi) of the region that ``worker`` shares with its partner (workers 2r
+    and 2r + 1 share region r; with an odd count the last worker has a region alone), sized
+    by its number of workers so that every worker starts with an equal share."""
+    first = worker - worker % 2
+    return first * n // n_workers, min(first + 2, n_workers) * n // n_workers
+
+
+@njit(cache=True, _nrt=False, inline="always")
+def _chunk(lo, hi, done, from_back):
+    """Plants [start, end) of a worker's ``done``-th chunk of its region [lo, hi).
+
+    Both ends count chunks on one grid from ``lo``, so when the region's counter has handed
+    out its ``n_chunks`` claims, a front worker's first a chunks and a back worker's first
+    b = n_chunks - a never overlap and leave nothing out.
+    """
+    n_chunks = (hi - lo + CHUNK - 1) // CHUNK
+    k = n_chunks - 1 - done if from_back else done
+    start = lo + k * CHUNK
+    return start, min(hi, start + CHUNK)
+
+
 @njit(cache=True, parallel=True, _nrt=False)
 def step_batch_parallel(table, cfg, A, obs, res, flags, counters, draws, bounds, ivars) -> int:
-    """``step_batch`` on ``ivars[4]`` threads that share the plants out as they go.
+    """``step_batch`` on ``ivars[4]`` workers (one ``prange`` iteration each) that share
+    the plants out as they go.
 
     Plants differ in cost (a switch interval costs several whole-interval steps), and the
     host may slow one thread, so a fixed split leaves one thread waiting for the other.
-    Instead the plants are split into one region per pair of threads; in a region, one
-    thread steps chunks of ``CHUNK`` plants from the front and the other from the back,
-    each claiming its next chunk from the region's counter in ``ivars`` (bumped atomically),
-    until they meet. Working from opposite ends keeps the two threads off each
-    other's cache lines of the per-plant rows of ``res``, ``flags`` and ``counters`` (chunks
-    handed out in turn from one end made the kernel slower than the serial one).
+    Instead the plants are split into one region per pair of workers; in a region, one
+    worker steps chunks of ``CHUNK`` plants from the front and the other from the back,
+    each claiming its next chunk from the region's counter in ``ivars`` (bumped
+    atomically), until the region's chunks are handed out. Working from opposite ends keeps
+    the two off each other's cache lines of the per-plant rows of ``res``, ``flags`` and
+    ``counters`` (chunks handed out in turn from one end made the kernel slower than the
+    serial one). Without counter slots in ``ivars`` the plants are stepped in order.
 
     Each plant reads and writes only its own slots, so the result is identical to the
-    serial kernel whatever the thread count or order. Like the other kernels it allocates
-    nothing, so it runs without numba's reference counting (``_nrt=False``), whose atomic
-    updates on the shared batch arrays the threads would otherwise fight over.
+    serial kernel whatever the worker or thread count and order. Like the other kernels it
+    allocates nothing, so it runs without numba's reference counting (``_nrt=False``),
+    whose atomic updates on the shared batch arrays the threads would otherwise fight over.
     """
     mode = ivars[IV_MODE]
     bad = _first_bad_action(A, flags[F_AUTORESET], mode)
     if bad >= 0:
         return -(bad + 1)
     n = table.shape[0]
-    n_regions = max(1, min((ivars.shape[0] - N_IVARS) // COUNTER_STRIDE,
-                           (ivars[IV_N_THREADS] + 1) // 2))
     max_steps = ivars[IV_MAX_STEPS]
-    for r in range(n_regions):
+    n_workers = min(max(1, ivars[IV_N_WORKERS]),
+                    2 * ((ivars.shape[0] - N_IVARS) // COUNTER_STRIDE))
+    if n_workers == 0:
+        _step_range(0, n, table, cfg, A, obs, res, flags, counters, draws, bounds, max_steps,
+                    mode)
+        return _count(flags, counters, draws.shape[1], ivars)
+    for r in range((n_workers + 1) // 2):
         ivars[N_IVARS + r * COUNTER_STRIDE] = 0
-    for worker in prange(2 * n_regions):
-        r = worker // 2
-        lo = r * n // n_regions
-        hi = (r + 1) * n // n_regions
+    for worker in prange(n_workers):
+        lo, hi = _region(worker, n_workers, n)
         n_chunks = (hi - lo + CHUNK - 1) // CHUNK
-        from_back = worker % 2 == 1
+        counter = N_IVARS + (worker // 2) * COUNTER_STRIDE
         done = 0
-        while fetch_add(ivars, N_IVARS + r * COUNTER_STRIDE, 1) < n_chunks:
-            k = n_chunks - 1 - done if from_back else done
-            start = lo + k * CHUNK
-            _step_range(start, min(hi, start + CHUNK), table, cfg, A, obs, res, flags,
-                        counters, draws, bounds, max_steps, mode)
+        while fetch_add(ivars, counter, 1) < n_chunks:
+            start, end = _chunk(lo, hi, done, worker % 2 == 1)
+            _step_range(start, end, table, cfg, A, obs, res, flags, counters, draws, bounds,
+                        max_steps, mode)
             done += 1
     return _count(flags, counters, draws.shape[1], ivars)
 

@@ -164,14 +164,15 @@ class StickSlipVectorEnv(VectorEnv):
         self._steps = self._counters[K.CT_STEPS]
         self._cursor = self._counters[K.CT_CURSOR]
         self._status = self._counters[K.CT_STATUS]
-        # The parallel kernel's thread count (more threads set later only share its work
-        # out) and, after the N_IVARS slots, a work counter per pair of threads.
-        n_threads = numba.get_num_threads()
-        n_pairs = (n_threads + 1) // 2
+        # The parallel kernel's workers, one per numba thread at construction (the kernel
+        # cannot read the count and stay cacheable: fewer threads set later run some workers
+        # in turn, more sit idle), and after the N_IVARS slots a counter per pair of them.
+        n_workers = numba.get_num_threads()
+        n_pairs = (n_workers + 1) // 2
         self._ivars = np.zeros(K.N_IVARS + n_pairs * K.COUNTER_STRIDE, dtype=np.int64)
         self._ivars[K.IV_MAX_STEPS] = self.max_episode_steps
         self._ivars[K.IV_MODE] = _AUTORESET[self.autoreset_mode]
-        self._ivars[K.IV_N_THREADS] = n_threads
+        self._ivars[K.IV_N_WORKERS] = n_workers
         # Threads pay off from a few dozen plants; both kernels give identical results.
         self._step_kernel = K.step_batch_parallel if n >= PARALLEL_MIN_ENVS else K.step_batch
 
