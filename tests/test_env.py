@@ -596,7 +596,8 @@ def test_chunks_of_a_region_cover_it_once_for_any_meeting_point(size):
     from fricenv.envs import kernels
 
     lo, hi = 5, 5 + size
-    n_chunks = -(-size // kernels.CHUNK)
+    n_chunks = kernels._n_chunks(lo, hi)
+    assert n_chunks == -(-size // kernels.CHUNK)
     for a in range(n_chunks + 1):
         hits = np.zeros(hi, dtype=np.int64)
         for done in range(a):

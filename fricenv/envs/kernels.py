@@ -471,6 +471,12 @@ def _region(worker, n_workers, n):
 
 
 @njit(cache=True, _nrt=False, inline="always")
+def _n_chunks(lo, hi):
+    """Number of chunks of ``CHUNK`` plants (the last possibly partial) in [lo, hi)."""
+    return (hi - lo + CHUNK - 1) // CHUNK
+
+
+@njit(cache=True, _nrt=False, inline="always")
 def _chunk(lo, hi, done, from_back):
     """Plants [start, end) of a worker's ``done``-th chunk of its region [lo, hi).
 
@@ -478,8 +484,7 @@ def _chunk(lo, hi, done, from_back):
     out its ``n_chunks`` claims, a front worker's first a chunks and a back worker's first
     b = n_chunks - a never overlap and leave nothing out.
     """
-    n_chunks = (hi - lo + CHUNK - 1) // CHUNK
-    k = n_chunks - 1 - done if from_back else done
+    k = _n_chunks(lo, hi) - 1 - done if from_back else done
     start = lo + k * CHUNK
     return start, min(hi, start + CHUNK)
 
@@ -520,7 +525,7 @@ def step_batch_parallel(table, cfg, A, obs, res, flags, counters, draws, bounds,
         ivars[N_IVARS + r * COUNTER_STRIDE] = 0
     for worker in prange(n_workers):
         lo, hi = _region(worker, n_workers, n)
-        n_chunks = (hi - lo + CHUNK - 1) // CHUNK
+        n_chunks = _n_chunks(lo, hi)
         counter = N_IVARS + (worker // 2) * COUNTER_STRIDE
         done = 0
         while fetch_add(ivars, counter, 1) < n_chunks:
