@@ -540,6 +540,7 @@ def _parallel_and_serial(n, **kw):
     ser = gym.make_vec(ENV_ID, num_envs=n, **kw)
     par._step_kernel = kernels.step_batch_parallel
     ser._step_kernel = kernels.step_batch
+    par._watch_workers = lambda: None  # compare the kernels: no serial spells
     return par, ser
 
 
@@ -587,6 +588,49 @@ def test_parallel_batch_kernel_after_thread_count_changes():
     finally:
         numba.set_num_threads(before)
     _run_both(par, ser, steps=5)
+
+
+def test_late_workers_send_the_vector_env_serial_for_doubling_stretches(monkeypatch):
+    """Workers that keep finding their region done (here: two workers run in turn on one
+    thread, as on a machine busy with other processes) make the env step serially, in
+    stretches that double while the parallel step between them finds a late worker again;
+    one step with every worker on time ends the spell. The results never change."""
+    from fricenv.envs import kernels
+    from fricenv.envs import vector as vec_mod
+
+    par, ser = _parallel_and_serial(vec_mod.PARALLEL_MIN_ENVS)  # 8 chunks for 2 workers
+    del par._watch_workers  # the env's own policy, under test here
+    par._ivars = np.zeros(kernels.N_IVARS + kernels.COUNTER_STRIDE, dtype=np.int64)
+    par._ivars[: kernels.N_IVARS] = ser._ivars[: kernels.N_IVARS]
+    par._ivars[kernels.IV_N_WORKERS] = 2
+    late, first = vec_mod.LATE_STEPS, vec_mod.SERIAL_STRETCH_MIN
+    n_steps = late + first + 1 + 2 * first + 1
+    serial_steps = []
+    step_batch = kernels.step_batch  # the reference env keeps its own reference to it
+
+    def counted(*args):
+        serial_steps.append(k)
+        return step_batch(*args)
+
+    monkeypatch.setattr(kernels, "step_batch", counted)
+    before = numba.get_num_threads()
+    try:
+        numba.set_num_threads(1)
+        assert np.array_equal(par.reset(seed=3)[0], ser.reset(seed=3)[0])
+        rng = np.random.default_rng(1)
+        for k in range(n_steps):
+            a = rng.uniform(-1, 1, par.action_space.shape).astype(np.float32)
+            _assert_same_step(par.step(a), ser.step(a))
+            if k < late:
+                assert par._ivars[kernels.IV_N_LATE] == 1
+    finally:
+        numba.set_num_threads(before)
+    parallel_steps = sorted(set(range(n_steps)) - set(serial_steps))
+    assert parallel_steps == [*range(late), late + first, late + first + 1 + 2 * first]
+    assert par._serial_left == 4 * first
+    par._ivars[kernels.IV_N_LATE] = 0  # as after a parallel step with every worker on time
+    par._watch_workers()
+    assert par._late_steps == 0 and par._serial_stretch == first
 
 
 @pytest.mark.parametrize("size", [0, 1, 7, 8, 9, 16, 23, 40])

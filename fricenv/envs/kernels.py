@@ -108,12 +108,13 @@ STATUS_BAD_ACTION = -1
 # Autoreset modes of the vector kernel.
 AUTORESET_NEXT_STEP, AUTORESET_SAME_STEP, AUTORESET_DISABLED = 0, 1, 2
 
-# Slots of the vector kernel's int64 ``ivars``: two inputs, two counts it writes, and the
+# Slots of the vector kernel's int64 ``ivars``: two inputs, two counts it writes, the
 # parallel kernel's worker count (set by the caller: numba's ``get_num_threads`` inside the
-# kernel would make it uncacheable). The parallel kernel's work counters, one per pair of
-# workers, follow these N_IVARS slots, COUNTER_STRIDE slots (a cache line) apart.
-IV_MAX_STEPS, IV_MODE, IV_N_RESET, IV_N_EMPTY, IV_N_WORKERS = range(5)
-N_IVARS = 5
+# kernel would make it uncacheable) and its count of late workers (see
+# ``step_batch_parallel``). The parallel kernel's work counters, one per pair of workers,
+# follow these N_IVARS slots, COUNTER_STRIDE slots (a cache line) apart.
+IV_MAX_STEPS, IV_MODE, IV_N_RESET, IV_N_EMPTY, IV_N_WORKERS, IV_N_LATE = range(6)
+N_IVARS = 6
 
 # Plants a thread of the parallel kernel claims at a time: small, so that the threads finish
 # together, yet each claim (an atomic add on a shared counter) stays rare.
@@ -508,6 +509,12 @@ def step_batch_parallel(table, cfg, A, obs, res, flags, counters, draws, bounds,
     serial kernel whatever the worker or thread count and order. Like the other kernels it
     allocates nothing, so it runs without numba's reference counting (``_nrt=False``),
     whose atomic updates on the shared batch arrays the threads would otherwise fight over.
+
+    ``ivars[IV_N_LATE]`` counts the workers that found their region (of at least two
+    chunks each) already handed out: their thread got a CPU only after its partner had done
+    all the work, and the step waited for it at the loop's end. On a machine busy with
+    other processes that wait is a scheduler time slice, and the caller should step
+    serially for a while (the vector env does).
     """
     mode = ivars[IV_MODE]
     bad = _first_bad_action(A, flags[F_AUTORESET], mode)
@@ -523,6 +530,7 @@ def step_batch_parallel(table, cfg, A, obs, res, flags, counters, draws, bounds,
         return _count(flags, counters, draws.shape[1], ivars)
     for r in range((n_workers + 1) // 2):
         ivars[N_IVARS + r * COUNTER_STRIDE] = 0
+    ivars[IV_N_LATE] = 0
     for worker in prange(n_workers):
         lo, hi = _region(worker, n_workers, n)
         n_chunks = _n_chunks(lo, hi)
@@ -533,6 +541,8 @@ def step_batch_parallel(table, cfg, A, obs, res, flags, counters, draws, bounds,
             _step_range(start, end, table, cfg, A, obs, res, flags, counters, draws, bounds,
                         max_steps, mode)
             done += 1
+        if done == 0 and n_chunks >= 4:  # (a worker alone in its region is never late)
+            fetch_add(ivars, IV_N_LATE, 1)
     return _count(flags, counters, draws.shape[1], ivars)
 
 

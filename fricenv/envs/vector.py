@@ -61,6 +61,15 @@ def _info_dict(vals, masks) -> dict[str, Any]:
 
 #: From this many plants on, a step spreads them over threads (numba prange).
 PARALLEL_MIN_ENVS = 64
+#: On a machine busy with other processes, a numba thread may get a CPU only after the
+#: others have stepped every plant, and the step then waits for it: a scheduler time slice,
+#: milliseconds, some fifty steps' worth. After LATE_STEPS parallel steps in a row with a
+#: late worker, the env steps serially (identical results) for a stretch of steps that
+#: starts at SERIAL_STRETCH_MIN and doubles, up to SERIAL_STRETCH_MAX, for as long as the
+#: parallel step that follows each stretch finds a late worker again.
+LATE_STEPS = 3
+SERIAL_STRETCH_MIN = 32
+SERIAL_STRETCH_MAX = 2048
 #: Episodes' worth of uniforms buffered per plant: one ``rng.random`` call every so many
 #: episodes instead of one per episode.
 DRAW_ROWS = 16
@@ -175,6 +184,9 @@ class StickSlipVectorEnv(VectorEnv):
         self._ivars[K.IV_N_WORKERS] = n_workers
         # Threads pay off from a few dozen plants; both kernels give identical results.
         self._step_kernel = K.step_batch_parallel if n >= PARALLEL_MIN_ENVS else K.step_batch
+        self._late_steps = 0  # parallel steps in a row that waited for a late worker
+        self._serial_left = 0  # steps still to run serially
+        self._serial_stretch = SERIAL_STRETCH_MIN
 
         # Each plant's buffered uniforms (DRAW_ROWS episodes ahead) and its next row.
         self._draws = np.zeros((n, DRAW_ROWS, N_DRAWS))
@@ -288,7 +300,11 @@ class StickSlipVectorEnv(VectorEnv):
             a = coerce_action(actions, self._act_shape)
         if self._traces is not None:
             self._record_traces(a)
-        n_failed = self._step_kernel(
+        kernel = self._step_kernel
+        if self._serial_left:
+            self._serial_left -= 1
+            kernel = K.step_batch
+        n_failed = kernel(
             self._table,
             self._cfg,
             a,
@@ -307,6 +323,8 @@ class StickSlipVectorEnv(VectorEnv):
             self._needs_reset = True
             i = int(np.flatnonzero(self._status)[0])
             raise_status(int(self._status[i]), None, f" {i}")
+        if kernel is K.step_batch_parallel:
+            self._watch_workers()
         out = self._step_out.copy()  # callers may keep what a step returns
         if self._ivars[K.IV_N_RESET] == 0:
             # The common case: every plant reports this step's values (_info_dict's layout).
@@ -317,6 +335,19 @@ class StickSlipVectorEnv(VectorEnv):
             infos = self._after_resets()
         ends = self._step_ends.copy()
         return self._obs.copy(), out[K.R_REWARD], ends[0], ends[1], infos
+
+    def _watch_workers(self) -> None:
+        """After a parallel step: go serial for a stretch if workers keep coming late (see
+        LATE_STEPS); a step with every worker on time ends any such spell."""
+        if self._ivars[K.IV_N_LATE] == 0:
+            self._late_steps = 0
+            self._serial_stretch = SERIAL_STRETCH_MIN
+            return
+        self._late_steps += 1
+        if self._late_steps >= LATE_STEPS:
+            self._serial_left = self._serial_stretch
+            self._serial_stretch = min(2 * self._serial_stretch, SERIAL_STRETCH_MAX)
+            self._late_steps = LATE_STEPS - 1  # one late probe after the stretch: serial again
 
     def _after_resets(self) -> dict[str, Any]:
         """After a step that reset plants: refill spent buffers, restart traces, and batch
