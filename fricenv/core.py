@@ -1655,7 +1655,10 @@ def _taylor_coeffs(cx, sd, x0, v0, rtol, atol):
         p1 *= w1 * r
         p2 *= w2 * r
     cx[C_TW + n] = wk
-    eps = atol + rtol * max(abs(x0), abs(v0))
+    # (floored at rounding level: a zero target, or one below what doubles resolve, would
+    # shrink the step to nothing and the run would never end)
+    size = max(abs(x0), abs(v0))
+    eps = max(atol + rtol * size, 1e-16 * max(size, 1.0))
     last = max(abs(cx[C_TX + n]), abs(cx[C_TV + n]))
     prev = max(abs(cx[C_TX + n - 1]), abs(cx[C_TV + n - 1]))
     # h = min((eps / prev)^(1 / (n - 1)), (eps / last)^(1 / n)) times a safety factor

@@ -74,6 +74,22 @@ def _check_params(params: OscillatorParams) -> None:
         raise TypeError(f"params must be an OscillatorParams, got {type(params).__name__}")
 
 
+def _check_state(state: OscillatorState, params: OscillatorParams, t_span: float) -> None:
+    """``ValueError`` for a state the kernels cannot continue from consistently."""
+    for name in ("t", "x", "v", "phase1", "phase2"):
+        _finite(f"state.{name}", getattr(state, name))
+    if state.mode not in (-1, 0, 1):
+        raise ValueError(f"state.mode must be -1, 0 or 1, got {state.mode!r}")
+    if state.t + t_span == state.t:
+        raise ValueError(f"t_span = {t_span!r} is lost in rounding at state.t = {state.t!r}")
+    if state.mode == 0 and state.v != params.V:
+        raise ValueError(f"state.mode = 0 (stick) needs v == V = {params.V!r}, got "
+                         f"v = {state.v!r}; build the state with OscillatorState.start")
+    if state.mode != 0 and (state.v - params.V) * state.mode < 0.0:
+        raise ValueError(f"state.mode = {state.mode} contradicts v - V = "
+                         f"{state.v - params.V!r}; build the state with OscillatorState.start")
+
+
 def resolve_method(params: OscillatorParams, method: str) -> str:
     """``"auto"`` -> exact for the Coulomb law, event otherwise; validate the name."""
     if method == "auto":
@@ -291,6 +307,9 @@ def simulate(
     stats = np.empty(N_STATS)
     if method == "rk4":
         dt = _positive("dt", dt)
+        if t_end / dt > 1e9:
+            raise ValueError(f"dt = {dt!r} needs {t_end / dt:.3g} RK4 steps to reach "
+                             f"t_end = {t_end!r} (at most 1e9)")
         S = state.to_array()
         core.reset_stats(stats)
         status = core.run_rk4(P, S, t_end, dt, out_t, stats, out_x, out_v, out_mode)
@@ -349,6 +368,8 @@ def run_stats(
         state = OscillatorState.start(params)
     elif not isinstance(state, OscillatorState):
         raise TypeError(f"state must be an OscillatorState, got {type(state).__name__}")
+    else:
+        _check_state(state, params, t_span)
     max_event_rate = _positive("max_event_rate", max_event_rate)
     max_events = int(min(max_event_rate * max(t_span, 1.0), 2**62))
     S = state.to_array()

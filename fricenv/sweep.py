@@ -120,7 +120,7 @@ class SweepSettings:
         for f in fields(self):
             v = getattr(self, f.name)
             if f.name == "method":
-                if v not in ("auto", *METHODS):
+                if v not in ("auto", "exact", "event"):
                     raise ValueError(f"method must be 'auto', 'exact' or 'event', got {v!r}")
                 continue
             if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)):
@@ -133,8 +133,10 @@ class SweepSettings:
                 object.__setattr__(self, f.name, int(v))
             else:
                 object.__setattr__(self, f.name, float(v))
+        if self.rtol <= 0.0:
+            raise ValueError(f"rtol must be > 0, got {self.rtol!r}")
         for name in ("transient_min", "transient_periods", "transient_efolds",
-                     "window_periods", "rtol", "atol"):
+                     "window_periods", "atol"):
             if getattr(self, name) < 0:
                 raise ValueError(f"{name} must be >= 0, got {getattr(self, name)!r}")
         for name in ("window_min", "max_event_rate", "strobe_tol", "modulation_cap"):
@@ -419,8 +421,7 @@ class RegimeMap:
             "axes": ["u0", "nu"],
             "elapsed_s": float(self.elapsed),
             "n_done": int(self.done.sum()),
-            **{k: v for k, v in self.meta.items()
-           if k not in ("params", "settings", "algorithm")},
+            **{k: v for k, v in self.meta.items() if k not in _RESERVED_META},
         }
 
     def save(self, path: str | os.PathLike) -> Path:
@@ -466,6 +467,12 @@ class RegimeMap:
         extra["algorithm"] = int(meta.get("algorithm", 0))
         return cls(params=params, settings=settings, elapsed=float(meta["elapsed_s"]),
                    meta=extra, plan=plan, **arrays)
+
+
+#: Metadata keys written by :meth:`RegimeMap.metadata` itself; user ``meta`` cannot set them.
+_RESERVED_META = frozenset({"format", "version", "algorithm", "params", "settings",
+                            "stats_layout", "regimes", "not_computed", "axes", "elapsed_s",
+                            "n_done"})
 
 
 def _params_key(params: OscillatorParams) -> dict:
@@ -541,6 +548,9 @@ def regime_map(params: OscillatorParams | str, u0: object, nu: object, *,
     JSON-able entries to the metadata.
     """
     params = _as_params(params)
+    if meta and _RESERVED_META & set(meta):
+        raise ValueError(f"meta must not set the reserved key(s) "
+                         f"{sorted(_RESERVED_META & set(meta))}")
     u0 = _check_axis("u0", u0)
     nu = _check_axis("nu", nu)
     _check_overrides(overrides)
@@ -628,8 +638,9 @@ def cell_statistics(params: list[OscillatorParams], settings: SweepSettings | No
     """Measure arbitrary parameter sets the way a map cell is measured.
 
     Returns ``(labels, stats, period, status)`` with one row per entry of ``params``; each
-    entry's own ``eta``, ``nu`` and amplitudes are used. All entries must share one friction
-    law family for ``method="auto"`` (Coulomb or not); mixed lists run ``"event"``.
+    entry's own ``eta``, ``nu`` and amplitudes are used. With ``method="auto"`` a list of
+    Coulomb entries runs ``"exact"`` and any other list ``"event"``; ``"exact"`` needs every
+    entry to be Coulomb.
     """
     if not params:
         raise ValueError("params is empty")
@@ -641,8 +652,12 @@ def cell_statistics(params: list[OscillatorParams], settings: SweepSettings | No
     coul = {p.is_coulomb for p in params}
     if settings.method == "auto":
         method = METHOD_EXACT if coul == {True} else METHOD_EVENT
+    elif settings.method == "exact" and coul != {True}:
+        bad = next(i for i, p in enumerate(params) if not p.is_coulomb)
+        raise ValueError(f"method 'exact' needs the Coulomb law (b1 = b3 = 0); params[{bad}] "
+                         f"has b1 = {params[bad].b1!r}, b3 = {params[bad].b3!r}")
     else:
-        method = settings.method_code(params[0]) if coul == {True} else METHOD_EVENT
+        method = settings.method_code(params[0])
     rows, tt, ts, ns, qs, nus, tr = [], [], [], [], [], [], []
     for p in params:
         plan = plan_cells(p, np.array([p.nu]), settings)

@@ -231,6 +231,48 @@ def test_continuation_with_phase_carry():
     assert abs(cont.state.phase2 - (half.state.phase2 + 0.18) % (2 * math.pi)) < 1e-12
 
 
+@pytest.mark.parametrize(
+    ("state", "match"),
+    [
+        (OscillatorState(mode=0, v=0.0), "v == V"),  # stuck, yet not moving with the belt
+        (OscillatorState(mode=1, v=0.5), "contradicts"),  # slips faster than V while slower
+        (OscillatorState(mode=5), "mode"),
+        (OscillatorState(t=float("inf")), "state.t"),
+        (OscillatorState(x=float("nan")), "state.x"),
+        (OscillatorState(t=1e300), "lost in rounding"),
+    ],
+)
+def test_run_stats_rejects_inconsistent_states(state, match):
+    """A hand-made state the kernels cannot continue from is refused, not run to made-up
+    stats (a stuck block at v != V was counted stuck while sliding)."""
+    with pytest.raises(ValueError, match=match):
+        run_stats(OscillatorParams(), 1.0, state=state)
+
+
+def test_continuing_a_stuck_state_at_another_belt_speed_is_refused():
+    p = OscillatorParams(nu=0.1, u0=1.15)
+    stuck = run_stats(p, 10.0).state
+    assert stuck.mode == 0
+    with pytest.raises(ValueError, match="v == V"):
+        run_stats(p.replace(V=2.0), 1.0, state=stuck)
+
+
+def test_tiny_tolerances_do_not_stall_the_event_method():
+    """The Taylor steps' error target is floored at rounding level: at zero tolerance (or
+    1e-300) the step length was 0 and the run never ended."""
+    p = OscillatorParams.preset("stribeck", u0=1.0, nu=0.5)
+    ref = run_stats(p, 10.0, rtol=1e-13, atol=1e-15)
+    tiny = run_stats(p, 10.0, rtol=1e-300, atol=1e-300)
+    assert abs(tiny.state.x - ref.state.x) < 1e-9
+
+
+def test_rk4_step_count_is_bounded():
+    with pytest.raises(ValueError, match="dt = 1e-300"):
+        simulate(OscillatorParams(), 1.0, method="rk4", dt=1e-300)
+    with pytest.raises(ValueError, match="RK4 steps"):
+        simulate(OscillatorParams(), 200.0, method="rk4", dt=1e-10)
+
+
 def test_state_start_chooses_mode():
     p = OscillatorParams()
     assert OscillatorState.start(p, 0.0, 1.0).mode == 0

@@ -121,6 +121,20 @@ def test_reproduce_cli_small_parts(tmp_path) -> None:
         main(["--only", "11"])
 
 
+@pytest.mark.parametrize(
+    ("argv", "needle"),
+    [(["--resolution", "0"], "--resolution"), (["--threads", "0"], "--threads"),
+     (["--threads", "100000"], "--threads")],
+)
+def test_reproduce_cli_rejects_bad_numbers(argv, needle, capsys, tmp_path) -> None:
+    from fricenv.reproduce import main
+
+    with pytest.raises(SystemExit):
+        main([*argv, "--out", str(tmp_path)])
+    assert needle in capsys.readouterr().err
+    assert not any(tmp_path.iterdir())  # refused before anything is computed or written
+
+
 @pytest.mark.slow
 def test_reproduce_quick_end_to_end(tmp_path) -> None:
     from fricenv.reproduce import main

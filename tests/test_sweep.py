@@ -203,6 +203,14 @@ def test_bad_law_and_settings_raise() -> None:
         regime_map(PARAMS, [1.0], [0.5], window_min=0.0)
     with pytest.raises(ValueError, match="unknown setting"):
         regime_map(PARAMS, [1.0], [0.5], no_such_setting=1.0)
+    with pytest.raises(ValueError, match="'rk4'"):  # sweeps are event-driven only
+        regime_map(PARAMS, [1.0], [0.5], method="rk4")
+    with pytest.raises(ValueError, match="rtol"):  # a zero target would stall the steps
+        regime_map(PARAMS, [1.0], [0.5], rtol=0.0)
+    with pytest.raises(ValueError, match="reserved"):  # the map's own metadata
+        regime_map(PARAMS, [1.0], [0.5], meta={"format": "x"})
+    with pytest.raises(ValueError, match=r"params\[1\]"):  # was run as 'event' silently
+        cell_statistics([PARAMS, OscillatorParams.preset("stribeck")], method="exact")
     with pytest.raises(ValueError):
         regime_map(PARAMS, [1.0], [0.5], chunk_size=0)
     with pytest.raises(ValueError):
