@@ -19,7 +19,6 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-import numba
 import numpy as np
 
 from .layout import (
@@ -39,6 +38,7 @@ from .sweep import (
     RegimeMap,
     SweepSettings,
     cell_statistics,
+    check_n_threads,
     modulation_period,
     regime_map,
     run_cells,
@@ -701,8 +701,11 @@ def main(argv: Sequence[str] | None = None) -> int:
                     help="comma-separated parts: 2, 3, 4-7, 8-10 (default: all)")
     ap.add_argument("--no-progress", action="store_true", help="no progress bars")
     a = ap.parse_args(argv)
-    if a.threads is not None and not 1 <= a.threads <= numba.config.NUMBA_NUM_THREADS:
-        ap.error(f"--threads must be in 1..{numba.config.NUMBA_NUM_THREADS}, got {a.threads}")
+    if a.threads is not None:
+        try:
+            check_n_threads(a.threads)
+        except ValueError as e:
+            ap.error(f"--threads: {e}")
     if a.resolution is not None and a.resolution < 2:
         ap.error(f"--resolution must be at least 2 cells per axis, got {a.resolution}")
     out = a.out or Path("out") / ("reproduce-quick" if a.quick else "reproduce")

@@ -295,6 +295,14 @@ def _cells_kernel(P_cells: np.ndarray, t_trans: np.ndarray, t_seg: np.ndarray,
             c = fetch_add(next_cell, 0, 1)
 
 
+def check_n_threads(n: object) -> int:
+    """``n`` as a thread count numba can run, else ``ValueError`` naming it."""
+    n = int(n)  # type: ignore[call-overload]
+    if not 1 <= n <= numba.config.NUMBA_NUM_THREADS:
+        raise ValueError(f"n_threads must be in [1, {numba.config.NUMBA_NUM_THREADS}], got {n}")
+    return n
+
+
 class _Threads:
     """Temporarily set numba's thread count (None: leave it)."""
 
@@ -304,10 +312,7 @@ class _Threads:
 
     def __enter__(self) -> None:
         if self.n is not None:
-            n = int(self.n)
-            if not 1 <= n <= numba.config.NUMBA_NUM_THREADS:
-                raise ValueError(
-                    f"n_threads must be in [1, {numba.config.NUMBA_NUM_THREADS}], got {n}")
+            n = check_n_threads(self.n)
             self.old = numba.get_num_threads()
             numba.set_num_threads(n)
 
@@ -652,12 +657,12 @@ def cell_statistics(params: list[OscillatorParams], settings: SweepSettings | No
     coul = {p.is_coulomb for p in params}
     if settings.method == "auto":
         method = METHOD_EXACT if coul == {True} else METHOD_EVENT
-    elif settings.method == "exact" and coul != {True}:
-        bad = next(i for i, p in enumerate(params) if not p.is_coulomb)
-        raise ValueError(f"method 'exact' needs the Coulomb law (b1 = b3 = 0); params[{bad}] "
-                         f"has b1 = {params[bad].b1!r}, b3 = {params[bad].b3!r}")
     else:
-        method = settings.method_code(params[0])
+        for i, p in enumerate(params):  # the method must suit every entry
+            try:
+                method = settings.method_code(p)
+            except ValueError as e:
+                raise ValueError(f"params[{i}]: {e}") from None
     rows, tt, ts, ns, qs, nus, tr = [], [], [], [], [], [], []
     for p in params:
         plan = plan_cells(p, np.array([p.nu]), settings)

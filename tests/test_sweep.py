@@ -12,6 +12,7 @@ from fricenv.layout import N_STATS, STATUS_OK
 from fricenv.params import OscillatorParams
 from fricenv.regimes import Regime
 from fricenv.sweep import (
+    _RESERVED_META,
     NOT_COMPUTED,
     RegimeMap,
     SweepSettings,
@@ -209,6 +210,8 @@ def test_bad_law_and_settings_raise() -> None:
         regime_map(PARAMS, [1.0], [0.5], rtol=0.0)
     with pytest.raises(ValueError, match="reserved"):  # the map's own metadata
         regime_map(PARAMS, [1.0], [0.5], meta={"format": "x"})
+    own = regime_map(PARAMS, [1.0], [0.5], progress=False).metadata()
+    assert set(own) == _RESERVED_META  # every key the map writes is reserved, and no other
     with pytest.raises(ValueError, match=r"params\[1\]"):  # was run as 'event' silently
         cell_statistics([PARAMS, OscillatorParams.preset("stribeck")], method="exact")
     with pytest.raises(ValueError):
