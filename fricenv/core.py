@@ -348,6 +348,20 @@ def _scan_cap(P, wide):
     return cap
 
 
+@njit(cache=True, _nrt=False)
+def most_scan_steps(P_rows, spans):
+    """The most scan steps any row needs to cover its span, and that row: the floor of a
+    run's cost, known before it starts."""
+    most = 0.0
+    row = 0
+    for i in range(P_rows.shape[0]):
+        n = spans[i] / _scan_cap(P_rows[i], False)
+        if n > most:
+            most = n
+            row = i
+    return most, row
+
+
 @njit(cache=True, _nrt=False, inline="always")
 def _particular(cx, tau, c1, s1, c2, s2, sd):
     """Particular solution (x_p, v_p) at relative time tau, tone phases (c_i, s_i) there."""

@@ -18,7 +18,7 @@ FRICTION_LAWS: dict[str, tuple[float, float]] = {
     "viscous": (0.2, 0.0),
     "stribeck": (0.2, 0.16),
 }
-#: The paper's time-history cases (Figs. 4-7, Sec. 3.2.1; MODEL.md): figure -> the fields
+#: The paper's time-history cases (Figs. 4-7, Sec. 3.2.1): figure -> the fields
 #: that differ from the defaults (Coulomb law, lam = 1/2, eta = 3/5, V = 1). One table for
 #: the scripts, the reproduction and the tests.
 PAPER_CASES: dict[str, dict[str, float]] = {

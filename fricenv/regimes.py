@@ -29,7 +29,7 @@ Labels (:class:`Regime`), checked in this order
 ``WM2``                   no stick but at least one reversal: ``v`` crosses ``V`` only in
                           direct reversals (large forcing, friction a square-wave force).
 
-Choices where the paper is ambiguous (see MODEL.md)
+Choices where the paper is ambiguous (see the README's Model section)
 ---------------------------------------------------
 * WM1/WM2 follow the *maps* (WM1 below the first boundary in ``u0``, WM2 beyond the
   second), not the waveform names of Fig. 4 ("angular" vs "amplitude" modulation), because
@@ -139,7 +139,8 @@ def _strobe_period(xs: np.ndarray, vs: np.ndarray, m_max: int, tol: float) -> in
             return 0
         ok = True
         for k in range(m, n):
-            if abs(xs[k] - xs[k - m]) > lim or abs(vs[k] - vs[k - m]) > lim:
+            # written as "not <=" so that a NaN sample breaks every candidate period
+            if not (abs(xs[k] - xs[k - m]) <= lim and abs(vs[k] - vs[k - m]) <= lim):
                 ok = False
                 break
         if ok:
@@ -154,12 +155,19 @@ def strobe_period(xs: np.ndarray, vs: np.ndarray, m_max: int = M_MAX,
     Period ``m`` holds when ``|x_k - x_{k-m}|`` and ``|v_k - v_{k-m}|`` are at most
     ``tol * max(1, max_k |x_k|, max_k |v_k|)`` for every ``k >= m``. It is only accepted if
     the samples cover the candidate period at least twice (``n - m >= max(m, 2)``), so a
-    short record cannot look periodic by accident.
+    short record cannot look periodic by accident. A non-finite sample is never periodic.
     """
     xs = np.ascontiguousarray(xs, dtype=np.float64)
     vs = np.ascontiguousarray(vs, dtype=np.float64)
     if xs.shape != vs.shape or xs.ndim != 1:
-        raise ValueError("xs and vs must be 1-d arrays of the same length")
+        raise ValueError(
+            f"xs and vs must be 1-d arrays of the same length, got shapes {xs.shape} and "
+            f"{vs.shape}"
+        )
+    if int(m_max) != m_max or m_max < 1:
+        raise ValueError(f"m_max must be an integer >= 1, got {m_max!r}")
+    if not (np.isfinite(tol) and tol >= 0.0):
+        raise ValueError(f"tol must be finite and >= 0, got {tol!r}")
     return int(_strobe_period(xs, vs, int(m_max), float(tol)))
 
 

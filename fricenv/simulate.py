@@ -39,11 +39,14 @@ from .layout import (
     STATUS_NONFINITE,
     STATUS_OK,
 )
-from .params import OscillatorParams
+from .params import P_LAM, P_W1, P_W2, OscillatorParams
 
 #: Default cap on switching events per unit of dimensionless time. A physical run switches a
 #: few times per forcing period; far more means chattering (a Zeno-like accumulation).
 MAX_EVENT_RATE = 1000.0
+#: Most scan steps a run may need (the RK4 step count shares it). Beyond it a run takes
+#: many minutes, and a fast tone or stiff damping asking for it is more likely a typo.
+MAX_SCAN_STEPS = 1e9
 EVENT_NAMES = {EVENT_STICK: "stick", EVENT_SLIP: "slip", EVENT_REVERSAL: "reversal"}
 EVENT_DTYPE = np.dtype([("t", "f8"), ("kind", "i1"), ("name", "U8"), ("x", "f8")])
 
@@ -88,6 +91,25 @@ def _check_state(state: OscillatorState, params: OscillatorParams, t_span: float
     if state.mode != 0 and (state.v - params.V) * state.mode < 0.0:
         raise ValueError(f"state.mode = {state.mode} contradicts v - V = "
                          f"{state.v - params.V!r}; build the state with OscillatorState.start")
+
+
+def check_scan_steps(P_rows: np.ndarray, spans: np.ndarray) -> None:
+    """``ValueError`` if a run (row ``i`` of ``P_rows`` over ``spans[i]``) needs more than
+    ``MAX_SCAN_STEPS`` scan steps.
+
+    Event-driven runs step at most half a radian of the fastest active tone (and 1 / rate
+    when over-damped), so a very fast tone or stiff damping would otherwise run for hours
+    without a word.
+    """
+    most, i = core.most_scan_steps(P_rows, spans)
+    if most > MAX_SCAN_STEPS:
+        P = P_rows[i]
+        raise ValueError(
+            f"these parameters need about {most:.3g} scan steps over a span of "
+            f"{spans[i]:g} (at most {MAX_SCAN_STEPS:g}): the step is bounded by the fastest "
+            f"tone (eta = {P[P_W1]:g}, nu * eta = {P[P_W2]:g}) and the damping "
+            f"(lam = {P[P_LAM]:g}); shorten the span or check these values"
+        )
 
 
 def resolve_method(params: OscillatorParams, method: str) -> str:
@@ -307,9 +329,9 @@ def simulate(
     stats = np.empty(N_STATS)
     if method == "rk4":
         dt = _positive("dt", dt)
-        if t_end / dt > 1e9:
+        if t_end / dt > MAX_SCAN_STEPS:
             raise ValueError(f"dt = {dt!r} needs {t_end / dt:.3g} RK4 steps to reach "
-                             f"t_end = {t_end!r} (at most 1e9)")
+                             f"t_end = {t_end!r} (at most {MAX_SCAN_STEPS:g})")
         S = state.to_array()
         core.reset_stats(stats)
         status = core.run_rk4(P, S, t_end, dt, out_t, stats, out_x, out_v, out_mode)
@@ -318,6 +340,7 @@ def simulate(
         return Trajectory(params, method, out_t, out_x, out_v, out_mode.astype(np.int8),
                           empty, np.empty(0, np.int8), empty,
                           RunStats.from_array(stats, OscillatorState.from_array(S)))
+    check_scan_steps(P[None], np.array([t_end]))
     max_events = int(min(max_event_rate * max(t_end, 1.0), 2**62))
     code = METHOD_EXACT if method == "exact" else METHOD_EVENT
     # A periodic run switches a few times per forcing period; start there, grow if needed.
@@ -372,11 +395,13 @@ def run_stats(
         _check_state(state, params, t_span)
     max_event_rate = _positive("max_event_rate", max_event_rate)
     max_events = int(min(max_event_rate * max(t_span, 1.0), 2**62))
+    P = params.to_array()
+    check_scan_steps(P[None], np.array([t_span]))
     S = state.to_array()
     stats = np.empty(N_STATS)
     core.reset_stats(stats)
     code = METHOD_EXACT if method == "exact" else METHOD_EVENT
-    status = core.advance(params.to_array(), S, t_span, stats, code, _positive("rtol", rtol),
+    status = core.advance(P, S, t_span, stats, code, _positive("rtol", rtol),
                           _positive("atol", atol), max_events)
     _raise_status(status, S[S_T], max_events, t_span)
     return RunStats.from_array(stats, OscillatorState.from_array(S))

@@ -42,7 +42,7 @@ import json
 import math
 import os
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
 
@@ -52,6 +52,7 @@ from numba import njit, prange
 
 from . import core
 from .atomic import fetch_add
+from .checks import check_dict, check_int, got
 from .layout import (
     METHOD_EVENT,
     METHOD_EXACT,
@@ -72,6 +73,7 @@ from .layout import (
 )
 from .params import P_U1, P_U2, P_W1, P_W2, OscillatorParams, resolve_law
 from .regimes import Regime, _strobe_period, classify, exact_rational, rational_denominator
+from .simulate import check_scan_steps
 
 FORMAT = "fricenv.regime_map"
 FORMAT_VERSION = 1
@@ -296,8 +298,8 @@ def _cells_kernel(P_cells: np.ndarray, t_trans: np.ndarray, t_seg: np.ndarray,
 
 
 def check_n_threads(n: object) -> int:
-    """``n`` as a thread count numba can run, else ``ValueError`` naming it."""
-    n = int(n)  # type: ignore[call-overload]
+    """``n`` as a thread count numba can run, else ``TypeError`` / ``ValueError`` naming it."""
+    n = check_int("n_threads", n)
     if not 1 <= n <= numba.config.NUMBA_NUM_THREADS:
         raise ValueError(f"n_threads must be in [1, {numba.config.NUMBA_NUM_THREADS}], got {n}")
     return n
@@ -321,6 +323,27 @@ class _Threads:
             numba.set_num_threads(self.old)
 
 
+#: Most stroboscopic samples a cell keeps (two float64 each): ample for any sensible window
+#: (about 40 at eta = 7/3, 1600 at eta = 100), far below what would exhaust memory.
+MAX_SEGMENTS = 1_000_000
+
+
+def _check_cells(P_cells: np.ndarray, t_transient: np.ndarray, t_segment: np.ndarray,
+                 n_segment: np.ndarray, tries: np.ndarray) -> None:
+    """``ValueError`` before a sweep whose cells would run for hours or fill the memory."""
+    n_segment = np.asarray(n_segment)
+    if n_segment.size and n_segment.max() > MAX_SEGMENTS:
+        i = int(np.argmax(n_segment))
+        raise ValueError(
+            f"a cell would keep {n_segment[i]} stroboscopic samples (at most {MAX_SEGMENTS}): "
+            f"its common forcing period {t_segment[i]:.3g} is tiny against its window; "
+            f"check eta = {P_cells[i, P_W1]:g}"
+        )
+    longest = np.asarray(t_transient) + np.asarray(t_segment) * n_segment * np.maximum(
+        np.asarray(tries), 1)  # the transient plus every window a cell may be given
+    check_scan_steps(P_cells, np.ascontiguousarray(longest, dtype=np.float64))
+
+
 def run_cells(P_cells: np.ndarray, t_transient: np.ndarray, t_segment: np.ndarray,
               n_segment: np.ndarray, tries: np.ndarray, settings: SweepSettings,
               method: int, n_threads: int | None = None
@@ -338,6 +361,7 @@ def run_cells(P_cells: np.ndarray, t_transient: np.ndarray, t_segment: np.ndarra
     out_period = np.empty(n, dtype=np.int64)
     if n == 0:
         return out_stats, out_status, out_period
+    _check_cells(P_cells, t_transient, t_segment, n_segment, tries)
     with _Threads(n_threads):
         _cells_kernel(P_cells,
                       np.ascontiguousarray(t_transient, dtype=np.float64),
@@ -488,10 +512,12 @@ def _params_key(params: OscillatorParams) -> dict:
 
 
 def _check_axis(name: str, a: object) -> np.ndarray:
+    if a is None:  # would become NaN
+        raise ValueError(f"{name} must be an array of real numbers, got None")
     try:
         arr = np.asarray(a, dtype=float)
     except (TypeError, ValueError) as exc:
-        raise ValueError(f"{name} must be an array of real numbers") from exc
+        raise ValueError(f"{name} must be an array of real numbers, got {a!r}") from exc
     if arr.ndim == 0:
         arr = arr.reshape(1)
     if arr.ndim != 1:
@@ -505,11 +531,22 @@ def _check_axis(name: str, a: object) -> np.ndarray:
     return arr
 
 
-def _check_overrides(overrides: dict) -> None:
+def _settings(settings: SweepSettings | None, overrides: dict) -> SweepSettings:
+    """The settings of a sweep: ``settings`` (default: the defaults) with ``overrides``."""
     known = {f.name for f in fields(SweepSettings)}
     unknown = sorted(set(overrides) - known)
     if unknown:
         raise ValueError(f"unknown setting(s) {unknown}; expected some of {sorted(known)}")
+    if settings is None:
+        return SweepSettings(**overrides)  # type: ignore[arg-type]
+    if not isinstance(settings, SweepSettings):
+        raise TypeError(
+            "settings must be a fricenv.SweepSettings or None (single settings can also be "
+            f"passed as keyword arguments), {got(settings)}"
+        )
+    if overrides:
+        return SweepSettings(**{**asdict(settings), **overrides})  # type: ignore[arg-type]
+    return settings
 
 
 def _as_params(params: OscillatorParams | str) -> OscillatorParams:
@@ -553,20 +590,25 @@ def regime_map(params: OscillatorParams | str, u0: object, nu: object, *,
     JSON-able entries to the metadata.
     """
     params = _as_params(params)
+    check_dict("meta", meta)
     if meta and _RESERVED_META & set(meta):
         raise ValueError(f"meta must not set the reserved key(s) "
                          f"{sorted(_RESERVED_META & set(meta))}")
     u0 = _check_axis("u0", u0)
     nu = _check_axis("nu", nu)
-    _check_overrides(overrides)
-    if settings is None:
-        settings = SweepSettings(**overrides)  # type: ignore[arg-type]
-    elif overrides:
-        settings = SweepSettings(**{**asdict(settings), **overrides})  # type: ignore[arg-type]
+    settings = _settings(settings, overrides)
     method = settings.method_code(params)
-    if chunk_size is not None and (int(chunk_size) != chunk_size or chunk_size < 1):
-        raise ValueError(f"chunk_size must be a positive integer, got {chunk_size!r}")
+    if chunk_size is not None:
+        check_int("chunk_size", chunk_size, 1)
+    if n_threads is not None:
+        check_n_threads(n_threads)  # up front: a finished map never runs a cell to check it
     plan = plan_cells(params, nu, settings)
+    # Checked before anything is written, on each nu's fastest cell (the scan step depends
+    # on u0 only through whether it is 0).
+    fastest = np.repeat(params.to_array()[None, :], nu.size, axis=0)
+    fastest[:, P_U1] = fastest[:, P_U2] = np.max(np.abs(u0))
+    fastest[:, P_W2] = plan.nu_exact * fastest[:, P_W1]
+    _check_cells(fastest, plan.t_transient, plan.t_segment, plan.n_segment, plan.tries)
 
     rmap = None
     if path is not None:
@@ -642,18 +684,25 @@ def cell_statistics(params: list[OscillatorParams], settings: SweepSettings | No
                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Measure arbitrary parameter sets the way a map cell is measured.
 
-    Returns ``(labels, stats, period, status)`` with one row per entry of ``params``; each
-    entry's own ``eta``, ``nu`` and amplitudes are used. With ``method="auto"`` a list of
-    Coulomb entries runs ``"exact"`` and any other list ``"event"``; ``"exact"`` needs every
-    entry to be Coulomb.
+    Returns ``(labels, stats, period, status)`` with one row per entry of ``params`` (a list,
+    or any iterable, of :class:`OscillatorParams`); each entry's own ``eta``, ``nu`` and
+    amplitudes are used. With ``method="auto"`` a list of Coulomb entries runs ``"exact"``
+    and any other list ``"event"``; ``"exact"`` needs every entry to be Coulomb.
     """
+    if isinstance(params, (OscillatorParams, str)) or not isinstance(params, Iterable):
+        raise TypeError(
+            "params must be a list of OscillatorParams (wrap a single one in a list), "
+            f"{got(params)}"
+        )
+    params = list(params)  # an iterator is read once, here
     if not params:
         raise ValueError("params is empty")
-    _check_overrides(overrides)
-    if settings is None:
-        settings = SweepSettings(**overrides)  # type: ignore[arg-type]
-    elif overrides:
-        settings = SweepSettings(**{**asdict(settings), **overrides})  # type: ignore[arg-type]
+    for i, p in enumerate(params):
+        if not isinstance(p, OscillatorParams):
+            raise TypeError(
+                f"params[{i}] must be an OscillatorParams, {got(p)}"
+            )
+    settings = _settings(settings, overrides)
     coul = {p.is_coulomb for p in params}
     if settings.method == "auto":
         method = METHOD_EXACT if coul == {True} else METHOD_EVENT

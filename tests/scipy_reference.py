@@ -1,6 +1,6 @@
 """Independent event-driven reference solution of the model, with SciPy's ``solve_ivp``.
 
-Written from ``MODEL.md`` alone (not from ``fricenv.core``) so that agreement with the
+Written from the README's Model section alone (not from ``fricenv.core``) so that agreement with the
 kernels means something. Slip phases are integrated with DOP853 at tight tolerances and
 terminal events on ``v - V = 0``; a second pair of events on the acceleration locates every
 local extremum of ``v`` so that tangential contacts (grazing) and double crossings hidden

@@ -174,7 +174,7 @@ def test_rk4_baseline_cannot_stick():
     assert not np.any(tr.mode == 0) and tr.stick_fraction == 0.0
     exact = simulate(p, 100.0, method="exact")
     assert exact.stick_fraction > 0.3
-    assert np.max(np.abs(tr.x - exact.x)) > 0.1  # MODEL.md: the paper's scheme is off by O(1)
+    assert np.max(np.abs(tr.x - exact.x)) > 0.1  # README, Model: the paper's scheme is off by O(1)
 
 
 def test_grazing_contact_is_found():
@@ -271,6 +271,25 @@ def test_rk4_step_count_is_bounded():
         simulate(OscillatorParams(), 1.0, method="rk4", dt=1e-300)
     with pytest.raises(ValueError, match="RK4 steps"):
         simulate(OscillatorParams(), 200.0, method="rk4", dt=1e-10)
+
+
+@pytest.mark.parametrize(
+    "fields, match",
+    [
+        (dict(eta=1e10, u0=1.0), r"2e\+12 scan steps .*eta = 1e\+10"),
+        (dict(lam=1e8), r"1e\+10 scan steps .*lam = 1e\+08"),
+    ],
+)
+def test_event_driven_step_count_is_bounded(fields, match):
+    """A very fast tone or stiff damping used to run ~1e11 scan steps without a word."""
+    p = OscillatorParams(**fields)
+    with pytest.raises(ValueError, match=match):
+        run_stats(p, 100.0)
+    with pytest.raises(ValueError, match=match):
+        simulate(p, 100.0)
+    run_stats(p, 1e-5)  # a span the step bound allows still runs
+    # a silent tone does not bound the step, however fast it would be
+    assert run_stats(OscillatorParams(eta=1e10, u0=0.0), 100.0).state.t == 100.0
 
 
 def test_state_start_chooses_mode():

@@ -295,6 +295,117 @@ def test_step_before_reset_raises():
         StickSlipEnv().step(np.zeros(1, np.float32))
 
 
+@pytest.mark.parametrize("bad", [None, "abc", "0.5", {"a": 1}, [None], 1 + 1j])
+def test_non_numeric_action_raises_type_error_naming_it(bad):
+    # None used to become NaN ("must be finite"), "0.5" a number, complex a warning
+    env = gym.make(ENV_ID)
+    env.reset(seed=0)
+    msg = r"must be an array of real numbers of shape"
+    with pytest.raises(TypeError, match=r"action " + msg + r" \(1,\)"):
+        env.step(bad)
+    with pytest.raises(TypeError, match=r"action must be an array of real numbers"):
+        env.unwrapped.sample_interval(bad)
+    vec = gym.make_vec(ENV_ID, num_envs=4)
+    vec.reset(seed=0)
+    with pytest.raises(TypeError, match=r"actions " + msg + r" \(4, 1\)"):
+        vec.step(bad)
+    env.step(np.zeros(1, np.float32))  # both still usable
+    vec.step(np.zeros((4, 1), np.float32))
+
+
+def test_action_of_wrong_size_raises_value_error_naming_the_shape():
+    env = gym.make(ENV_ID)
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match=r"shape \(1,\), got shape \(2,\): \[0.0, 0.0\]"):
+        env.step([0.0, 0.0])
+    vec = StickSlipVectorEnv(num_envs=4)
+    vec.reset(seed=0)
+    with pytest.raises(ValueError, match=r"actions .* shape \(4, 1\), got shape \(\)"):
+        vec.step(0.0)
+    with pytest.raises(ValueError, match=r"actions must be an array of real numbers"):
+        vec.step([[0.0], [0.0, 1.0]])  # ragged
+
+
+@pytest.mark.parametrize("dtype", [np.float16, np.longdouble, ">f8", ">f4", np.int64])
+def test_actions_of_other_dtypes_step_like_float64(dtype):
+    # float16, long double and byte-swapped arrays used to reach numba (typing errors)
+    a, b = StickSlipEnv(action_mode="both"), StickSlipEnv(action_mode="both")
+    a.reset(seed=3)
+    b.reset(seed=3)
+    act = np.array([1.0, -1.0])  # exact in every dtype
+    assert np.array_equal(a.step(act.astype(dtype))[0], b.step(act)[0])
+    va, vb = StickSlipVectorEnv(num_envs=2), StickSlipVectorEnv(num_envs=2)
+    va.reset(seed=3)
+    vb.reset(seed=3)
+    acts = np.array([[1.0], [-1.0]])
+    assert np.array_equal(va.step(acts.astype(dtype))[0], vb.step(acts)[0])
+
+
+def test_vector_reset_seed_of_wrong_type_or_length_raises():
+    vec = gym.make_vec(ENV_ID, num_envs=4)
+    with pytest.raises(TypeError, match=r"seed must be an int, a list of num_envs=4 .* got 1\.5"):
+        vec.reset(seed=1.5)
+    with pytest.raises(TypeError, match=r"seed must be an int.* got 'abcd' \(str\)"):
+        vec.reset(seed="abcd")
+    with pytest.raises(TypeError, match=r"seed\[1\] must be an int or None, got 2\.0"):
+        vec.reset(seed=[0, 2.0, None, 3])
+    with pytest.raises(ValueError, match=r"seed list must have length num_envs=4, got 2 seeds"):
+        vec.reset(seed=[0, 1])
+    obs, _ = vec.reset(seed=np.arange(4))  # numpy integers are ints
+    assert np.array_equal(obs, vec.reset(seed=(0, 1, 2, 3))[0])
+
+
+def test_reward_weights_must_be_three_weights_or_a_dict():
+    msg = r"reward_weights must be three weights \(w_stick, w_velocity, w_effort\) or a dict"
+    with pytest.raises(TypeError, match=msg + r".* got 1\.0 \(float\)"):
+        gym.make(ENV_ID, reward_weights=1.0)
+    with pytest.raises(TypeError, match=msg):
+        StickSlipVectorEnv(reward_weights=1.0)
+    with pytest.raises(ValueError, match=msg + r".* got 2 values"):
+        StickSlipEnv(reward_weights=(1.0, 0.5))
+    with pytest.raises(TypeError, match=r"reward_weights\['stick'\] must be a real number"):
+        StickSlipEnv(reward_weights={"stick": "high"})
+    with pytest.raises(ValueError, match="unknown reward weight"):
+        StickSlipEnv(reward_weights={"sticky": 1.0})
+    assert StickSlipEnv(reward_weights={"stick": 2}).scene.reward_weights == (2.0, 0.5, 0.1)
+    assert StickSlipEnv(reward_weights=[1, 0, 0]).scene.reward_weights == (1.0, 0.0, 0.0)
+
+
+_PAPER = SCENES["paper"]
+
+
+@pytest.mark.parametrize(
+    "make, error, match",
+    [
+        (lambda: StickSlipEnv(params=0.2), TypeError,
+         r"params must be a dict .* got 0\.2 \(float\)"),
+        (lambda: StickSlipEnv(scene=5), TypeError, r"scene must be a scene name or a Scene, got 5"),
+        (lambda: StickSlipEnv(control_dt="fast"), TypeError,
+         r"control_dt must be a real number, got 'fast'"),
+        (lambda: StickSlipEnv(method=["exact"]), TypeError, r"method must be one of"),
+        (lambda: StickSlipVectorEnv(num_envs=2.5), TypeError,
+         r"num_envs must be an integer, got 2\.5"),
+        (lambda: StickSlipVectorEnv(num_envs=0), ValueError,
+         r"num_envs must be an integer >= 1, got 0"),
+        (lambda: StickSlipVectorEnv(max_episode_steps="10"), TypeError,
+         r"max_episode_steps must be an integer, got '10'"),
+        (lambda: StickSlipEnv().reset(options=5), TypeError,
+         r"options must be a dict or None, got 5 \(int\)"),
+        (lambda: StickSlipVectorEnv(num_envs=2).reset(options=5), TypeError,
+         r"options must be a dict or None, got 5 \(int\)"),
+        (lambda: _PAPER.replace(u0_range=4.0), TypeError,
+         r"u0_range must be a finite \(lo, hi\).* got 4\.0"),
+        (lambda: _PAPER.replace(tone_gains=(1.0, None)), TypeError,
+         r"tone_gains\[1\] must be a real number, got None"),
+        (lambda: _PAPER.replace(randomization={"lam": 0.5}), TypeError,
+         r"randomization\['lam'\] must be a finite \(lo, hi\)"),
+    ],
+)
+def test_constructor_and_reset_arguments_of_wrong_type_raise(make, error, match):
+    with pytest.raises(error, match=match):
+        make()
+
+
 # -- native vector env ----------------------------------------------------------------------
 def _assert_same_step(r1, r2):
     for x, y in zip(r1[:4], r2[:4], strict=True):
@@ -438,6 +549,13 @@ def test_render_rgb_array_single_and_vector():
     frames = vec.render()
     assert len(frames) == 2 and frames[0].shape == frame.shape
     vec.close()
+
+
+def test_render_without_render_mode_warns_and_returns_none():
+    # StickSlipEnv() has no spec: this used to fail on `assert self.spec is not None`
+    for env in (StickSlipEnv(), gym.make(ENV_ID).unwrapped, StickSlipVectorEnv(num_envs=2)):
+        with pytest.warns(UserWarning, match=r"without specifying any render mode.*render_mode="):
+            assert env.render() is None
 
 
 def test_no_render_mode_prepares_nothing():

@@ -101,8 +101,12 @@ def test_bad_inputs() -> None:
         classify_stats(_stats(), np.nan)
     with pytest.raises(ValueError):
         rational_denominator(float("nan"))
-    with pytest.raises(ValueError):
+    with pytest.raises(ValueError, match="same length"):
         strobe_period(np.zeros(4), np.zeros(5))
+    with pytest.raises(ValueError, match="m_max must be an integer >= 1, got 0"):
+        strobe_period(np.zeros(6), np.zeros(6), m_max=0)
+    with pytest.raises(ValueError, match="tol must be finite and >= 0, got nan"):
+        strobe_period(np.zeros(6), np.zeros(6), tol=float("nan"))
 
 
 def test_summary() -> None:
@@ -143,6 +147,12 @@ def test_strobe_period_of_constructed_sequences() -> None:
     # a record too short to see a period twice is never called periodic
     assert strobe_period(np.array([1.0, 2.0, 1.0]), np.array([1.0, 2.0, 1.0])) == 0
     assert strobe_period(three, three, m_max=2) == 0
+    # non-finite samples never look periodic (NaN compares false with any tolerance)
+    assert strobe_period(np.full(12, np.nan), np.full(12, np.nan)) == 0
+    assert strobe_period(np.full(12, np.inf), np.ones(12)) == 0
+    with_gap = np.full(12, 2.5)
+    with_gap[5] = np.nan
+    assert strobe_period(with_gap, np.ones(12)) == 0
 
 
 # -- real runs through the kernel ---------------------------------------------------------
@@ -151,9 +161,9 @@ def test_classifier_on_simulated_cases() -> None:
 
     cases = [
         (dict(nu=0.1, u0=0.2), Regime.WM1),  # Fig. 4a: far from v = V
-        (dict(nu=0.1, u0=2.0), Regime.SSM1),  # stick phases (MODEL.md: u0 = 2...8)
+        (dict(nu=0.1, u0=2.0), Regime.SSM1),  # stick phases (README, Model: u0 = 2...8)
         (dict(nu=1.15, u0=0.7), Regime.SSM2),  # Fig. 6 as parametrised: sticks
-        (dict(nu=0.1, u0=30.0), Regime.WM2),  # only reversals (MODEL.md: u0 >= 16)
+        (dict(nu=0.1, u0=30.0), Regime.WM2),  # only reversals (README, Model: u0 >= 16)
         (dict(nu=1.0, u0=1.65, eta=0.2), Regime.PERIODIC_OSCILLATION),  # Fig. 7
         (dict(nu=2.0, u0=0.1), Regime.PERIODIC_OSCILLATION),  # pure slip, locked
     ]
@@ -162,6 +172,6 @@ def test_classifier_on_simulated_cases() -> None:
     assert np.all(status == STATUS_OK)
     for (kw, want), got, st in zip(cases, labels, stats, strict=True):
         assert Regime(int(got)) == want, (kw, summarize(st))
-    # Fig. 7: velocity stays below the belt speed (MODEL.md: amplitude ~0.68)
+    # Fig. 7: velocity stays below the belt speed (README, Model: amplitude ~0.68)
     assert stats[4, ST_V_MAX] < 1.0
     assert period[4] == 1 and period[5] == 1

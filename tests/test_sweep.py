@@ -42,7 +42,7 @@ def test_map_contents(reference: RegimeMap) -> None:
     assert m.labels.shape == (4, 5) and m.stats.shape == (4, 5, N_STATS)
     assert m.complete and np.all(m.status == STATUS_OK)
     assert np.all(m.labels != NOT_COMPUTED)
-    # the u0 pattern of MODEL.md: no contact -> stick phases -> reversals only
+    # the u0 pattern of the README's Model section: no contact -> stick phases -> reversals only
     assert m.labels[0, 0] == Regime.WM1 and m.labels[0, 3] == Regime.WM1
     assert m.labels[2, 0] == Regime.SSM1 and m.labels[2, 3] == Regime.SSM2
     assert m.labels[3, 0] == Regime.WM2
@@ -218,6 +218,57 @@ def test_bad_law_and_settings_raise() -> None:
         regime_map(PARAMS, [1.0], [0.5], chunk_size=0)
     with pytest.raises(ValueError):
         regime_map(PARAMS, [1.0], [0.5], n_threads=numba.config.NUMBA_NUM_THREADS + 1)
+
+
+def test_settings_of_wrong_type_raise_type_error() -> None:
+    msg = r"settings must be a fricenv\.SweepSettings or None .* got \{\} \(dict\)"
+    with pytest.raises(TypeError, match=msg):  # was AttributeError: no 'method_code'
+        regime_map(PARAMS, [1.0], [0.5], settings={})  # type: ignore[arg-type]
+    with pytest.raises(TypeError, match=msg):
+        cell_statistics([PARAMS], settings={})  # type: ignore[arg-type]
+
+
+def test_sweeps_whose_cells_would_scan_for_hours_are_refused(tmp_path) -> None:
+    """eta = 1e8 asks for ~1e11 scan steps a cell; that used to run without a word."""
+    fast = PARAMS.replace(eta=1e8)
+    path = tmp_path / "fast.npz"
+    msg = r"5.66e\+10 scan steps over a span of 200 .*nu \* eta = 1.4142e\+08"
+    with pytest.raises(ValueError, match=msg):
+        regime_map(fast, [0.0, 1.0], [0.7071, 1.4142], path=path)  # no strobe (q > 4)
+    assert not path.exists()  # refused before anything was written
+    with pytest.raises(ValueError, match=r"scan steps .*eta = 1e\+08"):
+        cell_statistics([fast.replace(u0=1.0, nu=0.7071)])
+    # silent tones do not bound the step, but 1e9 strobe samples a cell would fill memory
+    with pytest.raises(ValueError, match=r"would keep 1\d{9} stroboscopic samples"):
+        cell_statistics([fast.replace(u0=0.0, nu=1.0)])
+
+
+def test_cell_statistics_entries_must_be_oscillator_params() -> None:
+    with pytest.raises(TypeError, match=r"params\[0\] must be an OscillatorParams, got \{\} "
+                                        r"\(dict\)"):
+        cell_statistics([{}])  # type: ignore[list-item]
+    with pytest.raises(TypeError, match=r"params\[1\] must be an OscillatorParams, got 'coulomb'"):
+        cell_statistics([PARAMS, "coulomb"])  # type: ignore[list-item]
+    with pytest.raises(TypeError, match=r"params must be a list of OscillatorParams"):
+        cell_statistics(PARAMS)  # type: ignore[arg-type]
+    with pytest.raises(ValueError, match="params is empty"):
+        cell_statistics([])
+    p = PARAMS.replace(u0=0.3, nu=0.5)
+    got = cell_statistics(iter([p]))  # an iterator used to be consumed early: no rows
+    for a, b in zip(got, cell_statistics([p]), strict=True):
+        np.testing.assert_array_equal(a, b)
+    assert got[0].shape == (1,)
+
+
+def test_integer_and_dict_arguments_of_wrong_type_raise_type_error() -> None:
+    with pytest.raises(TypeError, match=r"chunk_size must be an integer, got 2\.0"):
+        regime_map(PARAMS, [1.0], [0.5], chunk_size=2.0)  # type: ignore[arg-type]
+    with pytest.raises(TypeError, match=r"n_threads must be an integer, got 1\.5"):
+        regime_map(PARAMS, [1.0], [0.5], n_threads=1.5)  # type: ignore[arg-type]
+    with pytest.raises(TypeError, match=r"meta must be a dict or None, got \['x'\] \(list\)"):
+        regime_map(PARAMS, [1.0], [0.5], meta=["x"])  # type: ignore[arg-type]
+    with pytest.raises(ValueError, match=r"u0 must be an array of real numbers, got None"):
+        regime_map(PARAMS, None, [0.5])  # was "u0 grid contains NaN"
 
 
 def test_slowly_converging_orbit_locks_with_extensions() -> None:

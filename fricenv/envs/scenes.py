@@ -10,11 +10,13 @@ touches the kernels.
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable
 from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
 
+from fricenv.checks import check_dict, check_real, got, real_tuple
 from fricenv.params import (
     N_PARAMS,
     P_B1,
@@ -53,9 +55,12 @@ N_INIT = 6
 
 TWO_PI = 2.0 * math.pi
 
+#: What ``reward_weights`` holds, for error messages.
+THREE_WEIGHTS = "three weights (w_stick, w_velocity, w_effort)"
+
 
 def _pair(name: str, value: Any) -> tuple[float, float]:
-    lo, hi = (float(v) for v in value)
+    lo, hi = real_tuple(name, value, 2, "a finite (lo, hi) with lo <= hi")
     if not (math.isfinite(lo) and math.isfinite(hi)) or lo > hi:
         raise ValueError(f"{name} must be a finite (lo, hi) with lo <= hi, got {value!r}")
     return lo, hi
@@ -113,14 +118,16 @@ class Scene:
             raise ValueError(f"params.nu = {self.params.nu} lies outside nu_range {self.nu_range}")
         if self.params.u1 is not None or self.params.u2 is not None:
             raise ValueError("scene params must not set u1/u2; use tone_gains")
-        gains = tuple(float(g) for g in self.tone_gains)
-        if len(gains) != 2 or min(gains) < 0.0 or max(gains) == 0.0:
+        gains = real_tuple("tone_gains", self.tone_gains, 2, "two gains >= 0, not both 0")
+        if min(gains) < 0.0 or max(gains) == 0.0:
             raise ValueError(f"tone_gains must be two gains >= 0, not both 0, got {gains}")
         object.__setattr__(self, "tone_gains", gains)
-        weights = tuple(float(w) for w in self.reward_weights)
-        if len(weights) != 3 or not all(math.isfinite(w) and w >= 0.0 for w in weights):
+        weights = real_tuple("reward_weights", self.reward_weights, 3, THREE_WEIGHTS)
+        if not all(math.isfinite(w) and w >= 0.0 for w in weights):
             raise ValueError(f"reward_weights must be three finite weights >= 0, got {weights}")
         object.__setattr__(self, "reward_weights", weights)
+        for name in ("control_dt", "max_episode_steps", "max_delta", "x_limit", "v_limit"):
+            check_real(name, getattr(self, name))
         checks = (
             ("control_dt", math.isfinite(self.control_dt) and self.control_dt > 0.0),
             ("max_episode_steps", int(self.max_episode_steps) >= 1),
@@ -132,6 +139,12 @@ class Scene:
             if not ok:
                 raise ValueError(f"{name} is out of range, got {getattr(self, name)!r}")
         rnd = {}
+        if not isinstance(self.randomization, Iterable) or isinstance(
+            self.randomization, (str, bytes)
+        ):
+            raise TypeError(
+                f"randomization must be a dict {{param: (lo, hi)}}, {got(self.randomization)}"
+            )
         for key, value in dict(self.randomization).items():
             if key not in RANDOMIZABLE:
                 raise ValueError(f"cannot randomise {key!r}; expected some of {RANDOMIZABLE}")
@@ -191,6 +204,7 @@ def episode_from_draws(
     RANDOMIZABLE + INITIAL. ``options`` (from ``reset(options=...)``) override any of them and
     the starting excitation; an override is validated, so a bad one fails at reset.
     """
+    check_dict("options", options)
     vals = dict(zip((*RANDOMIZABLE, *INITIAL), values.tolist(), strict=True))
     u0, nu = scene.params.u0, scene.params.nu
     if options:
@@ -283,6 +297,8 @@ def get_scene(scene: str | Scene) -> Scene:
     """The scene named ``scene`` (or ``scene`` itself); ``ValueError`` listing the names."""
     if isinstance(scene, Scene):
         return scene
+    if not isinstance(scene, str):
+        raise TypeError(f"scene must be a scene name or a Scene, {got(scene)}")
     try:
         return SCENES[str(scene)]
     except KeyError:

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 import operator
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -16,11 +17,13 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from fricenv.checks import check_dict, check_real, real_tuple
 from fricenv.core import new_workspace
 from fricenv.envs import kernels as K
 from fricenv.envs.scenes import (
     ACTION_MODES,
     N_DRAWS,
+    THREE_WEIGHTS,
     Scene,
     episode_from_draws,
     get_scene,
@@ -55,6 +58,8 @@ from fricenv.params import (
 
 _METHODS = {"auto": K.METHOD_AUTO, "exact": METHOD_EXACT, "event": METHOD_EVENT}
 _WEIGHT_KEYS = ("stick", "velocity", "effort")
+#: Action dtypes the kernels are compiled for; any other goes through ``coerce_action``.
+ACTION_DTYPES = (np.dtype(np.float32), np.dtype(np.float64))
 
 #: Solver settings of the environments: tight enough that integration error is far below
 #: anything a policy could exploit, loose enough to keep a step cheap.
@@ -93,23 +98,19 @@ class EnvSetup:
     ) -> EnvSetup:
         sc = get_scene(scene)
         changes: dict[str, Any] = {}
+        check_dict("params", params, "a dict of plant parameters, e.g. {'lam': 0.2},")
         if params:
             changes["params"] = sc.params.replace(**params)
         if action_mode is not None:
             changes["action_mode"] = action_mode
         if control_dt is not None:
-            changes["control_dt"] = float(control_dt)
+            changes["control_dt"] = check_real("control_dt", control_dt)
         if reward_weights is not None:
-            if isinstance(reward_weights, dict):
-                unknown = sorted(set(reward_weights) - set(_WEIGHT_KEYS))
-                if unknown:
-                    raise ValueError(f"unknown reward weight(s) {unknown}; expected {_WEIGHT_KEYS}")
-                base = dict(zip(_WEIGHT_KEYS, sc.reward_weights, strict=True))
-                base.update(reward_weights)
-                reward_weights = tuple(base[k] for k in _WEIGHT_KEYS)
-            changes["reward_weights"] = tuple(reward_weights)
+            changes["reward_weights"] = _reward_weights(reward_weights, sc.reward_weights)
         if changes:
             sc = sc.replace(**changes)
+        if not isinstance(method, str):
+            raise TypeError(f"method must be one of {sorted(_METHODS)}, got {method!r}")
         if method not in _METHODS:
             raise ValueError(f"method must be one of {sorted(_METHODS)}, got {method!r}")
         if method == "exact" and (not sc.params.is_coulomb or {"b1", "b3"} & set(sc.ranges)):
@@ -170,6 +171,22 @@ class EnvSetup:
             raise ValueError("method='exact' needs the Coulomb law (b1 = b3 = 0)")
 
 
+def _reward_weights(value: Any, current: tuple[float, ...]) -> tuple[float, ...]:
+    """The ``reward_weights`` argument as three floats; a dict overrides the named ones of
+    ``current`` (the scene's)."""
+    what = f"{THREE_WEIGHTS} or a dict with keys {', '.join(map(repr, _WEIGHT_KEYS))}"
+    if isinstance(value, Mapping):
+        unknown = sorted(set(value) - set(_WEIGHT_KEYS), key=repr)
+        if unknown:
+            raise ValueError(f"unknown reward weight(s) {unknown}; expected {_WEIGHT_KEYS}")
+        for key, w in value.items():
+            check_real(f"reward_weights[{key!r}]", w)
+        merged = dict(zip(_WEIGHT_KEYS, current, strict=True))
+        merged.update(value)
+        value = tuple(merged[k] for k in _WEIGHT_KEYS)
+    return real_tuple("reward_weights", value, 3, what)
+
+
 def raise_status(status: int, action: Any, where: str = "") -> None:
     """Turn a kernel status into the exception a user can act on."""
     if status == K.STATUS_BAD_ACTION:
@@ -184,15 +201,37 @@ def raise_status(status: int, action: Any, where: str = "") -> None:
     raise RuntimeError(f"plant{where}: integrator failed with status {status}")
 
 
-def coerce_action(action: Any, shape: tuple[int, ...]) -> np.ndarray:
-    """Slow path for actions that are not a float ndarray of the right shape."""
-    try:
-        a = np.asarray(action, dtype=np.float64)
-    except (TypeError, ValueError) as e:
-        raise ValueError(f"action must be a float array of shape {shape}, got {action!r}") from e
-    if a.size != int(np.prod(shape)):
-        raise ValueError(f"action must have shape {shape}, got {action!r}")
-    return np.ascontiguousarray(a.reshape(shape))
+def coerce_action(action: Any, shape: tuple[int, ...], name: str = "action") -> np.ndarray:
+    """Slow path for actions that are not a C-contiguous float32/float64 ndarray of shape
+    ``shape``: a float64 copy of ``shape`` (any layout of the same number of values).
+
+    ``TypeError`` unless ``action`` is made of real numbers (None, strings, dicts, complex
+    would otherwise turn into NaN, a float or a numba typing error), ``ValueError`` for the
+    wrong number of values; both name ``name`` and the value. NaN and inf pass: the kernels
+    reject them without touching the plant.
+    """
+    want = f"{name} must be an array of real numbers of shape {shape}"
+    a = None
+    if action is not None and not isinstance(action, (str, bytes)):
+        try:
+            a = np.asarray(action)
+        except ValueError as e:  # ragged nesting: numbers, but no array shape
+            raise ValueError(f"{want}, got {action!r}") from e
+        except TypeError:  # e.g. a failing __array__
+            pass
+        if a is not None and a.dtype.kind == "O":  # e.g. Fractions convert; None, dicts do not
+            if any(v is None or isinstance(v, (str, bytes)) for v in a.flat):
+                a = None
+            else:
+                try:
+                    a = a.astype(np.float64)
+                except (TypeError, ValueError):
+                    a = None
+    if a is None or a.dtype.kind not in "biuf":
+        raise TypeError(f"{want}, got {action!r} ({type(action).__name__})")
+    if a.size != math.prod(shape):
+        raise ValueError(f"{want}, got shape {a.shape}: {action!r}")
+    return np.ascontiguousarray(a.reshape(shape), dtype=np.float64)
 
 
 class StickSlipEnv(gym.Env):
@@ -396,7 +435,7 @@ class StickSlipEnv(gym.Env):
         if (
             type(a) is not np.ndarray
             or a.shape != self._act_shape
-            or a.dtype.kind != "f"
+            or a.dtype not in ACTION_DTYPES
             or not a.flags.c_contiguous
         ):
             a = coerce_action(action, self._act_shape)
@@ -445,11 +484,13 @@ class StickSlipEnv(gym.Env):
 
     def render(self) -> np.ndarray | None:
         if self.render_mode is None:
-            assert self.spec is not None
+            # Gymnasium's convention, without needing self.spec (None when built directly).
+            env_id = self.spec.id if self.spec is not None else "fricenv/StickSlip-v0"
             gym.logger.warn(
                 "You are calling render method without specifying any render mode. "
                 "You can specify the render_mode at initialization, "
-                f'e.g. gym.make("{self.spec.id}", render_mode="rgb_array")'
+                f'e.g. gym.make("{env_id}", render_mode="rgb_array") '
+                'or StickSlipEnv(render_mode="rgb_array")'
             )
             return None
         return self._renderer.render(self.snapshot())

@@ -19,10 +19,11 @@ from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
+from fricenv.checks import check_dict, check_int, got, is_int, items_of
 from fricenv.core import new_workspace
 from fricenv.envs import kernels as K
 from fricenv.envs.scenes import N_DRAWS, N_INIT, Scene
-from fricenv.envs.stick_slip import EnvSetup, coerce_action, raise_status
+from fricenv.envs.stick_slip import ACTION_DTYPES, EnvSetup, coerce_action, raise_status
 from fricenv.layout import METHOD_EXACT, S_MODE, S_PHI1, S_PHI2, S_T, S_V, S_X
 from fricenv.params import P_U1, P_U2, P_V, P_XFK
 
@@ -57,6 +58,29 @@ def _info_dict(vals, masks) -> dict[str, Any]:
         infos[key] = val
         infos[mask_key] = mask
     return infos
+
+
+def _plant_seeds(seed: Any, n: int) -> list[int | None]:
+    """Per-plant seeds from the forms Gymnasium's vector envs take: None, an int (plant i
+    gets ``seed + i``) or a list of ``n`` ints or Nones (``TypeError`` / ``ValueError``
+    naming the value otherwise, rather than a failure inside the seeding)."""
+    if seed is None:
+        return [None] * n
+    if is_int(seed):
+        return [int(seed) + i for i in range(n)]
+    seeds = items_of(seed)
+    if seeds is None:
+        raise TypeError(
+            f"seed must be an int, a list of num_envs={n} ints or Nones, or None, {got(seed)}"
+        )
+    if len(seeds) != n:
+        raise ValueError(
+            f"seed list must have length num_envs={n}, got {len(seeds)} seeds: {seed!r}"
+        )
+    for i, s in enumerate(seeds):
+        if s is not None and not is_int(s):
+            raise TypeError(f"seed[{i}] must be an int or None, {got(s)}")
+    return [None if s is None else int(s) for s in seeds]
 
 
 #: From this many plants on, a step spreads them over threads (numba prange).
@@ -110,8 +134,7 @@ class StickSlipVectorEnv(VectorEnv):
         params: dict | None = None,
         method: str = "auto",
     ):
-        if int(num_envs) < 1:
-            raise ValueError(f"num_envs must be >= 1, got {num_envs!r}")
+        num_envs = check_int("num_envs", num_envs, 1)
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(
                 f"render_mode must be one of {self.metadata['render_modes']} or None, "
@@ -130,12 +153,12 @@ class StickSlipVectorEnv(VectorEnv):
             method,
         )
         self.scene = self.setup.scene
-        self.num_envs = n = int(num_envs)
-        self.max_episode_steps = int(
-            self.scene.max_episode_steps if max_episode_steps is None else max_episode_steps
+        self.num_envs = n = num_envs
+        self.max_episode_steps = (
+            int(self.scene.max_episode_steps)
+            if max_episode_steps is None
+            else check_int("max_episode_steps", max_episode_steps, 1)
         )
-        if self.max_episode_steps < 1:
-            raise ValueError(f"max_episode_steps must be >= 1, got {max_episode_steps!r}")
         self.render_mode = render_mode
         self.dt = self.scene.control_dt
 
@@ -222,15 +245,10 @@ class StickSlipVectorEnv(VectorEnv):
         """Reset all plants (or those in ``options["reset_mask"]``), seeding plant i with
         ``seed + i`` (or ``seed[i]``); other options apply to every reset plant."""
         n = self.num_envs
-        if seed is None:
-            seeds: list[int | None] = [None] * n
-        elif isinstance(seed, (int, np.integer)) and not isinstance(seed, bool):
+        seeds = _plant_seeds(seed, n)
+        if is_int(seed):
             super().reset(seed=int(seed))
-            seeds = [int(seed) + i for i in range(n)]
-        else:
-            seeds = [None if s is None else int(s) for s in seed]
-            if len(seeds) != n:
-                raise ValueError(f"seed list must have length num_envs={n}, got {len(seeds)}")
+        check_dict("options", options)
         options = dict(options) if options else {}
         mask = options.pop("reset_mask", None)
         if mask is None:
@@ -294,10 +312,10 @@ class StickSlipVectorEnv(VectorEnv):
         if (
             type(a) is not np.ndarray
             or a.shape != self._act_shape
-            or a.dtype.kind != "f"
+            or a.dtype not in ACTION_DTYPES
             or not a.flags.c_contiguous
         ):
-            a = coerce_action(actions, self._act_shape)
+            a = coerce_action(actions, self._act_shape, "actions")
         if self._traces is not None:
             self._record_traces(a)
         kernel = self._step_kernel
@@ -383,7 +401,8 @@ class StickSlipVectorEnv(VectorEnv):
             logger.warn(
                 "You are calling render method without specifying any render mode. "
                 "You can specify the render_mode at initialization, e.g. "
-                'gym.make_vec("fricenv/StickSlip-v0", render_mode="rgb_array")'
+                'gym.make_vec("fricenv/StickSlip-v0", render_mode="rgb_array") '
+                'or StickSlipVectorEnv(render_mode="rgb_array")'
             )
             return None
         if self._painter is None:

@@ -1,0 +1,74 @@
+"""Argument checks shared by the public entry points: a wrong type gets a ``TypeError`` and
+a bad value a ``ValueError``, each naming the argument and what was passed, instead of a
+failure deep inside numpy, numba or ``range``."""
+
+from __future__ import annotations
+
+import numbers
+import operator
+from collections.abc import Iterable, Mapping
+from typing import Any
+
+import numpy as np
+
+
+def got(value: Any) -> str:
+    """The end of an error message: what was passed, and its type."""
+    return f"got {value!r} ({type(value).__name__})"
+
+
+def is_int(value: Any) -> bool:
+    """An integer (numpy's included; bools are not, floats are not even when whole)."""
+    return isinstance(value, (numbers.Integral, np.integer)) and not isinstance(
+        value, (bool, np.bool_)
+    )
+
+
+def check_int(name: str, value: Any, minimum: int | None = None) -> int:
+    """``value`` as an int: ``TypeError`` unless an integer (a float would be truncated),
+    ``ValueError`` if below ``minimum``."""
+    if not is_int(value):
+        raise TypeError(f"{name} must be an integer, {got(value)}")
+    n = operator.index(value)
+    if minimum is not None and n < minimum:
+        raise ValueError(f"{name} must be an integer >= {minimum}, got {value!r}")
+    return n
+
+
+def is_real(value: Any) -> bool:
+    """A real number, as the plant parameters take them (bools are not)."""
+    return isinstance(value, numbers.Real) and not isinstance(value, (bool, np.bool_))
+
+
+def check_real(name: str, value: Any) -> float:
+    """``value`` as a float; ``TypeError`` naming ``name`` unless it is a real number."""
+    if not is_real(value):
+        raise TypeError(f"{name} must be a real number, {got(value)}")
+    return float(value)
+
+
+def items_of(value: Any) -> list | None:
+    """The items of a list-like ``value`` (not a string or a mapping), else None."""
+    if isinstance(value, Iterable) and not isinstance(value, (str, bytes, Mapping)):
+        try:
+            return list(value)
+        except TypeError:  # e.g. a 0-d array
+            return None
+    return None
+
+
+def real_tuple(name: str, value: Any, n: int, what: str) -> tuple[float, ...]:
+    """``value`` as ``n`` floats; ``TypeError`` unless it is a sequence of real numbers,
+    ``ValueError`` unless it holds ``n`` of them (``what``: the message's description)."""
+    items = items_of(value)
+    if items is None:
+        raise TypeError(f"{name} must be {what}, {got(value)}")
+    if len(items) != n:
+        raise ValueError(f"{name} must be {what}, got {len(items)} values: {value!r}")
+    return tuple(check_real(f"{name}[{i}]", v) for i, v in enumerate(items))
+
+
+def check_dict(name: str, value: Any, what: str = "a dict") -> None:
+    """``TypeError`` naming ``name`` unless ``value`` is a mapping or None."""
+    if value is not None and not isinstance(value, Mapping):
+        raise TypeError(f"{name} must be {what} or None, {got(value)}")
