@@ -7,6 +7,8 @@ from dataclasses import asdict, dataclass, fields, replace
 
 import numpy as np
 
+from .checks import is_real
+
 # Layout of the float64 parameter vector that every kernel takes. Frequencies are stored,
 # not (eta, nu), so that a controller may retune a tone without touching the other.
 P_LAM, P_V, P_XFK, P_XFS, P_B1, P_B3, P_U1, P_U2, P_W1, P_W2 = range(10)
@@ -101,8 +103,7 @@ class OscillatorParams:
             value = getattr(self, f.name)
             if value is None and f.name in ("u1", "u2"):
                 continue
-            if isinstance(value, bool) or not isinstance(value, (int, float, np.floating,
-                                                                  np.integer)):
+            if not is_real(value):
                 raise ValueError(f"{f.name} must be a real number, got {value!r}")
             value = float(value)
             if not math.isfinite(value):

@@ -93,7 +93,8 @@ def _check_state(state: OscillatorState, params: OscillatorParams, t_span: float
                          f"{state.v - params.V!r}; build the state with OscillatorState.start")
 
 
-def check_scan_steps(P_rows: np.ndarray, spans: np.ndarray) -> None:
+def check_scan_steps(P_rows: np.ndarray, spans: np.ndarray,
+                     remedy: str = "shorten the span or check these values") -> None:
     """``ValueError`` if a run (row ``i`` of ``P_rows`` over ``spans[i]``) needs more than
     ``MAX_SCAN_STEPS`` scan steps.
 
@@ -105,10 +106,10 @@ def check_scan_steps(P_rows: np.ndarray, spans: np.ndarray) -> None:
     if most > MAX_SCAN_STEPS:
         P = P_rows[i]
         raise ValueError(
-            f"these parameters need about {most:.3g} scan steps over a span of "
-            f"{spans[i]:g} (at most {MAX_SCAN_STEPS:g}): the step is bounded by the fastest "
-            f"tone (eta = {P[P_W1]:g}, nu * eta = {P[P_W2]:g}) and the damping "
-            f"(lam = {P[P_LAM]:g}); shorten the span or check these values"
+            f"these parameters need about {most:.4g} scan steps over a span of "
+            f"{spans[i]:.6g} (at most {MAX_SCAN_STEPS:g}): the step is bounded by the fastest "
+            f"tone (eta = {P[P_W1]:.6g}, nu * eta = {P[P_W2]:.6g}) and the damping "
+            f"(lam = {P[P_LAM]:.6g}); {remedy}"
         )
 
 
@@ -321,6 +322,8 @@ def simulate(
     method = resolve_method(params, method)
     state = OscillatorState.start(params, x0, v0, phase1=phase1, phase2=phase2)
     P = params.to_array()
+    if method != "rk4":  # before the output arrays are allocated
+        check_scan_steps(P[None], np.array([t_end]))
     out_t = output_times(0.0, t_end, dt_out)
     n = out_t.shape[0]
     out_x = np.empty(n)
@@ -340,7 +343,6 @@ def simulate(
         return Trajectory(params, method, out_t, out_x, out_v, out_mode.astype(np.int8),
                           empty, np.empty(0, np.int8), empty,
                           RunStats.from_array(stats, OscillatorState.from_array(S)))
-    check_scan_steps(P[None], np.array([t_end]))
     max_events = int(min(max_event_rate * max(t_end, 1.0), 2**62))
     code = METHOD_EXACT if method == "exact" else METHOD_EVENT
     # A periodic run switches a few times per forcing period; start there, grow if needed.

@@ -52,7 +52,7 @@ from numba import njit, prange
 
 from . import core
 from .atomic import fetch_add
-from .checks import check_dict, check_int, got
+from .checks import check_dict, check_int, got, is_real
 from .layout import (
     METHOD_EVENT,
     METHOD_EXACT,
@@ -125,7 +125,7 @@ class SweepSettings:
                 if v not in ("auto", "exact", "event"):
                     raise ValueError(f"method must be 'auto', 'exact' or 'event', got {v!r}")
                 continue
-            if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)):
+            if not is_real(v):
                 raise ValueError(f"{f.name} must be a number, got {v!r}")
             if not math.isfinite(float(v)):
                 raise ValueError(f"{f.name} must be finite, got {v!r}")
@@ -336,12 +336,17 @@ def _check_cells(P_cells: np.ndarray, t_transient: np.ndarray, t_segment: np.nda
         i = int(np.argmax(n_segment))
         raise ValueError(
             f"a cell would keep {n_segment[i]} stroboscopic samples (at most {MAX_SEGMENTS}): "
-            f"its common forcing period {t_segment[i]:.3g} is tiny against its window; "
-            f"check eta = {P_cells[i, P_W1]:g}"
+            f"its window is that many common forcing periods of {t_segment[i]:.4g} (or "
+            f"n_strobe asks for them); check eta = {P_cells[i, P_W1]:.6g} and the settings "
+            "window_min, window_periods and n_strobe"
         )
     longest = np.asarray(t_transient) + np.asarray(t_segment) * n_segment * np.maximum(
         np.asarray(tries), 1)  # the transient plus every window a cell may be given
-    check_scan_steps(P_cells, np.ascontiguousarray(longest, dtype=np.float64))
+    check_scan_steps(
+        P_cells, np.ascontiguousarray(longest, dtype=np.float64),
+        "a cell's span is its transient (at least transient_efolds * 2 / (lam - b1)) plus "
+        "its windows: check these values and the settings transient_min, transient_efolds "
+        "and window_min")
 
 
 def run_cells(P_cells: np.ndarray, t_transient: np.ndarray, t_segment: np.ndarray,
@@ -462,13 +467,16 @@ class RegimeMap:
         tmp = path.with_name(path.name + f".tmp{os.getpid()}")
         plan = {} if self.plan is None else {
             f"plan_{f.name}": getattr(self.plan, f.name) for f in fields(CellPlan)}
-        with open(tmp, "wb") as fh:
-            np.savez(fh, u0=self.u0, nu=self.nu, labels=self.labels, stats=self.stats,
-                     period=self.period, status=self.status, done=self.done, q=self.q,
-                     meta=np.array(json.dumps(self.metadata(), sort_keys=True)), **plan)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, path)
+        try:
+            with open(tmp, "wb") as fh:
+                np.savez(fh, u0=self.u0, nu=self.nu, labels=self.labels, stats=self.stats,
+                         period=self.period, status=self.status, done=self.done, q=self.q,
+                         meta=np.array(json.dumps(self.metadata(), sort_keys=True)), **plan)
+                fh.flush()
+                os.fsync(fh.fileno())
+            os.replace(tmp, path)
+        finally:
+            tmp.unlink(missing_ok=True)  # a failed write leaves nothing behind
         return path
 
     @classmethod
@@ -591,6 +599,11 @@ def regime_map(params: OscillatorParams | str, u0: object, nu: object, *,
     """
     params = _as_params(params)
     check_dict("meta", meta)
+    if meta:
+        try:  # before any cell runs: meta is written as JSON with every save
+            json.dumps(dict(meta))
+        except (TypeError, ValueError) as e:
+            raise TypeError(f"meta must hold JSON-able values: {e}") from None
     if meta and _RESERVED_META & set(meta):
         raise ValueError(f"meta must not set the reserved key(s) "
                          f"{sorted(_RESERVED_META & set(meta))}")

@@ -313,6 +313,13 @@ def test_non_numeric_action_raises_type_error_naming_it(bad):
     vec.step(np.zeros((4, 1), np.float32))
 
 
+def test_bool_actions_are_refused():
+    env = StickSlipEnv()
+    env.reset(seed=0)
+    with pytest.raises(TypeError, match=r"action must be an array of real numbers.*\(bool\)"):
+        env.step(True)
+
+
 def test_action_of_wrong_size_raises_value_error_naming_the_shape():
     env = gym.make(ENV_ID)
     env.reset(seed=0)
@@ -339,6 +346,35 @@ def test_actions_of_other_dtypes_step_like_float64(dtype):
     vb.reset(seed=3)
     acts = np.array([[1.0], [-1.0]])
     assert np.array_equal(va.step(acts.astype(dtype))[0], vb.step(acts)[0])
+
+
+def test_numpy_integer_seeds_seed_like_python_ints():
+    """Gymnasium's Env.reset takes only Python ints; numpy ints come from seed arrays and
+    from SB3's VecEnv.seed (seed + index)."""
+    from fricenv.envs.sb3 import StickSlipSB3VecEnv
+
+    env = StickSlipEnv()
+    assert np.array_equal(env.reset(seed=np.int64(3))[0], env.reset(seed=3)[0])
+    ours = StickSlipSB3VecEnv(num_envs=2)
+    ours.seed(np.int64(3))
+    first = ours.reset()
+    ours.seed(3)
+    assert np.array_equal(first, ours.reset())
+
+
+def test_complex_reset_options_are_refused():
+    env = StickSlipEnv()
+    with pytest.raises(ValueError, match="reset option 'u0' must be a real number"):
+        env.reset(seed=0, options={"u0": np.complex128(1 + 1j)})  # was cut to 1.0
+
+
+def test_vector_reset_options_are_checked_before_reseeding():
+    vec = StickSlipVectorEnv(num_envs=2)
+    vec.reset(seed=1)
+    state = vec.np_random.bit_generator.state
+    with pytest.raises(TypeError, match="options must be a dict"):
+        vec.reset(seed=7, options=5)
+    assert vec.np_random.bit_generator.state == state
 
 
 def test_vector_reset_seed_of_wrong_type_or_length_raises():

@@ -228,11 +228,18 @@ def test_settings_of_wrong_type_raise_type_error() -> None:
         cell_statistics([PARAMS], settings={})  # type: ignore[arg-type]
 
 
+def test_meta_that_is_not_json_is_refused_before_any_cell_runs(tmp_path) -> None:
+    path = tmp_path / "m.npz"
+    with pytest.raises(TypeError, match="meta must hold JSON-able values"):
+        regime_map(PARAMS, [1.0], [0.5], path=path, meta={"a": object()})
+    assert list(tmp_path.iterdir()) == []  # no map, no temporary file
+
+
 def test_sweeps_whose_cells_would_scan_for_hours_are_refused(tmp_path) -> None:
     """eta = 1e8 asks for ~1e11 scan steps a cell; that used to run without a word."""
     fast = PARAMS.replace(eta=1e8)
     path = tmp_path / "fast.npz"
-    msg = r"5.66e\+10 scan steps over a span of 200 .*nu \* eta = 1.4142e\+08"
+    msg = r"5.657e\+10 scan steps over a span of 200 .*nu \* eta = 1.4142e\+08.*transient_efolds"
     with pytest.raises(ValueError, match=msg):
         regime_map(fast, [0.0, 1.0], [0.7071, 1.4142], path=path)  # no strobe (q > 4)
     assert not path.exists()  # refused before anything was written

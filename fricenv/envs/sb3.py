@@ -17,7 +17,7 @@ from gymnasium.vector import AutoresetMode
 from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvIndices, VecEnvStepReturn
 
 from fricenv.envs import kernels as K
-from fricenv.envs.vector import StickSlipVectorEnv
+from fricenv.envs.vector import StickSlipVectorEnv, plant_seeds
 
 
 class StickSlipSB3VecEnv(VecEnv):
@@ -38,9 +38,9 @@ class StickSlipSB3VecEnv(VecEnv):
         )
 
     def reset(self) -> np.ndarray:
-        seeds = list(self._seeds)
-        options = [dict(o) if o else {} for o in self._options]
         n = self.num_envs
+        seeds = plant_seeds(list(self._seeds), n)  # VecEnv.seed(np.int64(3)) adds numpy ints
+        options = [dict(o) if o else {} for o in self._options]
         self.venv._reset_plants(np.arange(n), seeds, options)  # per-plant seeds and options
         self._reset_seeds()
         self._reset_options()

@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from fricenv.checks import check_dict, check_real, got, real_tuple
+from fricenv.checks import check_dict, check_int, check_real, got, is_real, real_tuple
 from fricenv.params import (
     N_PARAMS,
     P_B1,
@@ -126,11 +126,12 @@ class Scene:
         if not all(math.isfinite(w) and w >= 0.0 for w in weights):
             raise ValueError(f"reward_weights must be three finite weights >= 0, got {weights}")
         object.__setattr__(self, "reward_weights", weights)
-        for name in ("control_dt", "max_episode_steps", "max_delta", "x_limit", "v_limit"):
+        for name in ("control_dt", "max_delta", "x_limit", "v_limit"):
             check_real(name, getattr(self, name))
+        object.__setattr__(self, "max_episode_steps",
+                           check_int("max_episode_steps", self.max_episode_steps, 1))
         checks = (
             ("control_dt", math.isfinite(self.control_dt) and self.control_dt > 0.0),
-            ("max_episode_steps", int(self.max_episode_steps) >= 1),
             ("max_delta", 0.0 < self.max_delta <= 1.0),
             ("x_limit", self.x_limit > 0.0),
             ("v_limit", self.v_limit > 0.0),
@@ -212,7 +213,7 @@ def episode_from_draws(
         if unknown:
             raise ValueError(f"unknown reset option(s) {unknown}; expected some of {OPTION_KEYS}")
         for key, value in options.items():
-            if isinstance(value, bool) or not isinstance(value, (int, float, np.number)):
+            if not is_real(value):  # (complex would pass as np.number, cut to its real part)
                 raise ValueError(f"reset option {key!r} must be a real number, got {value!r}")
             if not math.isfinite(float(value)):
                 raise ValueError(f"reset option {key!r} must be finite, got {value!r}")

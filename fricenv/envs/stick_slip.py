@@ -17,7 +17,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from fricenv.checks import check_dict, check_real, real_tuple
+from fricenv.checks import check_dict, check_real, is_int, real_tuple
 from fricenv.core import new_workspace
 from fricenv.envs import kernels as K
 from fricenv.envs.scenes import (
@@ -227,7 +227,7 @@ def coerce_action(action: Any, shape: tuple[int, ...], name: str = "action") -> 
                     a = a.astype(np.float64)
                 except (TypeError, ValueError):
                     a = None
-    if a is None or a.dtype.kind not in "biuf":
+    if a is None or a.dtype.kind not in "iuf":  # (bools are flags, not amplitudes)
         raise TypeError(f"{want}, got {action!r} ({type(action).__name__})")
     if a.size != math.prod(shape):
         raise ValueError(f"{want}, got shape {a.shape}: {action!r}")
@@ -469,7 +469,7 @@ class StickSlipEnv(gym.Env):
     def reset(
         self, *, seed: int | None = None, options: dict | None = None
     ) -> tuple[np.ndarray, dict]:
-        super().reset(seed=seed)
+        super().reset(seed=int(seed) if is_int(seed) else seed)  # numpy ints too
         values = self.setup.draw(self.np_random)
         self.setup.episode(values, options, self._P_new, self._init)
         K.start_episode(

@@ -60,7 +60,7 @@ def _info_dict(vals, masks) -> dict[str, Any]:
     return infos
 
 
-def _plant_seeds(seed: Any, n: int) -> list[int | None]:
+def plant_seeds(seed: Any, n: int) -> list[int | None]:
     """Per-plant seeds from the forms Gymnasium's vector envs take: None, an int (plant i
     gets ``seed + i``) or a list of ``n`` ints or Nones (``TypeError`` / ``ValueError``
     naming the value otherwise, rather than a failure inside the seeding)."""
@@ -245,10 +245,10 @@ class StickSlipVectorEnv(VectorEnv):
         """Reset all plants (or those in ``options["reset_mask"]``), seeding plant i with
         ``seed + i`` (or ``seed[i]``); other options apply to every reset plant."""
         n = self.num_envs
-        seeds = _plant_seeds(seed, n)
+        seeds = plant_seeds(seed, n)
+        check_dict("options", options)  # before anything is reseeded
         if is_int(seed):
             super().reset(seed=int(seed))
-        check_dict("options", options)
         options = dict(options) if options else {}
         mask = options.pop("reset_mask", None)
         if mask is None:
