@@ -328,6 +328,16 @@ class _Threads:
 MAX_SEGMENTS = 1_000_000
 
 
+def _cell_rows(base: np.ndarray, u0: np.ndarray, nu: np.ndarray) -> np.ndarray:
+    """Parameter vectors of map cells: ``base`` with both tones at ``u0[k]`` and the second
+    tone at ``nu[k]`` times the first's frequency."""
+    P = np.repeat(base[None, :], u0.size, axis=0)
+    P[:, P_U1] = u0
+    P[:, P_U2] = u0
+    P[:, P_W2] = nu * P[:, P_W1]
+    return P
+
+
 def _check_cells(P_cells: np.ndarray, t_transient: np.ndarray, t_segment: np.ndarray,
                  n_segment: np.ndarray, tries: np.ndarray) -> None:
     """``ValueError`` before a sweep whose cells would run for hours or fill the memory."""
@@ -618,9 +628,8 @@ def regime_map(params: OscillatorParams | str, u0: object, nu: object, *,
     plan = plan_cells(params, nu, settings)
     # Checked before anything is written, on each nu's fastest cell (the scan step depends
     # on u0 only through whether it is 0).
-    fastest = np.repeat(params.to_array()[None, :], nu.size, axis=0)
-    fastest[:, P_U1] = fastest[:, P_U2] = np.max(np.abs(u0))
-    fastest[:, P_W2] = plan.nu_exact * fastest[:, P_W1]
+    base = params.to_array()
+    fastest = _cell_rows(base, np.full(nu.size, np.max(np.abs(u0))), plan.nu_exact)
     _check_cells(fastest, plan.t_transient, plan.t_segment, plan.n_segment, plan.tries)
 
     rmap = None
@@ -651,7 +660,6 @@ def regime_map(params: OscillatorParams | str, u0: object, nu: object, *,
     if chunk_size is None:
         chunk_size = int(min(2048, max(64, todo.size // 100)))
     show = (todo.size > 2000) if progress is None else bool(progress)
-    base = params.to_array()
     bar = None
     if show:
         from tqdm.auto import tqdm
@@ -662,10 +670,7 @@ def regime_map(params: OscillatorParams | str, u0: object, nu: object, *,
         for start in range(0, todo.size, chunk_size):
             idx = todo[start:start + chunk_size]
             iu, jn = np.divmod(idx, n_nu)
-            P = np.repeat(base[None, :], idx.size, axis=0)
-            P[:, P_U1] = u0[iu]
-            P[:, P_U2] = u0[iu]
-            P[:, P_W2] = plan.nu_exact[jn] * P[:, P_W1]
+            P = _cell_rows(base, u0[iu], plan.nu_exact[jn])
             t0 = time.perf_counter()
             st, status, period = run_cells(P, plan.t_transient[jn], plan.t_segment[jn],
                                            plan.n_segment[jn], plan.tries[jn], settings,
