@@ -4,6 +4,7 @@ failure deep inside numpy, numba or ``range``."""
 
 from __future__ import annotations
 
+import math
 import numbers
 import operator
 from collections.abc import Iterable, Mapping
@@ -45,6 +46,23 @@ def check_real(name: str, value: Any) -> float:
     if not is_real(value):
         raise TypeError(f"{name} must be a real number, {got(value)}")
     return float(value)
+
+
+def check_finite_real(name: str, value: Any) -> float:
+    """``value`` as a finite float: ``TypeError`` naming ``name`` unless it is a real number
+    (:func:`check_real`), ``ValueError`` if it is NaN or infinite."""
+    x = check_real(name, value)
+    if not math.isfinite(x):
+        raise ValueError(f"{name} must be finite, got {value!r}")
+    return x
+
+
+def check_bool(name: str, value: Any) -> bool:
+    """``value`` as a bool; ``TypeError`` naming ``name`` unless it is one (numpy's included:
+    a truthy string such as ``'no'`` or a number would otherwise pass as True)."""
+    if not isinstance(value, (bool, np.bool_)):
+        raise TypeError(f"{name} must be a bool (True or False), {got(value)}")
+    return bool(value)
 
 
 def items_of(value: Any) -> list | None:

@@ -2,12 +2,11 @@
 
 from __future__ import annotations
 
-import math
 from dataclasses import asdict, dataclass, fields, replace
 
 import numpy as np
 
-from .checks import is_real
+from .checks import check_finite_real
 
 # Layout of the float64 parameter vector that every kernel takes. Frequencies are stored,
 # not (eta, nu), so that a controller may retune a tone without touching the other.
@@ -83,7 +82,8 @@ class OscillatorParams:
     ======  ==========================================================  ========
 
     Defaults are the paper's (Sec. 3.2.1). Construction validates every field and raises
-    ``ValueError`` naming the field and its value, so a bad run fails before it starts.
+    ``TypeError`` (not a real number) or ``ValueError`` (NaN, infinite or out of range)
+    naming the field and its value, so a bad run fails before it starts.
     """
 
     lam: float = 0.5
@@ -103,12 +103,8 @@ class OscillatorParams:
             value = getattr(self, f.name)
             if value is None and f.name in ("u1", "u2"):
                 continue
-            if not is_real(value):
-                raise ValueError(f"{f.name} must be a real number, got {value!r}")
-            value = float(value)
-            if not math.isfinite(value):
-                raise ValueError(f"{f.name} must be finite, got {value!r}")
-            object.__setattr__(self, f.name, value)
+            # TypeError for a non-number (None where a number goes), ValueError for NaN/inf
+            object.__setattr__(self, f.name, check_finite_real(f.name, value))
         checks = (
             ("lam", self.lam >= 0.0, "must be >= 0"),
             ("eta", self.eta > 0.0, "must be > 0"),

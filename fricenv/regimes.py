@@ -53,6 +53,7 @@ from fractions import Fraction
 import numpy as np
 from numba import njit
 
+from .checks import check_int, check_real
 from .layout import (
     N_STATS,
     ST_DURATION,
@@ -109,9 +110,10 @@ def rational_denominator(nu: float, q_max: int = Q_MAX, tol: float = 1e-9) -> in
 
     ``tol`` is relative to ``max(1, nu)`` so that grid values such as ``0.1 * 3`` count.
     """
+    nu = check_real("nu", nu)
     if not math.isfinite(nu) or nu < 0.0:
         raise ValueError(f"nu must be finite and >= 0, got {nu!r}")
-    if q_max < 1:
+    if check_int("q_max", q_max) < 1:
         return 0
     frac = Fraction(nu).limit_denominator(q_max)
     if abs(float(frac) - nu) <= tol * max(1.0, nu):
@@ -120,8 +122,10 @@ def rational_denominator(nu: float, q_max: int = Q_MAX, tol: float = 1e-9) -> in
 
 
 def exact_rational(nu: float, q: int) -> float:
-    """``p/q`` nearest to ``nu`` (used so a sweep's forcing is exactly periodic)."""
-    if q <= 0:
+    """``p/q`` nearest to ``nu`` (used so a sweep's forcing is exactly periodic); ``q <= 0``
+    leaves ``nu`` as it is."""
+    nu = check_real("nu", nu)
+    if check_int("q", q) <= 0:
         return float(nu)
     return round(nu * q) / q
 
@@ -164,11 +168,11 @@ def strobe_period(xs: np.ndarray, vs: np.ndarray, m_max: int = M_MAX,
             f"xs and vs must be 1-d arrays of the same length, got shapes {xs.shape} and "
             f"{vs.shape}"
         )
-    if int(m_max) != m_max or m_max < 1:
-        raise ValueError(f"m_max must be an integer >= 1, got {m_max!r}")
-    if not (np.isfinite(tol) and tol >= 0.0):
+    m_max = check_int("m_max", m_max, 1)  # TypeError for 2.0 (was taken as 2)
+    tol = check_real("tol", tol)
+    if not (math.isfinite(tol) and tol >= 0.0):
         raise ValueError(f"tol must be finite and >= 0, got {tol!r}")
-    return int(_strobe_period(xs, vs, int(m_max), float(tol)))
+    return int(_strobe_period(xs, vs, m_max, tol))
 
 
 def classify(n_stick: np.ndarray | float, stick_time: np.ndarray | float,

@@ -8,6 +8,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import core
+from .checks import check_finite_real, check_int, got
 from .layout import (
     EVENT_REVERSAL,
     EVENT_SLIP,
@@ -55,18 +56,8 @@ class SimulationError(RuntimeError):
     """A run that cannot continue: event cap exceeded or a non-finite state."""
 
 
-def _finite(name: str, value: float) -> float:
-    try:
-        value = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a real number, got {value!r}") from None
-    if not math.isfinite(value):
-        raise ValueError(f"{name} must be finite, got {value!r}")
-    return value
-
-
 def _positive(name: str, value: float) -> float:
-    value = _finite(name, value)
+    value = check_finite_real(name, value)
     if value <= 0.0:
         raise ValueError(f"{name} must be > 0, got {value!r}")
     return value
@@ -80,8 +71,8 @@ def _check_params(params: OscillatorParams) -> None:
 def _check_state(state: OscillatorState, params: OscillatorParams, t_span: float) -> None:
     """``ValueError`` for a state the kernels cannot continue from consistently."""
     for name in ("t", "x", "v", "phase1", "phase2"):
-        _finite(f"state.{name}", getattr(state, name))
-    if state.mode not in (-1, 0, 1):
+        check_finite_real(f"state.{name}", getattr(state, name))
+    if check_int("state.mode", state.mode) not in (-1, 0, 1):
         raise ValueError(f"state.mode must be -1, 0 or 1, got {state.mode!r}")
     if state.t + t_span == state.t:
         raise ValueError(f"t_span = {t_span!r} is lost in rounding at state.t = {state.t!r}")
@@ -94,20 +85,22 @@ def _check_state(state: OscillatorState, params: OscillatorParams, t_span: float
 
 
 def check_scan_steps(P_rows: np.ndarray, spans: np.ndarray,
-                     remedy: str = "shorten the span or check these values") -> None:
+                     remedy: str = "shorten the span or check these values",
+                     cap: float = MAX_SCAN_STEPS) -> None:
     """``ValueError`` if a run (row ``i`` of ``P_rows`` over ``spans[i]``) needs more than
-    ``MAX_SCAN_STEPS`` scan steps.
+    ``cap`` scan steps (default ``MAX_SCAN_STEPS``; the environments cap one control
+    interval far lower, see ``fricenv.envs.scenes.MAX_INTERVAL_SCAN_STEPS``).
 
     Event-driven runs step at most half a radian of the fastest active tone (and 1 / rate
     when over-damped), so a very fast tone or stiff damping would otherwise run for hours
     without a word.
     """
     most, i = core.most_scan_steps(P_rows, spans)
-    if most > MAX_SCAN_STEPS:
+    if most > cap:
         P = P_rows[i]
         raise ValueError(
             f"these parameters need about {most:.4g} scan steps over a span of "
-            f"{spans[i]:.6g} (at most {MAX_SCAN_STEPS:g}): the step is bounded by the fastest "
+            f"{spans[i]:.6g} (at most {cap:g}): the step is bounded by the fastest "
             f"tone (eta = {P[P_W1]:.6g}, nu * eta = {P[P_W2]:.6g}) and the damping "
             f"(lam = {P[P_LAM]:.6g}); {remedy}"
         )
@@ -115,6 +108,8 @@ def check_scan_steps(P_rows: np.ndarray, spans: np.ndarray,
 
 def resolve_method(params: OscillatorParams, method: str) -> str:
     """``"auto"`` -> exact for the Coulomb law, event otherwise; validate the name."""
+    if not isinstance(method, str):
+        raise TypeError(f"method must be 'auto' or one of {sorted(METHODS)}, {got(method)}")
     if method == "auto":
         return "exact" if params.is_coulomb else "event"
     if method not in METHODS:
@@ -160,9 +155,10 @@ class OscillatorState:
               t0: float = 0.0, phase1: float = 0.0, phase2: float = 0.0) -> OscillatorState:
         """A consistent start: stick iff v0 == V and the static friction can hold the block."""
         _check_params(params)
-        x0, v0 = _finite("x0", x0), _finite("v0", v0)
-        t0 = _finite("t0", t0)
-        phase1, phase2 = _finite("phase1", phase1), _finite("phase2", phase2)
+        x0, v0 = check_finite_real("x0", x0), check_finite_real("v0", v0)
+        t0 = check_finite_real("t0", t0)
+        phase1 = check_finite_real("phase1", phase1)
+        phase2 = check_finite_real("phase2", phase2)
         mode = core.initial_mode(params.to_array(), x0, v0, phase1, phase2)
         return cls(t0, x0, v0, int(mode), phase1, phase2)
 

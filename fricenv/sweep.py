@@ -52,7 +52,7 @@ from numba import njit, prange
 
 from . import core
 from .atomic import fetch_add
-from .checks import check_dict, check_int, got, is_real
+from .checks import check_bool, check_dict, check_finite_real, check_int, got, is_real
 from .layout import (
     METHOD_EVENT,
     METHOD_EXACT,
@@ -85,6 +85,10 @@ NOT_COMPUTED = -1
 STAT_NAMES = ("duration", "stick_time", "n_stick", "n_slip", "n_reversal", "v_max", "v_min",
               "x_max", "x_min", "vr2_int", "n_steps")
 assert len(STAT_NAMES) == N_STATS
+
+
+#: The integer-valued fields of :class:`SweepSettings`.
+_INT_SETTINGS = ("q_max", "m_max", "lock_extensions", "n_strobe")
 
 
 @dataclass(frozen=True)
@@ -122,19 +126,15 @@ class SweepSettings:
         for f in fields(self):
             v = getattr(self, f.name)
             if f.name == "method":
+                if not isinstance(v, str):
+                    raise TypeError(f"method must be 'auto', 'exact' or 'event', {got(v)}")
                 if v not in ("auto", "exact", "event"):
                     raise ValueError(f"method must be 'auto', 'exact' or 'event', got {v!r}")
                 continue
-            if not is_real(v):
-                raise ValueError(f"{f.name} must be a number, got {v!r}")
-            if not math.isfinite(float(v)):
-                raise ValueError(f"{f.name} must be finite, got {v!r}")
-            if f.name in ("q_max", "m_max", "n_strobe", "lock_extensions"):
-                if int(v) != v or v < 0:
-                    raise ValueError(f"{f.name} must be a non-negative integer, got {v!r}")
-                object.__setattr__(self, f.name, int(v))
-            else:
-                object.__setattr__(self, f.name, float(v))
+            if f.name in _INT_SETTINGS:  # counts: 12.0 is a TypeError, not silently 12
+                object.__setattr__(self, f.name, check_int(f.name, v, 0))
+            else:  # TypeError for a non-number, ValueError for NaN or inf
+                object.__setattr__(self, f.name, check_finite_real(f.name, v))
         if self.rtol <= 0.0:
             raise ValueError(f"rtol must be > 0, got {self.rtol!r}")
         for name in ("transient_min", "transient_periods", "transient_efolds",
@@ -530,12 +530,23 @@ def _params_key(params: OscillatorParams) -> dict:
 
 
 def _check_axis(name: str, a: object) -> np.ndarray:
-    if a is None:  # would become NaN
-        raise ValueError(f"{name} must be an array of real numbers, got None")
-    try:
-        arr = np.asarray(a, dtype=float)
-    except (TypeError, ValueError) as exc:
-        raise ValueError(f"{name} must be an array of real numbers, got {a!r}") from exc
+    """A grid axis as a 1-d float array: ``TypeError`` unless made of real numbers (None
+    would become NaN, strings such as ``"0.5"`` would be parsed), ``ValueError`` for a
+    ragged, 2-d, empty, non-finite or negative one."""
+    what = f"{name} must be an array of real numbers"
+    arr = None
+    if a is not None and not isinstance(a, (str, bytes)):
+        try:
+            arr = np.asarray(a)
+        except ValueError as exc:  # ragged nesting: numbers, but no array shape
+            raise ValueError(f"{what}, got {a!r}") from exc
+        except TypeError:  # e.g. a failing __array__
+            arr = None
+        if arr is not None and arr.dtype.kind == "O":  # e.g. Fractions; not None or strings
+            arr = arr.astype(float) if all(is_real(v) for v in arr.flat) else None
+    if arr is None or arr.dtype.kind not in "iuf":  # (bools are flags, not amplitudes)
+        raise TypeError(f"{what}, {got(a)}")
+    arr = arr.astype(float)
     if arr.ndim == 0:
         arr = arr.reshape(1)
     if arr.ndim != 1:
@@ -572,7 +583,7 @@ def _as_params(params: OscillatorParams | str) -> OscillatorParams:
         return params
     if isinstance(params, str):
         return OscillatorParams.preset(resolve_law(params))
-    raise ValueError(f"params must be OscillatorParams or a friction-law name, got {params!r}")
+    raise TypeError(f"params must be OscillatorParams or a friction-law name, {got(params)}")
 
 
 def _empty_map(params: OscillatorParams, u0: np.ndarray, nu: np.ndarray,
@@ -621,6 +632,9 @@ def regime_map(params: OscillatorParams | str, u0: object, nu: object, *,
     nu = _check_axis("nu", nu)
     settings = _settings(settings, overrides)
     method = settings.method_code(params)
+    resume = check_bool("resume", resume)
+    if progress is not None:
+        check_bool("progress", progress)
     if chunk_size is not None:
         check_int("chunk_size", chunk_size, 1)
     if n_threads is not None:

@@ -82,6 +82,45 @@ def test_invalid_parameters_name_field_and_value(field, value):
     assert repr(value) in str(info.value) or str(value) in str(info.value)
 
 
+@pytest.mark.parametrize("field,value", [
+    ("lam", "0.5"), ("u0", None), ("eta", [0.6]), ("V", 1 + 0j), ("xfk", True), ("u1", "1"),
+])
+def test_parameters_of_wrong_type_raise_type_error(field, value):
+    """A non-number was a ValueError; NaN, inf and out-of-range values still are."""
+    with pytest.raises(TypeError, match=rf"{field} must be a real number, got ") as info:
+        OscillatorParams(**{field: value})
+    assert repr(value) in str(info.value) and type(value).__name__ in str(info.value)
+    with pytest.raises(TypeError, match=rf"{field} must be a real number"):
+        OscillatorParams().replace(**{field: value})
+
+
+def test_simulate_arguments_of_wrong_type_raise_type_error():
+    """simulate's own finiteness check was a second mechanism that parsed strings ('1.5'
+    ran) and called None a ValueError; it is checks.check_finite_real now."""
+    p = OscillatorParams(u0=1.0)
+    with pytest.raises(TypeError, match=r"t_end must be a real number, got '1\.5' \(str\)"):
+        simulate(p, "1.5")
+    with pytest.raises(TypeError, match=r"x0 must be a real number, got None \(NoneType\)"):
+        simulate(p, 1.0, x0=None)
+    with pytest.raises(TypeError, match=r"dt must be a real number, got '0\.1'"):
+        simulate(p, 1.0, method="rk4", dt="0.1")
+    with pytest.raises(TypeError, match=r"t_span must be a real number, got None"):
+        run_stats(p, None)
+    with pytest.raises(TypeError, match=r"rtol must be a real number, got '1e-9'"):
+        run_stats(p, 1.0, rtol="1e-9")
+    with pytest.raises(TypeError, match=r"phase1 must be a real number, got \[0\.0\]"):
+        OscillatorState.start(p, phase1=[0.0])
+    with pytest.raises(TypeError, match=r"state\.x must be a real number, got '0'"):
+        run_stats(p, 1.0, state=OscillatorState(x="0"))
+    with pytest.raises(TypeError, match=r"state\.mode must be an integer, got -1\.0"):
+        run_stats(p, 1.0, state=OscillatorState(mode=-1.0))
+    with pytest.raises(TypeError, match=r"method must be 'auto' or one of .* got \['exact'\]"):
+        simulate(p, 1.0, method=["exact"])
+    with pytest.raises(ValueError, match=r"x0 must be finite, got inf"):  # values: ValueError
+        simulate(p, 1.0, x0=math.inf)
+    assert simulate(p, np.float32(1.0), x0=np.int64(0)).t[-1] == 1.0  # numpy numbers are
+
+
 def test_xfs_below_xfk_rejected():
     with pytest.raises(ValueError, match="xfs"):
         OscillatorParams(xfk=3.0, xfs=2.0)

@@ -197,7 +197,7 @@ def test_mean_relative_velocity_and_interval_sampling():
             (after["x"] - before["x"]) / env.dt - before["V"], abs=1e-12)
     with pytest.raises(ValueError, match="n_samples"):
         env.sample_interval(np.zeros(2, np.float32), 0)
-    with pytest.raises(ValueError, match="n_samples"):
+    with pytest.raises(TypeError, match="n_samples"):  # a count: 2.5 is the wrong type
         env.sample_interval(np.zeros(2, np.float32), 2.5)
     with pytest.raises(ValueError, match="finite"):
         env.sample_interval(np.array([np.nan, 0.0], np.float32))
@@ -364,7 +364,7 @@ def test_numpy_integer_seeds_seed_like_python_ints():
 
 def test_complex_reset_options_are_refused():
     env = StickSlipEnv()
-    with pytest.raises(ValueError, match="reset option 'u0' must be a real number"):
+    with pytest.raises(TypeError, match="reset option 'u0' must be a real number"):
         env.reset(seed=0, options={"u0": np.complex128(1 + 1j)})  # was cut to 1.0
 
 
@@ -435,11 +435,103 @@ _PAPER = SCENES["paper"]
          r"tone_gains\[1\] must be a real number, got None"),
         (lambda: _PAPER.replace(randomization={"lam": 0.5}), TypeError,
          r"randomization\['lam'\] must be a finite \(lo, hi\)"),
+        # a list of names gave a raw "dictionary update sequence" error from dict()
+        (lambda: _PAPER.replace(randomization=["lam"]), TypeError,
+         r"randomization must be a dict \{param: \(lo, hi\)\} or None, got \['lam'\] \(list\)"),
+        (lambda: _PAPER.replace(randomization=[("lam", (0.4, 0.6))]), TypeError,
+         r"randomization must be a dict .* got \[\('lam', \(0\.4, 0\.6\)\)\] \(list\)"),
+        (lambda: _PAPER.replace(randomization={"lam": None}), TypeError,
+         r"randomization\['lam'\] must be a finite \(lo, hi\) with lo <= hi, got None"),
+        (lambda: _PAPER.replace(randomization={"lam": ("a", 0.6)}), TypeError,
+         r"randomization\['lam'\]\[0\] must be a real number, got 'a' \(str\)"),
+        (lambda: _PAPER.replace(randomization={"lam": (0.4, 0.5, 0.6)}), ValueError,
+         r"randomization\['lam'\] must be a finite \(lo, hi\) .* got 3 values: \(0\.4"),
+        (lambda: _PAPER.replace(randomization={"lam": (0.6, 0.4)}), ValueError,
+         r"randomization\['lam'\] must be a finite \(lo, hi\) with lo <= hi, got \(0\.6"),
+        (lambda: _PAPER.replace(params={"lam": 0.2}), TypeError,
+         r"params must be an OscillatorParams, got \{'lam': 0\.2\} \(dict\)"),
+        (lambda: _PAPER.replace(action_mode=["both"]), TypeError,
+         r"action_mode must be one of .* got \['both'\] \(list\)"),
+        (lambda: _PAPER.replace(random_phase="no"), TypeError,
+         r"random_phase must be a bool .* got 'no' \(str\)"),
+        # a truthy string switched incremental actions on
+        (lambda: StickSlipEnv(incremental="no"), TypeError,
+         r"incremental must be a bool \(True or False\), got 'no' \(str\)"),
+        (lambda: StickSlipVectorEnv(incremental="no"), TypeError,
+         r"incremental must be a bool \(True or False\), got 'no' \(str\)"),
+        (lambda: gym.make(ENV_ID, incremental=1), TypeError,
+         r"incremental must be a bool \(True or False\), got 1 \(int\)"),
+        (lambda: StickSlipEnv(randomize="yes"), TypeError,
+         r"randomize must be a bool \(True or False\), got 'yes' \(str\)"),
+        # a non-number in reset options was a ValueError; NaN and bad values still are
+        (lambda: StickSlipEnv().reset(options={"lam": "0.3"}), TypeError,
+         r"reset option 'lam' must be a real number, got '0\.3' \(str\)"),
+        (lambda: StickSlipEnv().reset(options={"x0": None}), TypeError,
+         r"reset option 'x0' must be a real number, got None \(NoneType\)"),
+        (lambda: StickSlipVectorEnv(num_envs=2).reset(options={"nu": [1.0]}), TypeError,
+         r"reset option 'nu' must be a real number, got \[1\.0\] \(list\)"),
+        (lambda: StickSlipEnv().reset(options={"x0": math.nan}), ValueError,
+         r"reset option 'x0' must be finite, got nan"),
+        (lambda: StickSlipEnv().reset(options={"lam": -1.0}), ValueError,
+         r"lam must be >= 0, got -1\.0"),
     ],
 )
 def test_constructor_and_reset_arguments_of_wrong_type_raise(make, error, match):
     with pytest.raises(error, match=match):
         make()
+
+
+def test_bool_arguments_take_numpy_bools_and_scene_randomization_round_trips():
+    env = StickSlipEnv(incremental=np.bool_(True), randomize=np.bool_(False))
+    assert env.setup.incremental is True and env.setup.randomize is False
+    sc = _PAPER.replace(randomization={"lam": (0.4, 0.7)}, random_phase=np.bool_(False))
+    assert sc.ranges == {"lam": (0.4, 0.7)} and sc.random_phase is False
+    assert sc.replace(name="copy").ranges == sc.ranges  # the stored pairs are taken back
+    assert _PAPER.replace(randomization=None).ranges == {}
+
+
+_SLOW = r"scan steps over a span of 0\.523599 \(at most 1e\+06\)"
+
+
+@pytest.mark.parametrize("vector", [False, True])
+def test_reset_options_needing_too_many_scan_steps_per_interval_are_refused(vector):
+    """reset(options={"lam": 1e8}) made every step take ~3 s: the over-damped plant's scan
+    step is 1 / lam, so a control interval took 5e7 of them."""
+    env = StickSlipVectorEnv(num_envs=2) if vector else StickSlipEnv()
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match=_SLOW + r".*\(lam = 1e\+08\).*refused reset options"):
+        env.reset(options={"lam": 1e8})
+    # a tone that fast: eta at 1e7 and nu at the top of its range (the action can reach it)
+    with pytest.raises(ValueError, match=_SLOW + r".*\(eta = 1e\+07, nu \* eta = 2e\+07\)"):
+        env.reset(options={"eta": 1e7, "nu": 0.1})
+    env.reset(options={"lam": 1e5})  # stiff, but within the cap: it runs
+    a = np.zeros((2, 1) if vector else (1,), np.float32)
+    assert np.all(np.isfinite(env.step(a)[0]))
+
+
+def test_plants_needing_too_many_scan_steps_per_interval_are_refused_at_construction():
+    with pytest.raises(ValueError, match=_SLOW + r".*\(lam = 1e\+08\).*scene's plant"):
+        StickSlipEnv(params={"lam": 1e8})
+    with pytest.raises(ValueError, match=r"\(lam = 1e\+08\)"):
+        StickSlipVectorEnv(num_envs=2, params={"lam": 1e8})
+    # The vector env autoresets inside its kernel from draws of the randomisation ranges,
+    # with no Python check: the ranges' worst corner is checked when the env is built.
+    wide = _PAPER.replace(randomization={"lam": (0.4, 1e8)})
+    for make in (StickSlipEnv, lambda **kw: StickSlipVectorEnv(num_envs=2, **kw)):
+        with pytest.raises(ValueError, match=r"\(lam = 1e\+08\).*fastest plant"):
+            make(scene=wide, randomize=True)
+        make(scene=wide, randomize=False).reset(seed=0)  # the nominal plant alone is fine
+    fast = _PAPER.replace(randomization={"eta": (0.5, 1e7)})
+    with pytest.raises(ValueError, match=r"\(eta = 1e\+07, nu \* eta = 2e\+07\)"):
+        StickSlipVectorEnv(num_envs=2, scene=fast, randomize=True)
+    # in amplitude mode nu keeps its start (0.1), so the same eta is 10x slower, still too slow
+    with pytest.raises(ValueError, match=r"nu \* eta = 1e\+06\).* at u0 = 4, nu = 0\.1;"):
+        StickSlipEnv(scene=fast, randomize=True, action_mode="amplitude")
+    # a silent plant does not bound the step: u0 = 0 and only nu driven
+    silent = _PAPER.replace(params=_PAPER.params.replace(u0=0.0, eta=1e7))
+    StickSlipEnv(scene=silent, action_mode="frequency").reset(seed=0)
+    with pytest.raises(ValueError, match=r"eta = 1e\+07.*at u0 = 1, nu = 2"):
+        StickSlipEnv(scene=silent, action_mode="frequency").reset(options={"u0": 1.0})
 
 
 # -- native vector env ----------------------------------------------------------------------

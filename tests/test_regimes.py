@@ -109,6 +109,24 @@ def test_bad_inputs() -> None:
         strobe_period(np.zeros(6), np.zeros(6), tol=float("nan"))
 
 
+def test_integer_arguments_given_as_floats_raise_type_error() -> None:
+    """Counts given as floats were silently accepted (m_max=2.0 passed as 2)."""
+    with pytest.raises(TypeError, match=r"m_max must be an integer, got 2\.0 \(float\)"):
+        strobe_period(np.zeros(6), np.zeros(6), m_max=2.0)
+    with pytest.raises(TypeError, match=r"m_max must be an integer, got True \(bool\)"):
+        strobe_period(np.zeros(6), np.zeros(6), m_max=True)
+    with pytest.raises(TypeError, match=r"tol must be a real number, got '1e-6' \(str\)"):
+        strobe_period(np.zeros(6), np.zeros(6), tol="1e-6")
+    with pytest.raises(TypeError, match=r"q_max must be an integer, got 4\.0 \(float\)"):
+        rational_denominator(0.5, q_max=4.0)
+    with pytest.raises(TypeError, match=r"nu must be a real number, got None"):
+        rational_denominator(None)
+    with pytest.raises(TypeError, match=r"q must be an integer, got 2\.0 \(float\)"):
+        exact_rational(1.5, 2.0)
+    assert strobe_period(np.zeros(6), np.zeros(6), m_max=np.int64(2)) == 1  # numpy ints are
+    assert rational_denominator(0.5, q_max=np.int32(4)) == 2
+
+
 def test_summary() -> None:
     d = summarize(_stats(n_stick=2, stick_time=25.0, n_rev=1, v=(-1.0, 2.0)))
     assert d["stick_fraction"] == pytest.approx(0.25)

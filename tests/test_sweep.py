@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from fractions import Fraction
 
 import numba
 import numpy as np
@@ -177,24 +178,24 @@ def test_plan_uses_modulation_period() -> None:
     assert plan.n_segment[2] * plan.t_segment[2] >= 100.0
 
 
-@pytest.mark.parametrize("kwargs", [
-    dict(u0=[], nu=[0.5]),
-    dict(u0=[1.0], nu=np.array([])),
-    dict(u0=[1.0, np.nan], nu=[0.5]),
-    dict(u0=[1.0], nu=[0.5, np.inf]),
-    dict(u0=[-1.0], nu=[0.5]),
-    dict(u0=[[1.0, 2.0]], nu=[0.5]),
-    dict(u0=["a"], nu=[0.5]),
+@pytest.mark.parametrize("kwargs, error", [
+    (dict(u0=[], nu=[0.5]), ValueError),
+    (dict(u0=[1.0], nu=np.array([])), ValueError),
+    (dict(u0=[1.0, np.nan], nu=[0.5]), ValueError),
+    (dict(u0=[1.0], nu=[0.5, np.inf]), ValueError),
+    (dict(u0=[-1.0], nu=[0.5]), ValueError),
+    (dict(u0=[[1.0, 2.0]], nu=[0.5]), ValueError),
+    (dict(u0=["a"], nu=[0.5]), TypeError),  # not numbers: the wrong type
 ])
-def test_bad_grid_raises(kwargs: dict) -> None:
-    with pytest.raises(ValueError):
+def test_bad_grid_raises(kwargs: dict, error: type) -> None:
+    with pytest.raises(error):
         regime_map(PARAMS, progress=False, **kwargs)
 
 
 def test_bad_law_and_settings_raise() -> None:
     with pytest.raises(ValueError, match="unknown friction law"):
         regime_map("dry-ice", [1.0], [0.5])
-    with pytest.raises(ValueError):
+    with pytest.raises(TypeError, match=r"params must be OscillatorParams .* got 42 \(int\)"):
         regime_map(42, [1.0], [0.5])  # type: ignore[arg-type]
     with pytest.raises(ValueError, match="Coulomb"):
         regime_map("stribeck", [1.0], [0.5], method="exact")
@@ -274,8 +275,50 @@ def test_integer_and_dict_arguments_of_wrong_type_raise_type_error() -> None:
         regime_map(PARAMS, [1.0], [0.5], n_threads=1.5)  # type: ignore[arg-type]
     with pytest.raises(TypeError, match=r"meta must be a dict or None, got \['x'\] \(list\)"):
         regime_map(PARAMS, [1.0], [0.5], meta=["x"])  # type: ignore[arg-type]
-    with pytest.raises(ValueError, match=r"u0 must be an array of real numbers, got None"):
+    with pytest.raises(TypeError, match=r"u0 must be an array of real numbers, got None"):
         regime_map(PARAMS, None, [0.5])  # was "u0 grid contains NaN"
+
+
+
+@pytest.mark.parametrize(
+    "kwargs, error, match",
+    [
+        # counts given as floats were silently accepted (n_strobe=12.0, m_max=2.0)
+        (dict(n_strobe=12.0), TypeError, r"n_strobe must be an integer, got 12\.0 \(float\)"),
+        (dict(m_max=2.0), TypeError, r"m_max must be an integer, got 2\.0 \(float\)"),
+        (dict(q_max=np.float64(4)), TypeError, r"q_max must be an integer, got np\.float64"),
+        (dict(lock_extensions=True), TypeError, r"lock_extensions must be an integer, got True"),
+        (dict(n_strobe=-1), ValueError, r"n_strobe must be an integer >= 0, got -1"),
+        # a non-number was a ValueError; NaN, inf and out-of-range values still are
+        (dict(rtol=None), TypeError, r"rtol must be a real number, got None \(NoneType\)"),
+        (dict(window_min="100"), TypeError, r"window_min must be a real number, got '100'"),
+        (dict(x0=float("nan")), ValueError, r"x0 must be finite, got nan"),
+        (dict(window_min=0.0), ValueError, r"window_min must be > 0, got 0\.0"),
+        (dict(method=["exact"]), TypeError, r"method must be 'auto', 'exact' or 'event', got \["),
+        (dict(method="magic"), ValueError, r"method must be 'auto', 'exact' or 'event', got 'mag"),
+    ],
+)
+def test_sweep_settings_type_and_value_errors(kwargs: dict, error: type, match: str) -> None:
+    with pytest.raises(error, match=match):
+        SweepSettings(**kwargs)
+    with pytest.raises(error, match=match):  # the same through a sweep's keyword overrides
+        regime_map(PARAMS, [1.0], [0.5], progress=False, **kwargs)
+    assert SweepSettings(n_strobe=np.int64(12), m_max=2).n_strobe == 12  # numpy ints are ints
+
+
+def test_grid_and_flag_arguments_of_wrong_type_raise_type_error() -> None:
+    with pytest.raises(TypeError, match=r"nu must be an array of real numbers, got \['0\.5'\]"):
+        regime_map(PARAMS, [1.0], ["0.5"])  # was parsed as a number
+    with pytest.raises(TypeError, match=r"u0 must be an array of real numbers, got \[True\]"):
+        regime_map(PARAMS, [True], [0.5])
+    with pytest.raises(TypeError, match=r"resume must be a bool .* got 'no' \(str\)"):
+        regime_map(PARAMS, [1.0], [0.5], resume="no")  # type: ignore[arg-type]
+    with pytest.raises(TypeError, match=r"progress must be a bool .* got 1 \(int\)"):
+        regime_map(PARAMS, [1.0], [0.5], progress=1)  # type: ignore[arg-type]
+    with pytest.raises(ValueError, match=r"u0 must be an array of real numbers, got \[\[1"):
+        regime_map(PARAMS, [[1.0], [1.0, 2.0]], [0.5])  # ragged: numbers, but no grid
+    m = regime_map(PARAMS, [Fraction(1, 2)], np.array([1, 2]), progress=False)
+    assert m.u0.tolist() == [0.5] and m.nu.tolist() == [1.0, 2.0]
 
 
 def test_slowly_converging_orbit_locks_with_extensions() -> None:

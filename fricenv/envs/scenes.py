@@ -10,13 +10,20 @@ touches the kernels.
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable
 from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
 
-from fricenv.checks import check_dict, check_int, check_real, got, is_real, real_tuple
+from fricenv.checks import (
+    check_bool,
+    check_dict,
+    check_finite_real,
+    check_int,
+    check_real,
+    got,
+    real_tuple,
+)
 from fricenv.params import (
     N_PARAMS,
     P_B1,
@@ -32,6 +39,7 @@ from fricenv.params import (
     OscillatorParams,
     check_known_fields,
 )
+from fricenv.simulate import check_scan_steps
 
 #: Action modes: which excitation settings the agent drives.
 ACTION_MODES = ("amplitude", "frequency", "both")
@@ -57,6 +65,12 @@ TWO_PI = 2.0 * math.pi
 
 #: What ``reward_weights`` holds, for error messages.
 THREE_WEIGHTS = "three weights (w_stick, w_velocity, w_effort)"
+
+#: Most scan steps one control interval may need (``core.most_scan_steps``, the kernels' own
+#: bound). A step costs about 60 ns, so this is some 60 ms per ``env.step``; an over-damped
+#: plant (the step is 1 / lam) or a very fast tone beyond it would make every step take
+#: seconds (lam = 1e8: 5e7 scan steps, ~3 s), which is more likely a typo than a plant.
+MAX_INTERVAL_SCAN_STEPS = 1e6
 
 
 def _pair(name: str, value: Any) -> tuple[float, float]:
@@ -102,7 +116,9 @@ class Scene:
 
     def __post_init__(self) -> None:
         if not isinstance(self.params, OscillatorParams):
-            raise ValueError(f"params must be an OscillatorParams, got {self.params!r}")
+            raise TypeError(f"params must be an OscillatorParams, {got(self.params)}")
+        if not isinstance(self.action_mode, str):
+            raise TypeError(f"action_mode must be one of {ACTION_MODES}, {got(self.action_mode)}")
         if self.action_mode not in ACTION_MODES:
             raise ValueError(f"action_mode must be one of {ACTION_MODES}, got {self.action_mode!r}")
         for name in ("u0_range", "nu_range", "x0_range", "v0_range"):
@@ -130,6 +146,7 @@ class Scene:
             check_real(name, getattr(self, name))
         object.__setattr__(self, "max_episode_steps",
                            check_int("max_episode_steps", self.max_episode_steps, 1))
+        object.__setattr__(self, "random_phase", check_bool("random_phase", self.random_phase))
         checks = (
             ("control_dt", math.isfinite(self.control_dt) and self.control_dt > 0.0),
             ("max_delta", 0.0 < self.max_delta <= 1.0),
@@ -140,13 +157,7 @@ class Scene:
             if not ok:
                 raise ValueError(f"{name} is out of range, got {getattr(self, name)!r}")
         rnd = {}
-        if not isinstance(self.randomization, Iterable) or isinstance(
-            self.randomization, (str, bytes)
-        ):
-            raise TypeError(
-                f"randomization must be a dict {{param: (lo, hi)}}, {got(self.randomization)}"
-            )
-        for key, value in dict(self.randomization).items():
+        for key, value in _randomization_items(self.randomization):
             if key not in RANDOMIZABLE:
                 raise ValueError(f"cannot randomise {key!r}; expected some of {RANDOMIZABLE}")
             rnd[key] = _pair(f"randomization[{key!r}]", value)
@@ -163,6 +174,27 @@ class Scene:
             xfs_lo = rnd.get("xfs", (self.params.xfs,) * 2)[0]
             if xfs_lo < xfk_hi:
                 raise ValueError("randomization must keep xfs >= xfk: xfs lo < xfk hi")
+
+    def check_interval_cost(self, randomize: bool = True) -> None:
+        """``ValueError`` naming the values if the fastest plant an episode of this scene can
+        start from its draws (the nominal one, or with ``randomize`` the worst corner of the
+        randomisation box: ``lam`` and ``eta`` at the top of their ranges) needs more than
+        ``MAX_INTERVAL_SCAN_STEPS`` scan steps in a control interval, under the fastest
+        excitation its actions can reach (:func:`check_episode_cost`).
+
+        Called when an environment is built (not at scene construction, which stays free of
+        numba calls): episodes drawn without options, including those the vector env starts
+        inside its kernel, then never need the check; ``reset(options=...)`` checks its own.
+        """
+        if randomize:
+            plant = self.params.replace(**{k: hi for k, (_, hi) in self.randomization})
+            why = ("the scene's fastest plant (lam and eta at the top of their randomization "
+                   "ranges) is too stiff or too fast: narrow those ranges or lower the top "
+                   "of nu_range")
+        else:
+            plant = self.params
+            why = "the scene's plant is too stiff or too fast: lower lam, eta or nu_range's top"
+        check_episode_cost(self, plant.to_array(), self.params.u0, self.params.nu, why)
 
     @property
     def ranges(self) -> dict[str, tuple[float, float]]:
@@ -196,6 +228,39 @@ class Scene:
         return lo, hi
 
 
+def _randomization_items(value: Any) -> list[tuple[Any, Any]]:
+    """The ``(param, range)`` items of a scene's ``randomization``: a dict (or None), or the
+    tuple of pairs a scene stores it as (what ``replace`` passes back); ``TypeError`` naming
+    it otherwise (a list of names gave a raw error from ``dict()``)."""
+    if isinstance(value, tuple) and all(
+        isinstance(item, tuple) and len(item) == 2 and isinstance(item[0], str) for item in value
+    ):
+        return list(value)
+    check_dict("randomization", value, "a dict {param: (lo, hi)}")
+    return list(value.items()) if value is not None else []
+
+
+def check_episode_cost(scene: Scene, P: np.ndarray, u0: float, nu: float, why: str) -> None:
+    """``ValueError`` naming the values if an episode of ``scene`` with the plant ``P``
+    (layout ``params.P_*``), started at excitation ``(u0, nu)``, could need more than
+    ``MAX_INTERVAL_SCAN_STEPS`` scan steps in one control interval: the fastest excitation
+    its actions reach is the top of the range of each setting the action mode drives
+    (the other keeps its start). One mechanism with the simulator's cap,
+    ``simulate.check_scan_steps``; ``why`` ends the message."""
+    if scene.action_mode in ("amplitude", "both"):
+        u0 = scene.u0_range[1]
+    if scene.action_mode in ("frequency", "both"):
+        nu = scene.nu_range[1]
+    row = np.array(P, dtype=np.float64)
+    row[P_U1] = scene.tone_gains[0] * u0
+    row[P_U2] = scene.tone_gains[1] * u0
+    row[P_W2] = nu * row[P_W1]
+    dt = scene.control_dt
+    check_scan_steps(row[None], np.array([dt]),
+                     f"that span is one control interval (control_dt) at u0 = {u0:.6g}, "
+                     f"nu = {nu:.6g}; {why}", cap=MAX_INTERVAL_SCAN_STEPS)
+
+
 def episode_from_draws(
     scene: Scene, values: np.ndarray, options: dict | None, P_out: np.ndarray, init_out: np.ndarray
 ) -> None:
@@ -213,13 +278,11 @@ def episode_from_draws(
         if unknown:
             raise ValueError(f"unknown reset option(s) {unknown}; expected some of {OPTION_KEYS}")
         for key, value in options.items():
-            if not is_real(value):  # (complex would pass as np.number, cut to its real part)
-                raise ValueError(f"reset option {key!r} must be a real number, got {value!r}")
-            if not math.isfinite(float(value)):
-                raise ValueError(f"reset option {key!r} must be finite, got {value!r}")
-            vals[key] = float(value)
+            # TypeError for a non-number (complex would pass as np.number, cut to its real
+            # part), ValueError for NaN or inf
+            vals[key] = check_finite_real(f"reset option {key!r}", value)
         # Validates the plant (raises ValueError naming the field).
-        scene.params.replace(**{k: vals[k] for k in RANDOMIZABLE})
+        plant = scene.params.replace(**{k: vals[k] for k in RANDOMIZABLE})
         u0 = float(options.get("u0", u0))
         nu = float(options.get("nu", nu))
         (ulo, uhi), (nlo, nhi) = scene.u0_range, scene.nu_range
@@ -227,6 +290,8 @@ def episode_from_draws(
             raise ValueError(f"reset option u0 = {u0} lies outside u0_range {scene.u0_range}")
         if not nlo <= nu <= nhi:
             raise ValueError(f"reset option nu = {nu} lies outside nu_range {scene.nu_range}")
+        # Draws alone stay in the ranges the environment checked when it was built.
+        check_episode_cost(scene, plant.to_array(), u0, nu, f"refused reset options {options!r}")
     P_out[P_LAM] = vals["lam"]
     P_out[P_V] = vals["V"]
     P_out[P_XFK] = vals["xfk"]

@@ -8,7 +8,6 @@ numba kernel (``kernels.step_single``) that integrates exactly to the next contr
 from __future__ import annotations
 
 import math
-import operator
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
@@ -17,7 +16,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from fricenv.checks import check_dict, check_real, is_int, real_tuple
+from fricenv.checks import check_bool, check_dict, check_int, check_real, is_int, real_tuple
 from fricenv.core import new_workspace
 from fricenv.envs import kernels as K
 from fricenv.envs.scenes import (
@@ -97,6 +96,9 @@ class EnvSetup:
         method: str = "auto",
     ) -> EnvSetup:
         sc = get_scene(scene)
+        # bools only: a truthy string such as 'no' would switch the mode on
+        incremental = check_bool("incremental", incremental)
+        randomize = check_bool("randomize", randomize)
         changes: dict[str, Any] = {}
         check_dict("params", params, "a dict of plant parameters, e.g. {'lam': 0.2},")
         if params:
@@ -115,6 +117,9 @@ class EnvSetup:
             raise ValueError(f"method must be one of {sorted(_METHODS)}, got {method!r}")
         if method == "exact" and (not sc.params.is_coulomb or {"b1", "b3"} & set(sc.ranges)):
             raise ValueError("method='exact' needs the Coulomb law (b1 = b3 = 0)")
+        # Every episode drawn without options (the vector env's autoresets included) stays
+        # within what this checks; reset(options=...) checks its own plant.
+        sc.check_interval_cost(randomize)
 
         cfg = K.empty_cfg()
         (ulo, uhi), (nlo, nhi) = sc.u0_range, sc.nu_range
@@ -147,8 +152,8 @@ class EnvSetup:
         return cls(
             sc,
             sc.action_mode,
-            bool(incremental),
-            bool(randomize),
+            incremental,
+            randomize,
             cfg,
             action_space,
             observation_space,
@@ -353,12 +358,17 @@ class StickSlipEnv(gym.Env):
       The horizon is the id's `max_episode_steps`: use the scene's own id (or pass
       `max_episode_steps=`) when switching scenes.
     - `action_mode`: `"amplitude"`, `"frequency"` or `"both"` (default: the scene's).
-    - `incremental`: actions change the settings instead of setting them (default False).
+    - `incremental`: actions change the settings instead of setting them (default False; a
+      bool, `TypeError` otherwise).
     - `control_dt`: control interval in time units (default pi/6, a twelfth of the natural
       period).
-    - `randomize`: draw the plant parameters per episode from the scene's ranges.
+    - `randomize`: draw the plant parameters per episode from the scene's ranges (a bool).
     - `reward_weights`: `(w_stick, w_velocity, w_effort)` or a dict with those keys.
-    - `params`: overrides of the scene's nominal plant, e.g. `{"lam": 0.2}`.
+    - `params`: overrides of the scene's nominal plant, e.g. `{"lam": 0.2}`. A plant so stiff
+      (large `lambda`) or a tone so fast that one control interval would need more than
+      `scenes.MAX_INTERVAL_SCAN_STEPS` (1e6) scan steps, seconds per step, is refused with a
+      `ValueError` naming its values: at construction (with `randomize`, the ranges' worst
+      corner) and, for `reset(options=...)`, at that reset.
     - `method`: `"auto"` (closed form for Coulomb, event integrator otherwise), `"exact"`,
       `"event"`.
     - `render_mode`: `None`, `"rgb_array"` or `"human"`. Frames (block, belt, spring,
@@ -546,12 +556,7 @@ class StickSlipEnv(gym.Env):
         """
         if self._needs_reset:
             raise gym.error.ResetNeeded("Cannot call sample_interval() before calling reset()")
-        try:
-            n = operator.index(n_samples)
-        except TypeError:
-            n = 0
-        if n < 1:
-            raise ValueError(f"n_samples must be a positive integer, got {n_samples!r}")
+        n = check_int("n_samples", n_samples, 1)
         a = coerce_action(action, self._act_shape)
         if not K.actions_finite(a):
             raise_status(K.STATUS_BAD_ACTION, action)
