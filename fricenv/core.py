@@ -74,6 +74,12 @@ from .params import P_B1, P_B3, P_LAM, P_U1, P_U2, P_V, P_W1, P_W2, P_XFK, P_XFS
 # counters of a batch's common parent array bounce between cores. The caller keeps every
 # array alive for the duration of the call, so no count is needed. Only ``advance``,
 # ``record`` and ``fresh_workspace``, which allocate, keep the runtime.
+#
+# Every kernel uses numba's ``error_model="numpy"``: a float division by zero gives an
+# inf or a NaN, as in numpy, instead of raising ZeroDivisionError from deep inside a
+# kernel. Subnormal data can make a Halley or Newton denominator exactly 0; the root
+# searches then fall back to the secant point or to bisection, and a non-finite state
+# ends a run with STATUS_NONFINITE. It also spares the zero test before every division.
 TWO_PI = 2.0 * math.pi
 # Scan steps must hold at most one extremum of v (or of f in stick): a tone's extrema are
 # pi / omega apart, so half a radian per step leaves a wide margin (>= 12 steps a period).
@@ -160,7 +166,7 @@ K_DENSE_H = 3  # slip (Taylor polynomial of the step): h = sd * (v - V)
 K_DENSE_V = 4  # slip (Taylor polynomial of the step): v
 
 
-@njit(cache=True, _nrt=False, inline="always")
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def _wrap(phi):
     if 0.0 <= phi < TWO_PI:
         return phi
@@ -168,7 +174,7 @@ def _wrap(phi):
     return phi if phi < TWO_PI else 0.0
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, error_model="numpy", _nrt=False)
 def reset_stats(stats):
     """Zero the counters of ``stats`` and set the extrema to +-inf."""
     for i in range(stats.shape[0]):
@@ -179,7 +185,7 @@ def reset_stats(stats):
     stats[ST_X_MIN] = np.inf
 
 
-@njit(cache=True, _nrt=False, inline="always")
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def _note_v(stats, v):
     if v > stats[ST_V_MAX]:
         stats[ST_V_MAX] = v
@@ -187,7 +193,7 @@ def _note_v(stats, v):
         stats[ST_V_MIN] = v
 
 
-@njit(cache=True, _nrt=False, inline="always")
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def _note_x(stats, x):
     if x > stats[ST_X_MAX]:
         stats[ST_X_MAX] = x
@@ -195,13 +201,13 @@ def _note_x(stats, x):
         stats[ST_X_MIN] = x
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, error_model="numpy", _nrt=False)
 def stick_force(P, x, phi1, phi2):
     """Everything but friction acting on a block riding with the belt: -lam V - x + g."""
     return -P[P_LAM] * P[P_V] - x + P[P_U1] * math.cos(phi1) + P[P_U2] * math.cos(phi2)
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, error_model="numpy", _nrt=False)
 def initial_state(P, x0, v0, S):
     """Fill ``S`` for a start at t = 0 with zero tone phases; mode is chosen from the rules."""
     S[S_T] = 0.0
@@ -212,7 +218,7 @@ def initial_state(P, x0, v0, S):
     S[S_MODE] = initial_mode(P, x0, v0, 0.0, 0.0)
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, error_model="numpy", _nrt=False)
 def initial_mode(P, x, v, phi1, phi2):
     """-1/+1 for slip below/above the belt, 0 for stick (v == V and |f| <= xfs)."""
     vr = v - P[P_V]
@@ -229,7 +235,7 @@ def initial_mode(P, x, v, phi1, phi2):
 # ----------------------------------------------------------------------------------------
 # Closed form of a Coulomb slip step
 # ----------------------------------------------------------------------------------------
-@njit(cache=True, _nrt=False, inline="always")
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def _homog(tau, lam, p2):
     """Transition matrix of x'' + lam x' + x = 0 over tau, for every damping.
 
@@ -262,7 +268,7 @@ def _homog(tau, lam, p2):
     return ec + 0.5 * lam * es, es, -es, ec - 0.5 * lam * es
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _setup_context(P, cx):
     """Constants of the run: particular-solution coefficients of each tone.
 
@@ -327,7 +333,7 @@ def _setup_context(P, cx):
     cx[C_GDDD] = cx[W_T_KEY + 5] + cx[b2 + 5]
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _scan_cap(P, wide):
     """Longest scan step: short against the fastest active tone and the damping rate."""
     cap = DELTA_WIDE if wide else DELTA_MAX
@@ -348,7 +354,7 @@ def _scan_cap(P, wide):
     return cap
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, error_model="numpy", _nrt=False)
 def most_scan_steps(P_rows, spans):
     """The most scan steps any row needs to cover its span, and that row: the floor of a
     run's cost, known before it starts."""
@@ -362,7 +368,7 @@ def most_scan_steps(P_rows, spans):
     return most, row
 
 
-@njit(cache=True, _nrt=False, inline="always")
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def _particular(cx, tau, c1, s1, c2, s2, sd):
     """Particular solution (x_p, v_p) at relative time tau, tone phases (c_i, s_i) there."""
     xp = -sd * cx[C_XFK]
@@ -384,7 +390,7 @@ def _particular(cx, tau, c1, s1, c2, s2, sd):
     return xp, vp
 
 
-@njit(cache=True, _nrt=False, inline="always")
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def _slip_start(cx, x, v, c1, s1, c2, s2, sd):
     """Start a closed-form slip step at (x, v) with tone phases (c_i, s_i)."""
     cx[C_XA] = x
@@ -399,7 +405,7 @@ def _slip_start(cx, x, v, c1, s1, c2, s2, sd):
     cx[C_DV] = v - vp
 
 
-@njit(cache=True, _nrt=False, inline="always")
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def _rotate(cx, cr1, sr1, cr2, sr2):
     """Tone phases at the step start advanced by the rotations (cr_i, sr_i)."""
     c1 = cx[C_C1A] * cr1 - cx[C_S1A] * sr1
@@ -409,7 +415,7 @@ def _rotate(cx, cr1, sr1, cr2, sr2):
     return c1, s1, c2, s2
 
 
-@njit(cache=True, _nrt=False, inline="always")
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def _rotate_by(cx, tau):
     """Tone phases at the step start advanced by tau (both tones)."""
     cr1, sr1 = _sincos(cx[C_W1] * tau)
@@ -417,7 +423,7 @@ def _rotate_by(cx, tau):
     return _rotate(cx, cr1, sr1, cr2, sr2)
 
 
-@njit(cache=True, _nrt=False, inline="always")
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def _forcing(cx, c1, s1, c2, s2):
     """g, g' and g'' for tone phases (c_i, s_i)."""
     u1 = cx[C_U1]
@@ -430,7 +436,7 @@ def _forcing(cx, c1, s1, c2, s2):
     return g, gd, gdd
 
 
-@njit(cache=True, _nrt=False, inline="always")
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def _slip_with(cx, tau, h11, h12, h21, h22, c1, s1, c2, s2):
     """Closed-form slip state at relative time tau: x, v, acceleration and jerk."""
     sd = cx[C_SD]
@@ -443,13 +449,13 @@ def _slip_with(cx, tau, h11, h12, h21, h22, c1, s1, c2, s2):
     return x, v, acc, jerk
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _slip_at(cx, tau):
     x, v, acc, jerk, _, _, _, _ = _slip_and_phases_at(cx, tau)
     return x, v, acc, jerk
 
 
-@njit(cache=True, _nrt=False, inline="always")
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def _slip_and_phases_at(cx, tau):
     """``_slip_at`` plus the tones' cos/sin there (a switch needs both)."""
     h11, h12, h21, h22 = _homog(tau, cx[C_LAM], cx[C_P2])
@@ -458,7 +464,7 @@ def _slip_and_phases_at(cx, tau):
     return x, v, acc, jerk, c1, s1, c2, s2
 
 
-@njit(cache=True, _nrt=False, inline="always")
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def _slip_mid_and_end(cx, tau):
     """v at tau / 2 and the state and tones' cos/sin at tau, from one evaluation at tau / 2:
     the transition over tau is its square and the rotations are doubled (a few ulps), so
@@ -476,7 +482,7 @@ def _slip_mid_and_end(cx, tau):
     return v_mid, x, v, acc, jerk, c1, s1, c2, s2
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _stick_at(cx, tau):
     """Stick state at relative time tau: x and f, f', f''."""
     c1, s1, c2, s2 = _rotate_by(cx, tau)
@@ -488,7 +494,7 @@ def _stick_at(cx, tau):
 # ----------------------------------------------------------------------------------------
 # Dense output of a Taylor slip step: the series itself, in tau from the step start
 # ----------------------------------------------------------------------------------------
-@njit(cache=True, _nrt=False)
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _dense_v(cx, tau):
     """v, v', v'' of the current Taylor step at relative time tau (Horner)."""
     n = int(cx[C_TN])
@@ -502,7 +508,7 @@ def _dense_v(cx, tau):
     return p, d1, 2.0 * d2
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _dense_x(cx, tau):
     n = int(cx[C_TN])
     p = cx[C_TX + n]
@@ -511,7 +517,7 @@ def _dense_x(cx, tau):
     return p
 
 
-@njit(cache=True, _nrt=False, inline="always")
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def _dense_bounds(cx, L):
     """Bounds on |v''| and |v'''| over [0, L] of the current Taylor step's polynomial."""
     n = int(cx[C_TN])
@@ -525,7 +531,7 @@ def _dense_bounds(cx, L):
     return m2, m3
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _feval(cx, kind, tau):
     """Value, first and second derivative of the searched function at relative time tau."""
     if kind == K_SLIP_H:
@@ -545,7 +551,7 @@ def _feval(cx, kind, tau):
     return v, dv, ddv
 
 
-@njit(cache=True, _nrt=False, inline="always")
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def _hermite_root(flo, fhi, dlo, dhi, qlo, qhi, H):
     """Fraction of a bracket of length H where the quintic Hermite interpolant of F (value,
     slope dlo/dhi and curvature qlo/qhi at both ends) vanishes: two Halley steps on it from
@@ -573,7 +579,7 @@ def _hermite_root(flo, fhi, dlo, dhi, qlo, qhi, H):
     return s
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _bracket(cx, kind, deriv, offset, lo, hi, flo, fhi, dlo, dhi, qlo, qhi, rel_tol):
     """Shrink a bracket [lo, hi] of a root of F to rounding level; return (lo, hi).
 
@@ -632,7 +638,7 @@ def _bracket(cx, kind, deriv, offset, lo, hi, flo, fhi, dlo, dhi, qlo, qhi, rel_
     return lo, hi
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _root(cx, kind, offset, lo, hi, flo, fhi, dlo, dhi, qlo, qhi):
     """Point of a bracket of a root of ``kind`` - offset on ``fhi``'s side (where the
     switch has happened); its derivatives at the ends as in ``_bracket``."""
@@ -640,7 +646,7 @@ def _root(cx, kind, offset, lo, hi, flo, fhi, dlo, dhi, qlo, qhi):
     return b
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _extremum(cx, kind, lo, hi, dlo, dhi, ddlo, ddhi, dddlo, dddhi):
     """Relative time of the extremum of ``kind`` in [lo, hi], from its derivative's signs
     (``dlo``, ``dhi``), and its second and third derivatives there (NaN if unknown)."""
@@ -649,7 +655,7 @@ def _extremum(cx, kind, lo, hi, dlo, dhi, ddlo, ddhi, dddlo, dddhi):
     return 0.5 * (a + b)
 
 
-@njit(cache=True, _nrt=False, inline="always")
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def _contact_time(cx, kind, L, h0, d0, q0, h1, d1, q1, t_ext, h_ext, q_ext):
     """First relative time in (0, L] where h = sd (v - V) reaches 0, or -1.
 
@@ -681,7 +687,7 @@ def _contact_time(cx, kind, L, h0, d0, q0, h1, d1, q1, t_ext, h_ext, q_ext):
     return -1.0
 
 
-@njit(cache=True, _nrt=False, inline="always")
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def _x_extrema_between(cx, kind, stats, a, b, va, vb, vabs):
     """Displacement extremum where v changes sign on a monotone piece [a, b] of v.
 
@@ -703,7 +709,7 @@ def _x_extrema_between(cx, kind, stats, a, b, va, vb, vabs):
         _note_x(stats, x)
 
 
-@njit(cache=True, _nrt=False, inline="always")
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def _stays_positive(k0, d0, k1, d1, L, M):
     """Proof that k > 0 on [0, L] from k, k' at both ends and a bound M on |k''|.
 
@@ -722,7 +728,7 @@ def _stays_positive(k0, d0, k1, d1, L, M):
     return k0 + t * (d0 - 0.5 * M * t) > 0.0
 
 
-@njit(cache=True, _nrt=False, inline="always")
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def _extremum_matters(cx, stats, sd, v0, v1, a0, a1, L, V, vdd_max):
     """Can the interior extremum of v on this step change v's extrema or touch v = V?
 
@@ -741,7 +747,7 @@ def _extremum_matters(cx, stats, sd, v0, v1, a0, a1, L, V, vdd_max):
     return not _stays_positive(sd * (v0 - V), sd * a0, sd * (v1 - V), sd * a1, L, vdd_max)
 
 
-@njit(cache=True, _nrt=False, inline="always")
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def _slip_extrema(cx, kind, stats, tau_e, t_ext, v_ext, v0, v1, x1):
     """Extrema of v and x over a slip step [0, tau_e] (t_ext: v's interior extremum)."""
     _note_v(stats, v1)
@@ -757,7 +763,7 @@ def _slip_extrema(cx, kind, stats, tau_e, t_ext, v_ext, v0, v1, x1):
         _x_extrema_between(cx, kind, stats, 0.0, tau_e, v0, v1, max(abs(v0), abs(v1)))
 
 
-@njit(cache=True, _nrt=False, inline="always")
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def _slip_stats(cx, kind, stats, tau_e, t_ext, v_ext, v0, a0, j0, v1, a1, j1, x1, v_mid, V):
     """Extrema and the (v - V)^2 integral over a slip step [0, tau_e].
 
@@ -785,7 +791,7 @@ def _slip_stats(cx, kind, stats, tau_e, t_ext, v_ext, v0, a0, j0, v1, a1, j1, x1
                                                  + tau_e * (ddy0 + ddy1) / 840.0))
 
 
-@njit(cache=True, _nrt=False, inline="always")
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def _jerk(cx, v, a, s1, s2):
     """v'' in slip from v, v' and the tones' sines (the friction law's slope included)."""
     vr = v - cx[C_V]
@@ -793,7 +799,7 @@ def _jerk(cx, v, a, s1, s2):
     return (slope - cx[C_LAM]) * a - v - (cx[C_U1] * cx[C_W1] * s1 + cx[C_U2] * cx[C_W2] * s2)
 
 
-@njit(cache=True, _nrt=False, inline="always")
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def _sign_kept(k0, k1, L, M):
     """Proof that k keeps one strict sign on [0, L] from its end values and |k'| <= M."""
     if k0 > 0.0 and k1 > 0.0:
@@ -803,7 +809,7 @@ def _sign_kept(k0, k1, L, M):
     return False
 
 
-@njit(cache=True, _nrt=False, inline="always")
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def _one_extremum_at_most(h0, d0, h1, d1, hdd0, hdd1, L, M2, M3, cap):
     """May a slip step [0, L] go to the contact search, which handles one extremum of h?
 
@@ -816,7 +822,7 @@ def _one_extremum_at_most(h0, d0, h1, d1, hdd0, hdd1, L, M2, M3, cap):
             or _sign_kept(hdd0, hdd1, L, M3) or L <= MIN_SPLIT * cap)
 
 
-@njit(cache=True, _nrt=False, inline="always")
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def _monotone(d0, dd0, d1, dd1, L, M):
     """Proof that a function keeps a monotone course on [0, L]: its derivative (d0, d1 at
     the ends, with derivatives dd0, dd1 and |third derivative| <= M) keeps one sign. The
@@ -826,7 +832,7 @@ def _monotone(d0, dd0, d1, dd1, L, M):
                                                                      L, M)
 
 
-@njit(cache=True, _nrt=False, inline="always")
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def _stick_held(cx, L, f0, fd0, f1, fd1):
     """Proof that |f| <= xfs holds on a whole stick step [0, L] (f'' = g'' in stick)."""
     xfs = cx[C_XFS]
@@ -835,7 +841,7 @@ def _stick_held(cx, L, f0, fd0, f1, fd1):
         xfs + f0, fd0, xfs + f1, fd1, L, M)
 
 
-@njit(cache=True, _nrt=False, inline="always")
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def _stick_exit_time(cx, L, f0, fd0, fdd0, f1, fd1, fdd1):
     """First relative time in [0, L] where |f| exceeds xfs during a stick, or -1.
 
@@ -874,7 +880,7 @@ def _stick_exit_time(cx, L, f0, fd0, fdd0, f1, fd1, fdd1):
 # ----------------------------------------------------------------------------------------
 # Shared per-step pieces
 # ----------------------------------------------------------------------------------------
-@njit(cache=True, _nrt=False, inline="always")
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def _record_event(ev_t, ev_kind, ev_x, counts, t, kind, x):
     n = counts[0]
     if n >= ev_t.shape[0]:
@@ -886,7 +892,7 @@ def _record_event(ev_t, ev_kind, ev_x, counts, t, kind, x):
     return True
 
 
-@njit(cache=True, _nrt=False, inline="always")
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def _log_event(ev_t, ev_kind, ev_x, counts, t, kind, x, n_events, max_events):
     """Record switch number ``n_events`` when a buffer is given; the run's status after it."""
     status = STATUS_OK
@@ -898,7 +904,7 @@ def _log_event(ev_t, ev_kind, ev_x, counts, t, kind, x, n_events, max_events):
     return status
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _contact_outcome(cx, stats, x, c1, c2, sd):
     """Mode after slip in direction sd reaches v = V at x: stick, or reverse."""
     f = -cx[C_LAM] * cx[C_V] - x + cx[C_U1] * c1 + cx[C_U2] * c2
@@ -909,14 +915,14 @@ def _contact_outcome(cx, stats, x, c1, c2, sd):
     return (1.0 if f > 0.0 else -1.0), EVENT_REVERSAL
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _stick_outcome(cx, stats, x, c1, c2):
     f = -cx[C_LAM] * cx[C_V] - x + cx[C_U1] * c1 + cx[C_U2] * c2
     stats[ST_N_SLIP] += 1.0
     return 1.0 if f > 0.0 else -1.0
 
 
-@njit(cache=True, _nrt=False, inline="always")
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def _renorm(c, s):
     k = 1.5 - 0.5 * (c * c + s * s)
     return c * k, s * k
@@ -942,7 +948,7 @@ I_P2_MIN = 0.01
 I_MARGIN = 1e-12  # clearance the proofs demand, relative to the size of the terms
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _sincos_long(t):
     """cos and sin of |t| <= 8 by halving into ``_sincos``'s series and doubling back
     (a few ulps); libm beyond."""
@@ -958,7 +964,7 @@ def _sincos_long(t):
     return c, s
 
 
-@njit(cache=True, _nrt=False, inline="always")
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def _e1(s, es):
     """E(s) = (e^s - 1) / s from s and es = e^s (complex), in real arithmetic.
 
@@ -981,18 +987,18 @@ def _e1(s, es):
     return complex((nr * a + ni * b) * inv, (ni * a - nr * b) * inv)
 
 
-@njit(cache=True, _nrt=False, inline="always")
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def _cget(cx, k):
     return complex(cx[k], cx[k + 1])
 
 
-@njit(cache=True, _nrt=False, inline="always")
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def _cset(cx, k, z):
     cx[k] = z.real
     cx[k + 1] = z.imag
 
 
-@njit(cache=True, _nrt=False, inline="always")
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def _interval_constants(cx, T, lam, p2):
     """The whole-call transition and rotations for span T, each recomputed only when its
     own key changed (retuning a tone redoes that tone's rotation alone)."""
@@ -1022,7 +1028,7 @@ def _interval_constants(cx, T, lam, p2):
             cx[W_I_KEY_W1 + i] = w
 
 
-@njit(cache=True, _nrt=False, inline="always")
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def _interval_e(cx, T):
     """The E values of the (v - V)^2 integral involving the tones (after
     ``_interval_constants``), recomputed for a retuned tone only."""
@@ -1050,7 +1056,7 @@ def _interval_e(cx, T):
     cx[W_I_KEY_E2] = cx[C_W2]
 
 
-@njit(cache=True, _nrt=False, inline="always")
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def _arc_passes_zero(c0, s0, cm, sm, c1, s1, alpha, eps):
     """Does the counter-clockwise arc of length alpha >= 0 from direction (c0, s0) through
     (cm, sm) (its midpoint) to (c1, s1) pass the angle 0? Borderline cases, within eps
@@ -1066,7 +1072,7 @@ def _arc_passes_zero(c0, s0, cm, sm, c1, s1, alpha, eps):
     return s0 <= eps and s1 >= -eps
 
 
-@njit(cache=True, _nrt=False, inline="always")
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def _lowest(amp, y0, y1, c0, s0, cm, sm, c1, s1, alpha):
     """Lowest value over the call of a sinusoid amp cos(psi) whose direction amp (cos psi,
     sin psi) sweeps the arc alpha from (c0, s0) through (cm, sm) to (c1, s1), with end
@@ -1077,14 +1083,14 @@ def _lowest(amp, y0, y1, c0, s0, cm, sm, c1, s1, alpha):
     return min(y0, y1)
 
 
-@njit(cache=True, _nrt=False, inline="always")
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def _tone_dir(w, kc, ks, c, s):
     """Direction of a tone's particular velocity w (ks cos phi - kc sin phi): its value and
     the quadrature component."""
     return w * (ks * c - kc * s), w * (ks * s + kc * c)
 
 
-@njit(cache=True, _nrt=False, inline="always")
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def _end_call(S, cx, t, x, v, mode, ph1, c1, s1, ph2, c2, s2):
     """Write the state reached back to S, and the tones' cos/sin to the workspace's cache
     (keyed on the phase angles, so the next call starting there skips four libm calls)."""
@@ -1098,7 +1104,7 @@ def _end_call(S, cx, t, x, v, mode, ph1, c1, s1, ph2, c2, s2):
     cx[W_PH2], cx[W_C2], cx[W_S2] = ph2, c2, s2
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _whole_interval(cx, S, T, stats, c1, s1, c2, s2):
     """Advance S over the whole call [t, t + T] in one closed-form step when a proof shows
     it holds no switch (see the section comment); False leaves everything untouched."""
@@ -1204,7 +1210,7 @@ def _whole_interval(cx, S, T, stats, c1, s1, c2, s2):
 # ----------------------------------------------------------------------------------------
 # Exact (closed-form) runner
 # ----------------------------------------------------------------------------------------
-@njit(cache=True, _nrt=False, inline="always")
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def _run_exact(P, S, t_span, out_t, stats, max_events, out_x, out_v, out_mode, ev_t, ev_kind,
                ev_x, counts, cx):
     """Advance S by t_span with the closed-form solver; see ``advance``.
@@ -1235,7 +1241,7 @@ def _run_exact(P, S, t_span, out_t, stats, max_events, out_x, out_v, out_mode, e
                        ev_kind, ev_x, counts, cx, cap, c1, s1, c2, s2)
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _scan_exact(S, t_span, out_t, stats, max_events, out_x, out_v, out_mode, ev_t, ev_kind,
                 ev_x, counts, cx, cap, c1, s1, c2, s2):
     """The closed-form scan of ``_run_exact``, from its context (``cx``), the scan cap and
@@ -1488,14 +1494,14 @@ def _scan_exact(S, t_span, out_t, stats, max_events, out_x, out_v, out_mode, ev_
 # ----------------------------------------------------------------------------------------
 # Event-driven runner: Taylor steps in slip, exact stick
 # ----------------------------------------------------------------------------------------
-@njit(cache=True, _nrt=False)
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _rhs_acc(cx, sd, x, v, ph1, ph2):
     """Slip acceleration for any friction law; tone phases given as angles."""
     return _acc(cx[C_LAM], cx[C_V], sd * cx[C_XFK], cx[C_B1], cx[C_B3], cx[C_U1], cx[C_U2],
                 x, v, ph1, ph2)
 
 
-@njit(cache=True, _nrt=False, inline="always")
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def _acc(lam, V, sxfk, b1, b3, u1, u2, x, v, ph1, ph2):
     """Slip acceleration from scalars; terms a configuration zeroes are skipped."""
     a = -lam * v - x - sxfk
@@ -1518,7 +1524,7 @@ _S11, _S13, _S15 = -1.0 / 39916800.0, 1.0 / 6227020800.0, -1.0 / 1307674368000.0
 _S17, _S19 = 1.0 / 355687428096000.0, -1.0 / 121645100408832000.0
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _sincos(t):
     """cos and sin of t: a Taylor series for |t| <= 1 (error < 1e-18), libm beyond.
 
@@ -1543,7 +1549,7 @@ def _sincos(t):
     return c, s
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _set_phases(cx, ph1, ph2):
     """cos/sin of the tone phases at a slip step's start, from the angles."""
     cx[C_CP1] = math.cos(ph1)
@@ -1552,7 +1558,7 @@ def _set_phases(cx, ph1, ph2):
     cx[C_SP2] = math.sin(ph2)
 
 
-@njit(cache=True, _nrt=False, inline="always")
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def _step_inputs(cx, sd):
     """What a Taylor or Rosenbrock slip step reads from the context, as scalars (kept
     in registers: the stages then never reload the array)."""
@@ -1560,7 +1566,7 @@ def _step_inputs(cx, sd):
             cx[C_CP1], cx[C_SP1], cx[C_CP2], cx[C_SP2])
 
 
-@njit(cache=True, _nrt=False, inline="always")
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def _end_phases(cx, cp1, sp1, cp2, sp2, ce1, se1, ce2, se2):
     """Tone phases (cos/sin) at a step's end from its start and the rotations (ce_i, se_i);
     stored in cx[C_CE1..C_SE2] for the next step. Returns the forcing's cosines there."""
@@ -1587,7 +1593,7 @@ def _end_phases(cx, cp1, sp1, cp2, sp2, ce1, se1, ce2, se2):
 _INV = np.array([0.0] + [1.0 / k for k in range(1, 2 * TAYLOR_MAX_ORDER + 2)])
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, error_model="numpy", _nrt=False)
 def taylor_order(rtol):
     """Order of the Taylor steps for a tolerance: about -ln(tol) / 2 + 1 (Jorba & Zou 2005,
     the order that minimises the work per unit time), within [6, TAYLOR_MAX_ORDER]."""
@@ -1601,7 +1607,7 @@ def taylor_order(rtol):
 _SUMS = {"reassoc", "contract"}
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _taylor_coeffs(cx, sd, x0, v0, rtol, atol):
     """Taylor coefficients of x and v at the step start (tone cos/sin in cx[C_CP1..]), to
     the order in cx[C_TN]; returns the step length at which the last two terms of the
@@ -1685,7 +1691,7 @@ def _taylor_coeffs(cx, sd, x0, v0, rtol, atol):
     return math.exp(lh - 0.7 * _INV[n - 1])
 
 
-@njit(cache=True, _nrt=False, fastmath=_SUMS)
+@njit(cache=True, error_model="numpy", _nrt=False, fastmath=_SUMS)
 def _taylor_vr2(cx, tau):
     """Integral of (v - V)^2 over [0, tau] of the current Taylor step, exactly:
     tau * sum_ij z_i z_j / (i + j + 1) with z_i = w_i tau^i."""
@@ -1705,7 +1711,7 @@ def _taylor_vr2(cx, tau):
     return 2.0 * tau * total
 
 
-@njit(cache=True, _nrt=False, inline="always")
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def _v_one_extremum(a0, j0, a1, j1, L, m3):
     """Proof that v has at most one extremum on [0, L]: v' keeps its sign, or v'' does
     (v' monotone), given v', v'' at both ends and |v'''| <= m3."""
@@ -1713,7 +1719,7 @@ def _v_one_extremum(a0, j0, a1, j1, L, m3):
     return _stays_positive(s * a0, s * j0, s * a1, s * j1, L, m3) or _sign_kept(j0, j1, L, m3)
 
 
-@njit(cache=True, _nrt=False, inline="always")
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def _carry(cx, t, x1, v1, a1, ph1, ph2, h):
     """Move to the end of an accepted slip step of length h: its (t, x, v, v', phases);
     the end's tone cos/sin become the next step's start (renormalised)."""
@@ -1738,7 +1744,7 @@ _RALPHA3 = 3.0 / 5.0
 STIFF_HK = 2.5
 
 
-@njit(cache=True, _nrt=False, inline="always")
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def _ros_solve(c, j22, r1, r2):
     """(c I - J) z = r for J = [[0, 1], [-1, j22]]."""
     det = 1.0 + c * (c - j22)
@@ -1746,7 +1752,7 @@ def _ros_solve(c, j22, r1, r2):
     return z1, c * z1 - r1
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _ros4_step(cx, sd, x0, v0, a0, h):
     """One Rosenbrock step of the slip equation from (x0, v0) (phases in cx).
 
@@ -1789,7 +1795,7 @@ def _ros4_step(cx, sd, x0, v0, a0, h):
     return x1, v1, a1, ex, ev
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _run_event(P, S, t_span, out_t, stats, max_events, rtol, atol, out_x, out_v, out_mode,
                ev_t, ev_kind, ev_x, counts, cx):
     """Advance S by t_span: Taylor-series steps in slip, exact stick; see ``advance``."""
@@ -2034,7 +2040,7 @@ def _run_event(P, S, t_span, out_t, stats, max_events, rtol, atol, out_x, out_v,
 # ----------------------------------------------------------------------------------------
 # The paper's scheme: fixed-step RK4 with sgn
 # ----------------------------------------------------------------------------------------
-@njit(cache=True, _nrt=False)
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _sgn_acc(P, x, v, ph1, ph2):
     vr = v - P[P_V]
     s = 1.0 if vr > 0.0 else (-1.0 if vr < 0.0 else 0.0)
@@ -2042,7 +2048,7 @@ def _sgn_acc(P, x, v, ph1, ph2):
             + P[P_U1] * math.cos(ph1) + P[P_U2] * math.cos(ph2))
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def run_rk4(P, S, t_span, dt, out_t, stats, out_x, out_v, out_mode):
     """The paper's scheme: classical RK4 on Eq. 7 with sgn(v - V), fixed step ``dt``.
 
@@ -2146,7 +2152,7 @@ def new_workspace(n: int | None = None, *, extrema: bool = True, vr2: bool = Tru
     return work
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def fresh_workspace(extrema=True, vr2=True):
     """``new_workspace`` for one plant, from compiled code."""
     # all NaN: every cache key compares unequal, so nothing stale is ever reused
@@ -2156,7 +2162,7 @@ def fresh_workspace(extrema=True, vr2=True):
     return work
 
 
-@njit(cache=True, _nrt=False, inline="always")
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def advance_ws(P, S, t_span, stats, method, rtol, atol, max_events, work):
     """``advance`` with a caller-owned workspace (see ``new_workspace``).
 
@@ -2171,7 +2177,7 @@ def advance_ws(P, S, t_span, stats, method, rtol, atol, max_events, work):
                       None, None, None, None, work)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def advance(P, S, t_span, stats, method, rtol, atol, max_events):
     """Advance the state ``S`` in place by ``t_span``, accumulating ``stats``; no trajectory.
 
@@ -2183,7 +2189,7 @@ def advance(P, S, t_span, stats, method, rtol, atol, max_events):
     return advance_ws(P, S, t_span, stats, method, rtol, atol, max_events, fresh_workspace())
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def record(P, S, out_t, stats, method, rtol, atol, max_events, out_x, out_v, out_mode, ev_t,
            ev_kind, ev_x, counts):
     """Like ``advance`` over [out_t[0], out_t[-1]], recording the state at ``out_t`` and the

@@ -130,7 +130,7 @@ def exact_rational(nu: float, q: int) -> float:
     return round(nu * q) / q
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _strobe_period(xs: np.ndarray, vs: np.ndarray, m_max: int, tol: float) -> int:
     n = xs.shape[0]
     scale = 1.0

@@ -202,12 +202,12 @@ def plan_cells(params: OscillatorParams, nu: np.ndarray, settings: SweepSettings
     return CellPlan(nu_exact, q, t_tr, t_seg, n_seg, tries.astype(np.int64))
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _event_cap(t_span: float, rate: float) -> int:
     return int(min(rate * t_span + 1000.0, 2.0e9))
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _run_cell(P: np.ndarray, x0: float, v0: float, t_trans: float, t_seg: float,
               n_seg: int, tries: int, method: int, rtol: float, atol: float, rate: float,
               m_max: int, tol: float, stats: np.ndarray) -> tuple[int, int]:
@@ -247,7 +247,7 @@ def _run_cell(P: np.ndarray, x0: float, v0: float, t_trans: float, t_seg: float,
     return status, period
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _converging(xs: np.ndarray, vs: np.ndarray, m_max: int) -> bool:
     """True if, for some candidate period m, the strobe mismatch |z_k - z_{k-m}| shrinks by
     half or more from the first to the second half of the window: an orbit still
@@ -270,7 +270,7 @@ def _converging(xs: np.ndarray, vs: np.ndarray, m_max: int) -> bool:
     return False
 
 
-@njit(parallel=True, cache=True)
+@njit(parallel=True, cache=True, error_model="numpy")
 def _cells_kernel(P_cells: np.ndarray, t_trans: np.ndarray, t_seg: np.ndarray,
                   n_seg: np.ndarray, tries: np.ndarray, x0: float, v0: float, method: int,
                   rtol: float, atol: float, rate: float, m_max: int, tol: float,

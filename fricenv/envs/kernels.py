@@ -145,12 +145,12 @@ CT_STEPS, CT_CURSOR, CT_STATUS = range(3)
 N_COUNTERS = 3
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _clip(v, lo, hi):
     return lo if v < lo else (hi if v > hi else v)
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, error_model="numpy", _nrt=False)
 def actions_finite(a) -> bool:
     for k in range(a.shape[0]):
         if not math.isfinite(a[k]):
@@ -158,7 +158,7 @@ def actions_finite(a) -> bool:
     return True
 
 
-@njit(cache=True, _nrt=False, inline="always")
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def set_excitation(P, ctrl, cfg) -> None:
     """Write the tone amplitudes and the second tone's frequency from (u0, nu).
 
@@ -170,7 +170,7 @@ def set_excitation(P, ctrl, cfg) -> None:
     P[P_W2] = ctrl[1] * P[P_W1]
 
 
-@njit(cache=True, _nrt=False, inline="always")
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def apply_action(ctrl, cfg, a) -> None:
     """Map a normalised action in [-1, 1] (clipped) to (u0, nu), absolute or incremental."""
     mode = int(cfg[C_ACTION_MODE])
@@ -191,7 +191,7 @@ def apply_action(ctrl, cfg, a) -> None:
             ctrl[1] = cfg[C_NU_LO] + 0.5 * (ai + 1.0) * (cfg[C_NU_HI] - cfg[C_NU_LO])
 
 
-@njit(cache=True, _nrt=False, inline="always")
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def _method(P, cfg) -> int:
     m = int(cfg[C_METHOD])
     if m != METHOD_AUTO:
@@ -201,7 +201,7 @@ def _method(P, cfg) -> int:
     return METHOD_EVENT
 
 
-@njit(cache=True, _nrt=False, inline="always")
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def control_interval(P, S, ctrl, cfg, a, stats, res, work) -> int:
     """Apply action ``a``, advance one control interval, fill the reward terms in ``res``.
 
@@ -234,7 +234,7 @@ def control_interval(P, S, ctrl, cfg, a, stats, res, work) -> int:
     return 0
 
 
-@njit(cache=True, _nrt=False, inline="always")
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def _cos_sin(phi, work, key, c, s):
     """cos and sin of ``phi``, from the core's cache when it holds this very angle."""
     if phi == work[key]:
@@ -242,7 +242,7 @@ def _cos_sin(phi, work, key, c, s):
     return math.cos(phi), math.sin(phi)
 
 
-@njit(cache=True, _nrt=False, inline="always")
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def write_obs(P, S, ctrl, cfg, obs, work) -> bool:
     """Write the float32 observation; True when the state left the observation box.
 
@@ -267,7 +267,7 @@ def write_obs(P, S, ctrl, cfg, obs, work) -> bool:
     return abs(x) > xl or abs(vr) > vl
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, error_model="numpy", _nrt=False)
 def start_episode(P, S, ctrl, cfg, P_new, init, obs, work) -> None:
     """Begin an episode from a sampled parameter vector and starting vector."""
     for k in range(P.shape[0]):
@@ -283,12 +283,12 @@ def start_episode(P, S, ctrl, cfg, P_new, init, obs, work) -> None:
     write_obs(P, S, ctrl, cfg, obs, work)
 
 
-@njit(cache=True, _nrt=False, inline="always")
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def _scaled(u, bounds, k):
     return bounds[0, k] + (bounds[1, k] - bounds[0, k]) * u[k]
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, error_model="numpy", _nrt=False)
 def episode_from_uniforms(u, bounds, cfg, P_out, init_out) -> None:
     """One episode's parameter and starting vectors from its N_DRAWS uniforms ``u``.
 
@@ -318,7 +318,7 @@ def episode_from_uniforms(u, bounds, cfg, P_out, init_out) -> None:
     init_out[I_NU] = nu
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, error_model="numpy", _nrt=False)
 def step_single(P, S, ctrl, cfg, a, stats, obs, res, work) -> int:
     """One step of the single environment (one dispatch per step keeps it cheap)."""
     if not actions_finite(a):
@@ -330,7 +330,7 @@ def step_single(P, S, ctrl, cfg, a, stats, obs, res, work) -> int:
     return 0
 
 
-@njit(cache=True, _nrt=False, inline="always")
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def _plant_rows(table, i):
     """Plant ``i``'s parameters, state, excitation, stats and workspace: views of its row."""
     row = table[i]
@@ -338,7 +338,7 @@ def _plant_rows(table, i):
             row[T_WORK:])
 
 
-@njit(cache=True, _nrt=False, inline="always")
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def _plant_step(i, table, cfg, A, obs, res, flags, counters, max_steps, mode) -> int:
     """Body of the batch step for plant ``i`` (see ``step_batch``).
 
@@ -374,7 +374,7 @@ def _plant_step(i, table, cfg, A, obs, res, flags, counters, max_steps, mode) ->
     return 0
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _start_next(i, table, cfg, obs, counters, draws, bounds):
     """Start plant ``i``'s next episode from its next buffered row of draws.
 
@@ -391,7 +391,7 @@ def _start_next(i, table, cfg, obs, counters, draws, bounds):
     counters[CT_STEPS, i] = 0
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _first_bad_action(A, autoreset, mode) -> int:
     for i in range(A.shape[0]):
         if mode == AUTORESET_NEXT_STEP and autoreset[i]:
@@ -401,7 +401,7 @@ def _first_bad_action(A, autoreset, mode) -> int:
     return -1
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _count(flags, counters, n_rows, ivars) -> int:
     """Write the reset and empty-buffer counts to ``ivars``; return the failure count."""
     n_failed = 0
@@ -419,7 +419,7 @@ def _count(flags, counters, n_rows, ivars) -> int:
     return n_failed
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _step_range(lo, hi, table, cfg, A, obs, res, flags, counters, draws, bounds, max_steps,
                 mode) -> None:
     """Step plants ``lo`` to ``hi - 1`` (the body of both batch kernels).
@@ -434,7 +434,7 @@ def _step_range(lo, hi, table, cfg, A, obs, res, flags, counters, draws, bounds,
             _start_next(i, table, cfg, obs, counters, draws, bounds)
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, error_model="numpy", _nrt=False)
 def step_batch(table, cfg, A, obs, res, flags, counters, draws, bounds, ivars) -> int:
     """Step N plants with autoreset in one call.
 
@@ -462,7 +462,7 @@ def step_batch(table, cfg, A, obs, res, flags, counters, draws, bounds, ivars) -
     return _count(flags, counters, draws.shape[1], ivars)
 
 
-@njit(cache=True, _nrt=False, inline="always")
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def _region(worker, n_workers, n):
     """Plants [lo, hi) of the region that ``worker`` shares with its partner (workers 2r
     and 2r + 1 share region r; with an odd count the last worker has a region alone), sized
@@ -471,13 +471,13 @@ def _region(worker, n_workers, n):
     return first * n // n_workers, min(first + 2, n_workers) * n // n_workers
 
 
-@njit(cache=True, _nrt=False, inline="always")
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def _n_chunks(lo, hi):
     """Number of chunks of ``CHUNK`` plants (the last possibly partial) in [lo, hi)."""
     return (hi - lo + CHUNK - 1) // CHUNK
 
 
-@njit(cache=True, _nrt=False, inline="always")
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def _chunk(lo, hi, done, from_back):
     """Plants [start, end) of a worker's ``done``-th chunk of its region [lo, hi).
 
@@ -490,7 +490,7 @@ def _chunk(lo, hi, done, from_back):
     return start, min(hi, start + CHUNK)
 
 
-@njit(cache=True, parallel=True, _nrt=False)
+@njit(cache=True, error_model="numpy", parallel=True, _nrt=False)
 def step_batch_parallel(table, cfg, A, obs, res, flags, counters, draws, bounds, ivars) -> int:
     """``step_batch`` on ``ivars[4]`` workers (one ``prange`` iteration each) that share
     the plants out as they go.
@@ -546,7 +546,7 @@ def step_batch_parallel(table, cfg, A, obs, res, flags, counters, draws, bounds,
     return _count(flags, counters, draws.shape[1], ivars)
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, error_model="numpy", _nrt=False)
 def start_batch(table, cfg, mask, obs, flags, counters) -> None:
     """Begin episodes for the plants selected by ``mask``, from their next-episode columns."""
     for i in range(table.shape[0]):
@@ -558,7 +558,7 @@ def start_batch(table, cfg, mask, obs, flags, counters) -> None:
             flags[F_AUTORESET, i] = False
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def sample_interval(P, S, ctrl, cfg, a, stats, t_out, v_out, stick_out) -> int:
     """The coming interval's velocity at ``len(t_out)`` instants (the renderer's trace and
     ``StickSlipEnv.sample_interval``).
