@@ -65,6 +65,26 @@ def check_bool(name: str, value: Any) -> bool:
     return bool(value)
 
 
+def real_array(value: Any, what: str) -> np.ndarray:
+    """``value`` as a float64 array: ``TypeError`` unless it is made of real numbers (None,
+    strings, dicts, complex or bools would otherwise become NaN, a parsed float or a numba
+    typing error; Fractions convert), ``ValueError`` for ragged nesting. ``what`` opens the
+    message ("u0 must be ...")."""
+    a = None
+    if value is not None and not isinstance(value, (str, bytes)):
+        try:
+            a = np.asarray(value)
+        except ValueError as exc:  # ragged nesting: numbers, but no array shape
+            raise ValueError(f"{what}, got {value!r}") from exc
+        except TypeError:  # e.g. a failing __array__
+            a = None
+        if a is not None and a.dtype.kind == "O":
+            a = a.astype(np.float64) if all(is_real(v) for v in a.flat) else None
+    if a is None or a.dtype.kind not in "iuf":  # (bools are flags, not amounts)
+        raise TypeError(f"{what}, {got(value)}")
+    return a.astype(np.float64)
+
+
 def items_of(value: Any) -> list | None:
     """The items of a list-like ``value`` (not a string or a mapping), else None."""
     if isinstance(value, Iterable) and not isinstance(value, (str, bytes, Mapping)):

@@ -52,7 +52,7 @@ from numba import njit, prange
 
 from . import core
 from .atomic import fetch_add
-from .checks import check_bool, check_dict, check_finite_real, check_int, got, is_real
+from .checks import check_bool, check_dict, check_finite_real, check_int, got, real_array
 from .layout import (
     METHOD_EVENT,
     METHOD_EXACT,
@@ -533,20 +533,7 @@ def _check_axis(name: str, a: object) -> np.ndarray:
     """A grid axis as a 1-d float array: ``TypeError`` unless made of real numbers (None
     would become NaN, strings such as ``"0.5"`` would be parsed), ``ValueError`` for a
     ragged, 2-d, empty, non-finite or negative one."""
-    what = f"{name} must be an array of real numbers"
-    arr = None
-    if a is not None and not isinstance(a, (str, bytes)):
-        try:
-            arr = np.asarray(a)
-        except ValueError as exc:  # ragged nesting: numbers, but no array shape
-            raise ValueError(f"{what}, got {a!r}") from exc
-        except TypeError:  # e.g. a failing __array__
-            arr = None
-        if arr is not None and arr.dtype.kind == "O":  # e.g. Fractions; not None or strings
-            arr = arr.astype(float) if all(is_real(v) for v in arr.flat) else None
-    if arr is None or arr.dtype.kind not in "iuf":  # (bools are flags, not amplitudes)
-        raise TypeError(f"{what}, {got(a)}")
-    arr = arr.astype(float)
+    arr = real_array(a, f"{name} must be an array of real numbers")
     if arr.ndim == 0:
         arr = arr.reshape(1)
     if arr.ndim != 1:

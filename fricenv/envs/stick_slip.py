@@ -16,7 +16,15 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from fricenv.checks import check_bool, check_dict, check_int, check_real, is_int, real_tuple
+from fricenv.checks import (
+    check_bool,
+    check_dict,
+    check_int,
+    check_real,
+    is_int,
+    real_array,
+    real_tuple,
+)
 from fricenv.core import new_workspace
 from fricenv.envs import kernels as K
 from fricenv.envs.scenes import (
@@ -216,24 +224,7 @@ def coerce_action(action: Any, shape: tuple[int, ...], name: str = "action") -> 
     reject them without touching the plant.
     """
     want = f"{name} must be an array of real numbers of shape {shape}"
-    a = None
-    if action is not None and not isinstance(action, (str, bytes)):
-        try:
-            a = np.asarray(action)
-        except ValueError as e:  # ragged nesting: numbers, but no array shape
-            raise ValueError(f"{want}, got {action!r}") from e
-        except TypeError:  # e.g. a failing __array__
-            pass
-        if a is not None and a.dtype.kind == "O":  # e.g. Fractions convert; None, dicts do not
-            if any(v is None or isinstance(v, (str, bytes)) for v in a.flat):
-                a = None
-            else:
-                try:
-                    a = a.astype(np.float64)
-                except (TypeError, ValueError):
-                    a = None
-    if a is None or a.dtype.kind not in "iuf":  # (bools are flags, not amplitudes)
-        raise TypeError(f"{want}, got {action!r} ({type(action).__name__})")
+    a = real_array(action, want)
     if a.size != math.prod(shape):
         raise ValueError(f"{want}, got shape {a.shape}: {action!r}")
     return np.ascontiguousarray(a.reshape(shape), dtype=np.float64)
