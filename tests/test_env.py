@@ -844,7 +844,7 @@ def test_late_workers_send_the_vector_env_serial_for_doubling_stretches(monkeypa
     from fricenv.envs import kernels
     from fricenv.envs import vector as vec_mod
 
-    par, ser = _parallel_and_serial(vec_mod.PARALLEL_MIN_ENVS)  # 8 chunks for 2 workers
+    par, ser = _parallel_and_serial(vec_mod.PARALLEL_MIN_ENVS)  # 4 cells for 2 workers
     del par._watch_workers  # the env's own policy, under test here
     par._ivars = np.zeros(kernels.N_IVARS + kernels.COUNTER_STRIDE, dtype=np.int64)
     par._ivars[: kernels.N_IVARS] = ser._ivars[: kernels.N_IVARS]
@@ -879,22 +879,27 @@ def test_late_workers_send_the_vector_env_serial_for_doubling_stretches(monkeypa
     assert par._late_steps == 0 and par._serial_stretch == first
 
 
-@pytest.mark.parametrize("size", [0, 1, 7, 8, 9, 16, 23, 40])
-def test_chunks_of_a_region_cover_it_once_for_any_meeting_point(size):
-    """Whatever share of a region's claims the front worker wins, its chunks and the back
-    worker's tile the region exactly."""
+@pytest.mark.parametrize("size", [0, 1, 7, 8, 9, 16, 17, 23, 40, 64, 77, 128, 256, 1000])
+def test_cells_of_a_region_cover_it_once_for_any_meeting_point(size):
+    """Whatever share of a region's claims the front worker wins, its cells and the back
+    worker's tile the region exactly; a region of a few chunks or more opens with two big
+    cells, one for each worker's first claim, and keeps at least two chunks between them."""
     from fricenv.envs import kernels
 
     lo, hi = 5, 5 + size
-    n_chunks = kernels._n_chunks(lo, hi)
-    assert n_chunks == -(-size // kernels.CHUNK)
-    for a in range(n_chunks + 1):
+    big, n_cells = kernels._cells(lo, hi)
+    if size >= 4 * kernels.CHUNK:
+        assert big > 0 and n_cells >= 4
+        assert size - 2 * big >= 2 * kernels.CHUNK
+    for a in range(n_cells + 1):
         hits = np.zeros(hi, dtype=np.int64)
         for done in range(a):
-            start, end = kernels._chunk(lo, hi, done, False)
+            start, end = kernels._cell(lo, hi, big, n_cells, done, False)
+            assert start < end
             hits[start:end] += 1
-        for done in range(n_chunks - a):
-            start, end = kernels._chunk(lo, hi, done, True)
+        for done in range(n_cells - a):
+            start, end = kernels._cell(lo, hi, big, n_cells, done, True)
+            assert start < end
             hits[start:end] += 1
         assert np.all(hits[lo:hi] == 1) and np.all(hits[:lo] == 0)
 

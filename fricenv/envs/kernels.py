@@ -116,8 +116,10 @@ AUTORESET_NEXT_STEP, AUTORESET_SAME_STEP, AUTORESET_DISABLED = 0, 1, 2
 IV_MAX_STEPS, IV_MODE, IV_N_RESET, IV_N_EMPTY, IV_N_WORKERS, IV_N_LATE = range(6)
 N_IVARS = 6
 
-# Plants a thread of the parallel kernel claims at a time: small, so that the threads finish
-# together, yet each claim (an atomic add on a shared counter) stays rare.
+# Plants a thread of the parallel kernel claims at a time in the middle of its region:
+# small, so that the threads finish together. Each worker's first claim is a big cell
+# instead (see ``_cells``), because every claim is an atomic add on a counter whose cache
+# line the two threads pass back and forth.
 CHUNK = 8
 COUNTER_STRIDE = 8
 
@@ -472,22 +474,42 @@ def _region(worker, n_workers, n):
 
 
 @njit(cache=True, error_model="numpy", _nrt=False, inline="always")
-def _n_chunks(lo, hi):
-    """Number of chunks of ``CHUNK`` plants (the last possibly partial) in [lo, hi)."""
-    return (hi - lo + CHUNK - 1) // CHUNK
+def _cells(lo, hi):
+    """How the region [lo, hi) is cut into claimable cells: (big, n_cells).
+
+    The region's middle quarter (at least two chunks) is cut into chunks of ``CHUNK``
+    plants; the rest forms two big cells of ``big`` plants, the first and the last. A pair
+    of workers on time each claims one big cell first, from its own end, and the two meet
+    in the middle chunks: a few claims a step instead of one per chunk (the counter's
+    cache line moving between the threads at each claim measured several per cent of a
+    step). A region too small for that (``big == 0``) is all chunks.
+    """
+    n = hi - lo
+    middle = min(n, CHUNK * max(2, (n + 4 * CHUNK - 1) // (4 * CHUNK)))
+    big = (n - middle) // 2
+    n_chunks = (n - 2 * big + CHUNK - 1) // CHUNK
+    return big, n_chunks + (2 if big > 0 else 0)
 
 
 @njit(cache=True, error_model="numpy", _nrt=False, inline="always")
-def _chunk(lo, hi, done, from_back):
-    """Plants [start, end) of a worker's ``done``-th chunk of its region [lo, hi).
+def _cell(lo, hi, big, n_cells, done, from_back):
+    """Plants [start, end) of a worker's ``done``-th claim in the region [lo, hi), cut as
+    ``_cells`` says.
 
-    Both ends count chunks on one grid from ``lo``, so when the region's counter has handed
-    out its ``n_chunks`` claims, a front worker's first a chunks and a back worker's first
-    b = n_chunks - a never overlap and leave nothing out.
+    Both ends count cells on one grid, so when the region's counter has handed out its
+    ``n_cells`` claims, a front worker's first a cells and a back worker's first b =
+    n_cells - a never overlap and leave nothing out (a worker on time alone takes both big
+    cells).
     """
-    k = _n_chunks(lo, hi) - 1 - done if from_back else done
-    start = lo + k * CHUNK
-    return start, min(hi, start + CHUNK)
+    k = n_cells - 1 - done if from_back else done
+    if big > 0:
+        if k == 0:
+            return lo, lo + big
+        if k == n_cells - 1:
+            return hi - big, hi
+        k -= 1
+    start = lo + big + k * CHUNK
+    return start, min(hi - big, start + CHUNK)
 
 
 @njit(cache=True, error_model="numpy", parallel=True, _nrt=False)
@@ -498,20 +520,21 @@ def step_batch_parallel(table, cfg, A, obs, res, flags, counters, draws, bounds,
     Plants differ in cost (a switch interval costs several whole-interval steps), and the
     host may slow one thread, so a fixed split leaves one thread waiting for the other.
     Instead the plants are split into one region per pair of workers; in a region, one
-    worker steps chunks of ``CHUNK`` plants from the front and the other from the back,
-    each claiming its next chunk from the region's counter in ``ivars`` (bumped
-    atomically), until the region's chunks are handed out. Working from opposite ends keeps
-    the two off each other's cache lines of the per-plant rows of ``res``, ``flags`` and
-    ``counters`` (chunks handed out in turn from one end made the kernel slower than the
-    serial one). Without counter slots in ``ivars`` the plants are stepped in order.
+    worker steps cells of plants (``_cells``: a big one, then chunks of ``CHUNK``) from the
+    front and the other from the back, each claiming its next cell from the region's
+    counter in ``ivars`` (bumped atomically), until the region's cells are handed out.
+    Working from opposite ends keeps the two off each other's cache lines of the per-plant
+    rows of ``res``, ``flags`` and ``counters`` (chunks handed out in turn from one end
+    made the kernel slower than the serial one). Without counter slots in ``ivars`` the
+    plants are stepped in order.
 
     Each plant reads and writes only its own slots, so the result is identical to the
     serial kernel whatever the worker or thread count and order. Like the other kernels it
     allocates nothing, so it runs without numba's reference counting (``_nrt=False``),
     whose atomic updates on the shared batch arrays the threads would otherwise fight over.
 
-    ``ivars[IV_N_LATE]`` counts the workers that found their region (of at least two
-    chunks each) already handed out: their thread got a CPU only after its partner had done
+    ``ivars[IV_N_LATE]`` counts the workers that found their region (of at least four
+    cells) already handed out: their thread got a CPU only after its partner had done
     all the work, and the step waited for it at the loop's end. On a machine busy with
     other processes that wait is a scheduler time slice, and the caller should step
     serially for a while (the vector env does).
@@ -533,15 +556,15 @@ def step_batch_parallel(table, cfg, A, obs, res, flags, counters, draws, bounds,
     ivars[IV_N_LATE] = 0
     for worker in prange(n_workers):
         lo, hi = _region(worker, n_workers, n)
-        n_chunks = _n_chunks(lo, hi)
+        big, n_cells = _cells(lo, hi)
         counter = N_IVARS + (worker // 2) * COUNTER_STRIDE
         done = 0
-        while fetch_add(ivars, counter, 1) < n_chunks:
-            start, end = _chunk(lo, hi, done, worker % 2 == 1)
+        while fetch_add(ivars, counter, 1) < n_cells:
+            start, end = _cell(lo, hi, big, n_cells, done, worker % 2 == 1)
             _step_range(start, end, table, cfg, A, obs, res, flags, counters, draws, bounds,
                         max_steps, mode)
             done += 1
-        if done == 0 and n_chunks >= 4:  # (a worker alone in its region is never late)
+        if done == 0 and n_cells >= 4:  # (a worker alone in its region is never late)
             fetch_add(ivars, IV_N_LATE, 1)
     return _count(flags, counters, draws.shape[1], ivars)
 
