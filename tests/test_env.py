@@ -844,7 +844,7 @@ def test_late_workers_send_the_vector_env_serial_for_doubling_stretches(monkeypa
     from fricenv.envs import kernels
     from fricenv.envs import vector as vec_mod
 
-    par, ser = _parallel_and_serial(vec_mod.PARALLEL_MIN_ENVS)  # 4 cells for 2 workers
+    par, ser = _parallel_and_serial(vec_mod.PARALLEL_MIN_ENVS)  # 6 cells for 2 workers
     del par._watch_workers  # the env's own policy, under test here
     par._ivars = np.zeros(kernels.N_IVARS + kernels.COUNTER_STRIDE, dtype=np.int64)
     par._ivars[: kernels.N_IVARS] = ser._ivars[: kernels.N_IVARS]
