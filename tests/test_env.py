@@ -883,7 +883,8 @@ def test_late_workers_send_the_vector_env_serial_for_doubling_stretches(monkeypa
 def test_cells_of_a_region_cover_it_once_for_any_meeting_point(size):
     """Whatever share of a region's claims the front worker wins, its cells and the back
     worker's tile the region exactly; a region of a few chunks or more opens with two big
-    cells, one for each worker's first claim, and keeps at least two chunks between them."""
+    cells, one for each worker's first claim, of at most a third of it each, and keeps at
+    least two chunks between them."""
     from fricenv.envs import kernels
 
     lo, hi = 5, 5 + size
@@ -891,6 +892,8 @@ def test_cells_of_a_region_cover_it_once_for_any_meeting_point(size):
     if size >= 4 * kernels.CHUNK:
         assert big > 0 and n_cells >= 4
         assert size - 2 * big >= 2 * kernels.CHUNK
+    # a worker slowed to half its partner's speed can still end with its balanced third
+    assert 3 * big <= size
     for a in range(n_cells + 1):
         hits = np.zeros(hi, dtype=np.int64)
         for done in range(a):
