@@ -14,7 +14,9 @@ numba's worker threads after the other contenders' rounds (printed separately as
 step after 20 ms idle; a few hundred microseconds on a virtual machine) is amortised as in
 a rollout, not charged to every 50th step. The physics floor (``core.advance_ws`` alone,
 per control interval, in a numba loop) is printed too: no vector env can be cheaper per
-plant-step than that on one thread.
+plant-step than that on one thread. So is the vector step's numba call alone, on a twin
+vector env in the same rounds: the rest of the step is its Python (action checks, copies
+of the results, infos, and the switch to one thread while workers come late).
 
 Usage: ``python scripts/bench_env.py [--quick] [--no-ppo] [--json out.json]``
 """
@@ -113,6 +115,27 @@ def physics_floor(env_id: str, snapshots: int) -> float:
     return total / snapshots / 256
 
 
+def _kernel_stepper(vec, n_actions: int = 512, seed: int = 0) -> Callable[[], None]:
+    """A closure making only the numba call of ``vec.step`` (and its rare buffer refill):
+    the step's cost without the Python around it (checks, copies of the results, infos)."""
+    from fricenv.envs import kernels as K
+
+    rng = np.random.default_rng(seed)
+    acts = rng.uniform(-1, 1, (n_actions, *vec.action_space.shape)).astype(np.float32)
+    vec.reset(seed=seed)
+    state = {"k": 0}
+
+    def step() -> None:
+        k = state["k"]
+        vec._step_kernel(vec._table, vec._cfg, acts[k % n_actions], vec._obs_pair, vec._res,
+                         vec._flags, vec._counters, vec._draws, vec._bounds, vec._ivars)
+        if vec._ivars[K.IV_N_EMPTY]:
+            vec._refill_empty()
+        state["k"] = k + 1
+
+    return step
+
+
 def _first_step_after_idle(vec, repeats: int = 15) -> float:
     """Median seconds of one vector step after 20 ms without any (threads gone to sleep)."""
     a = np.zeros((vec.num_envs, *vec.single_action_space.shape), dtype=np.float32)
@@ -142,6 +165,7 @@ def bench_steps(quick: bool) -> dict:
                 "single": (_stepper(single), n_single),
                 "made": (_stepper(made), n_single),
                 "vector": (_stepper(vec), n_vec),
+                "kernel": (_kernel_stepper(gym.make_vec(env_id, num_envs=256)), n_vec),
             },
             rounds,
         )
@@ -161,6 +185,7 @@ def bench_steps(quick: bool) -> dict:
             "physics_floor_us": floor * 1e6,
             "vector_first_step_after_idle_us": cold * 1e6,
             "vector_step_us": t["vector"] * 1e6,
+            "vector_kernel_us": t["kernel"] * 1e6,
             "single_over_pendulum": t["single"] / t["pendulum"],
             "single_over_vector_plant": t["single"] / per_plant,
             "made_over_vector_plant": t["made"] / per_plant,
@@ -248,6 +273,11 @@ def main() -> None:
         print(
             f"    native vector, first step after 20 ms idle {cold:.0f} us "
             f"(steady: {r['vector_step_us']:.0f} us)"
+        )
+        glue = r["vector_step_us"] - r["vector_kernel_us"]
+        print(
+            f"    native vector step, of which the numba call {r['vector_kernel_us']:.0f} us, "
+            f"Python around it {glue:.1f} us"
         )
         print(f"    physics alone, 1 thread        {r['physics_floor_us']:8.3f} us (floor)")
         ok1 = r["single_over_pendulum"] <= 1.0

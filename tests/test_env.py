@@ -839,8 +839,9 @@ def test_parallel_batch_kernel_after_thread_count_changes():
 def test_late_workers_send_the_vector_env_serial_for_doubling_stretches(monkeypatch):
     """Workers that keep finding their region done (here: two workers run in turn on one
     thread, as on a machine busy with other processes) make the env step serially, in
-    stretches that double while the parallel step between them finds a late worker again;
-    one step with every worker on time ends the spell. The results never change."""
+    stretches that double while the PROBE_STEPS parallel steps between them all find a late
+    worker again; one step with every worker on time ends the spell. The results never
+    change."""
     from fricenv.envs import kernels
     from fricenv.envs import vector as vec_mod
 
@@ -849,8 +850,8 @@ def test_late_workers_send_the_vector_env_serial_for_doubling_stretches(monkeypa
     par._ivars = np.zeros(kernels.N_IVARS + kernels.COUNTER_STRIDE, dtype=np.int64)
     par._ivars[: kernels.N_IVARS] = ser._ivars[: kernels.N_IVARS]
     par._ivars[kernels.IV_N_WORKERS] = 2
-    late, first = vec_mod.LATE_STEPS, vec_mod.SERIAL_STRETCH_MIN
-    n_steps = late + first + 1 + 2 * first + 1
+    late, first, probe = vec_mod.LATE_STEPS, vec_mod.SERIAL_STRETCH_MIN, vec_mod.PROBE_STEPS
+    n_steps = late + first + probe + 2 * first + probe
     serial_steps = []
     step_batch = kernels.step_batch  # the reference env keeps its own reference to it
 
@@ -872,7 +873,9 @@ def test_late_workers_send_the_vector_env_serial_for_doubling_stretches(monkeypa
     finally:
         numba.set_num_threads(before)
     parallel_steps = sorted(set(range(n_steps)) - set(serial_steps))
-    assert parallel_steps == [*range(late), late + first, late + first + 1 + 2 * first]
+    second_probe = late + first + probe + 2 * first
+    assert parallel_steps == [*range(late), *range(late + first, late + first + probe),
+                              *range(second_probe, second_probe + probe)]
     assert par._serial_left == 4 * first
     par._ivars[kernels.IV_N_LATE] = 0  # as after a parallel step with every worker on time
     par._watch_workers()

@@ -90,10 +90,17 @@ PARALLEL_MIN_ENVS = 64
 #: milliseconds, some fifty steps' worth. After LATE_STEPS parallel steps in a row with a
 #: late worker, the env steps serially (identical results) for a stretch of steps that
 #: starts at SERIAL_STRETCH_MIN and doubles, up to SERIAL_STRETCH_MAX, for as long as the
-#: parallel step that follows each stretch finds a late worker again.
+#: PROBE_STEPS parallel steps that follow each stretch all find a late worker again. The
+#: first of them is often late whatever the machine: its worker idled through the stretch
+#: and may have to be woken, which on a virtual machine can take longer than a step (after
+#: 128 serial steps, half the first parallel steps were late, an eighth of the next ones).
+#: With that step alone deciding, stretches grew to their longest and stayed there: in a
+#: benchmark alternating with other work, half the vector steps ran serially.
 LATE_STEPS = 3
+PROBE_STEPS = 2
 SERIAL_STRETCH_MIN = 32
 SERIAL_STRETCH_MAX = 2048
+assert 1 <= PROBE_STEPS <= LATE_STEPS
 #: Episodes' worth of uniforms buffered per plant: one ``rng.random`` call every so many
 #: episodes instead of one per episode.
 DRAW_ROWS = 16
@@ -365,7 +372,7 @@ class StickSlipVectorEnv(VectorEnv):
         if self._late_steps >= LATE_STEPS:
             self._serial_left = self._serial_stretch
             self._serial_stretch = min(2 * self._serial_stretch, SERIAL_STRETCH_MAX)
-            self._late_steps = LATE_STEPS - 1  # one late probe after the stretch: serial again
+            self._late_steps = LATE_STEPS - PROBE_STEPS  # late probes: serial again
 
     def _after_resets(self) -> dict[str, Any]:
         """After a step that reset plants: refill spent buffers, restart traces, and batch
