@@ -9,14 +9,15 @@ Targets (ratios, so that machine speed cancels):
 
 Timings alternate between the contenders in rounds and report medians, because the machine
 may be shared. Every contender is warmed up first (numba compilation and cache loading are
-excluded). A vector round is 200 steps (about 10 ms), so that the one-off cost of waking
-numba's worker threads after the other contenders' rounds (printed separately as the first
-step after 20 ms idle; a few hundred microseconds on a virtual machine) is amortised as in
-a rollout, not charged to every 50th step. The physics floor (``core.advance_ws`` alone,
-per control interval, in a numba loop) is printed too: no vector env can be cheaper per
-plant-step than that on one thread. So is the vector step's numba call alone, on a twin
-vector env in the same rounds: the rest of the step is its Python (action checks, copies
-of the results, infos, and the switch to one thread while workers come late).
+excluded), and every round starts after 20 ms idle. A vector round is 200 steps (about 10
+ms), so that the one-off cost of waking numba's worker threads after that idle (printed
+separately as the first step after 20 ms idle; a few hundred microseconds on a virtual
+machine) is amortised as in a rollout, not charged to every 50th step. The physics floor
+(``core.advance_ws`` alone, per control interval, in a numba loop) is printed too: no
+vector env can be cheaper per plant-step than that on one thread. So is the vector step's
+numba call alone, on a twin vector env in the same rounds: the rest of the step is its
+Python (action checks, copies of the results, infos, and the switch to one thread while
+workers come late).
 
 Usage: ``python scripts/bench_env.py [--quick] [--no-ppo] [--json out.json]``
 """
@@ -24,6 +25,7 @@ Usage: ``python scripts/bench_env.py [--quick] [--no-ppo] [--json out.json]``
 from __future__ import annotations
 
 import argparse
+import itertools
 import json
 import math
 import statistics
@@ -35,6 +37,10 @@ import numpy as np
 
 from fricenv.envs import ENV_IDS, register_envs
 
+#: Idle time before each contender's round (see ``_rounds``): the 20 ms after which
+#: ``_first_step_after_idle`` finds numba's workers asleep.
+IDLE_S = 0.02
+
 
 def _per_call(fn: Callable[[], None], n: int) -> float:
     t = time.perf_counter()
@@ -43,17 +49,20 @@ def _per_call(fn: Callable[[], None], n: int) -> float:
     return (time.perf_counter() - t) / n
 
 
-def _stepper(env, n_actions: int = 512, seed: int = 0) -> Callable[[], None]:
-    """A closure stepping ``env`` through pre-drawn actions (resetting when an episode ends)."""
+def _actions(env, n_actions: int, seed: int) -> itertools.cycle:
+    """Pre-drawn actions for ``env``, in an endless cycle; ``env`` is reset with ``seed``."""
     rng = np.random.default_rng(seed)
     acts = rng.uniform(-1, 1, (n_actions, *env.action_space.shape)).astype(np.float32)
     env.reset(seed=seed)
-    state = {"k": 0}
+    return itertools.cycle(acts)
+
+
+def _stepper(env, n_actions: int = 512, seed: int = 0) -> Callable[[], None]:
+    """A closure stepping ``env`` through pre-drawn actions (resetting when an episode ends)."""
+    actions = _actions(env, n_actions, seed)
 
     def step() -> None:
-        k = state["k"]
-        out = env.step(acts[k % n_actions])
-        state["k"] = k + 1
+        out = env.step(next(actions))
         if not isinstance(out[2], np.ndarray) and (out[2] or out[3]):
             env.reset()
 
@@ -64,12 +73,19 @@ def _rounds(
     contenders: dict[str, tuple[Callable[[], None], int]], rounds: int
 ) -> dict[str, list[float]]:
     """Seconds per call of each contender in each round, alternating them ``rounds`` times
-    (so that the i-th samples of all contenders share the machine's state of round i)."""
+    (so that the i-th samples of all contenders share the machine's state of round i).
+
+    Each round of a contender starts after IDLE_S without work, so that none inherits the
+    previous one's state: numba's worker threads, still spinning just after a vector round
+    (on a core that may share its hardware with the next contender's), are asleep by then,
+    and a vector contender pays for waking them as a rollout does after a policy update.
+    """
     samples: dict[str, list[float]] = {k: [] for k in contenders}
     for fn, n in contenders.values():
         _per_call(fn, max(1, n // 10))  # warm-up: compilation, cache loading
     for _ in range(rounds):
         for name, (fn, n) in contenders.items():
+            time.sleep(IDLE_S)
             samples[name].append(_per_call(fn, n))
     return samples
 
@@ -120,18 +136,13 @@ def _kernel_stepper(vec, n_actions: int = 512, seed: int = 0) -> Callable[[], No
     the step's cost without the Python around it (checks, copies of the results, infos)."""
     from fricenv.envs import kernels as K
 
-    rng = np.random.default_rng(seed)
-    acts = rng.uniform(-1, 1, (n_actions, *vec.action_space.shape)).astype(np.float32)
-    vec.reset(seed=seed)
-    state = {"k": 0}
+    actions = _actions(vec, n_actions, seed)
 
     def step() -> None:
-        k = state["k"]
-        vec._step_kernel(vec._table, vec._cfg, acts[k % n_actions], vec._obs_pair, vec._res,
+        vec._step_kernel(vec._table, vec._cfg, next(actions), vec._obs_pair, vec._res,
                          vec._flags, vec._counters, vec._draws, vec._bounds, vec._ivars)
         if vec._ivars[K.IV_N_EMPTY]:
             vec._refill_empty()
-        state["k"] = k + 1
 
     return step
 
@@ -159,12 +170,20 @@ def bench_steps(quick: bool) -> dict:
         single = gym.make(env_id).unwrapped
         made = gym.make(env_id)
         vec = gym.make_vec(env_id, num_envs=256)
+        vec_step = _stepper(vec)
+        steps = {"all": 0, "serial": 0}
+
+        def vector_step(vec=vec, vec_step=vec_step, steps=steps) -> None:
+            steps["all"] += 1
+            steps["serial"] += vec._serial_left > 0  # stepped on one thread (late workers)
+            vec_step()
+
         samples = _rounds(
             {
                 "pendulum": (_stepper(pendulum), n_single),
                 "single": (_stepper(single), n_single),
                 "made": (_stepper(made), n_single),
-                "vector": (_stepper(vec), n_vec),
+                "vector": (vector_step, n_vec),
                 "kernel": (_kernel_stepper(gym.make_vec(env_id, num_envs=256)), n_vec),
             },
             rounds,
@@ -186,6 +205,8 @@ def bench_steps(quick: bool) -> dict:
             "vector_first_step_after_idle_us": cold * 1e6,
             "vector_step_us": t["vector"] * 1e6,
             "vector_kernel_us": t["kernel"] * 1e6,
+            "vector_steps": steps["all"],
+            "vector_steps_serial": steps["serial"],
             "single_over_pendulum": t["single"] / t["pendulum"],
             "single_over_vector_plant": t["single"] / per_plant,
             "made_over_vector_plant": t["made"] / per_plant,
@@ -277,7 +298,8 @@ def main() -> None:
         glue = r["vector_step_us"] - r["vector_kernel_us"]
         print(
             f"    native vector step, of which the numba call {r['vector_kernel_us']:.0f} us, "
-            f"Python around it {glue:.1f} us"
+            f"Python around it {glue:.1f} us; {r['vector_steps_serial']} of "
+            f"{r['vector_steps']} steps on one thread (late workers)"
         )
         print(f"    physics alone, 1 thread        {r['physics_floor_us']:8.3f} us (floor)")
         ok1 = r["single_over_pendulum"] <= 1.0
