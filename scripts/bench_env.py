@@ -10,9 +10,10 @@ Targets (ratios, so that machine speed cancels):
 Timings alternate between the contenders in rounds and report medians, because the machine
 may be shared. Every contender is warmed up first (numba compilation and cache loading are
 excluded), and every round starts after 20 ms idle. A vector round is 200 steps (about 10
-ms), so that the one-off cost of waking numba's worker threads after that idle (printed
-separately as the first step after 20 ms idle; a few hundred microseconds on a virtual
-machine) is amortised as in a rollout, not charged to every 50th step. The physics floor
+ms), so that the one-off cost of resuming after that idle (printed separately as the first
+step after 20 ms idle; a few hundred microseconds on a virtual machine, where a one-thread
+kernel call pays nearly as much as a two-thread one) is amortised as in a rollout, not
+charged to every 50th step. The physics floor
 (``core.advance_ws`` alone, per control interval, in a numba loop) is printed too: no
 vector env can be cheaper per plant-step than that on one thread. So is the vector step's
 numba call alone, on a twin vector env in the same rounds: the rest of the step is its
