@@ -377,6 +377,65 @@ def test_vector_reset_options_are_checked_before_reseeding():
     assert vec.np_random.bit_generator.state == state
 
 
+def test_a_rejected_reset_loses_nothing():
+    """Neither a reseed nor a draw survives a reset that raises: the next reset is the one
+    an untouched twin makes (options are checked against drawn values, so the draw is
+    undone rather than avoided)."""
+    env, twin = StickSlipEnv(), StickSlipEnv()
+    env.reset(seed=5)
+    twin.reset(seed=5)
+    with pytest.raises(ValueError, match="lam"):
+        env.reset(options={"lam": -1.0})
+    with pytest.raises(ValueError, match="u0"):
+        env.reset(seed=99, options={"u0": 99.0})
+    assert np.array_equal(env.reset()[0], twin.reset()[0])
+
+    vec, twin = StickSlipVectorEnv(num_envs=3), StickSlipVectorEnv(num_envs=3)
+    vec.reset(seed=1)
+    twin.reset(seed=1)
+    state = vec.np_random.bit_generator.state
+    # a fresh seed refills every plant's buffer before the options fail: all is put back
+    with pytest.raises(ValueError, match="lam"):
+        vec.reset(seed=7, options={"lam": -1.0})
+    with pytest.raises(ValueError, match=r"reset_mask.*got \[True, False, True\] \(list\)"):
+        vec.reset(seed=7, options={"reset_mask": [True, False, True]})
+    with pytest.raises(gym.error.Error, match="Seed must be greater or equal to zero"):
+        vec.reset(seed=[0, 1, -1])  # plants 0 and 1 are not reseeded either
+    assert vec.np_random.bit_generator.state == state
+    assert np.array_equal(vec.reset()[0], twin.reset()[0])
+
+
+def test_exact_method_is_refused_only_when_episodes_can_leave_the_coulomb_law():
+    scene = SCENES["paper"].replace(randomization={"b1": (0.0, 0.2)})
+    env = StickSlipEnv(scene=scene, method="exact")  # randomize=False: b1 = 0 always
+    env.reset(seed=0)
+    env.step(np.zeros(1, np.float32))
+    with pytest.raises(ValueError, match="method='exact' needs the Coulomb law"):
+        StickSlipEnv(scene=scene, randomize=True, method="exact")
+    with pytest.raises(ValueError, match="method='exact' needs the Coulomb law"):
+        StickSlipVectorEnv(num_envs=2, scene=scene, randomize=True, method="exact")
+
+
+def test_vector_actions_must_be_one_row_per_plant():
+    vec = StickSlipVectorEnv(num_envs=3, action_mode="both")
+    vec.reset(seed=0)
+    obs = vec._obs.copy()
+    # transposed: as many values, but read as other plants' actions it would be accepted
+    with pytest.raises(ValueError, match=r"shape \(3, 2\), got shape \(2, 3\)"):
+        vec.step(np.zeros((2, 3)))
+    with pytest.raises(ValueError, match=r"got shape \(6,\)"):
+        vec.step(np.zeros(6))
+    a = np.asfortranarray(np.zeros((3, 2)))  # the slow path, then the kernel's check
+    a[2, 1] = np.nan
+    with pytest.raises(ValueError, match=r"action 2 must be finite.*got array\(\[ 0., nan\]\)"):
+        vec.step(a)
+    assert np.array_equal(vec._obs, obs)
+    flat, twin = StickSlipVectorEnv(num_envs=3), StickSlipVectorEnv(num_envs=3)
+    flat.reset(seed=0)  # (3, 1): one value per plant may come flat
+    twin.reset(seed=0)
+    assert np.array_equal(flat.step([0.5, -0.5, 0.0])[0], twin.step(np.c_[[0.5, -0.5, 0.0]])[0])
+
+
 def test_vector_reset_seed_of_wrong_type_or_length_raises():
     vec = gym.make_vec(ENV_ID, num_envs=4)
     with pytest.raises(TypeError, match=r"seed must be an int, a list of num_envs=4 .* got 1\.5"):
@@ -676,6 +735,18 @@ def test_render_rgb_array_single_and_vector():
     vec.step(np.zeros((2, 1), np.float32))
     frames = vec.render()
     assert len(frames) == 2 and frames[0].shape == frame.shape
+    vec.close()
+
+
+def test_vector_render_traces_ignore_a_rejected_step():
+    vec = StickSlipVectorEnv(num_envs=2, render_mode="rgb_array")
+    vec.reset(seed=0)
+    traces = [tr.t[: tr.n].copy() for tr in vec._traces]
+    a = np.zeros((2, 1), np.float32)
+    a[1, 0] = np.nan  # plant 0's action is fine, but the step is refused as a whole
+    with pytest.raises(ValueError, match="action 1"):
+        vec.step(a)
+    assert all(np.array_equal(tr.t[: tr.n], t) for tr, t in zip(vec._traces, traces, strict=True))
     vec.close()
 
 

@@ -394,7 +394,9 @@ def _start_next(i, table, cfg, obs, counters, draws, bounds):
 
 
 @njit(cache=True, error_model="numpy", _nrt=False)
-def _first_bad_action(A, autoreset, mode) -> int:
+def first_bad_action(A, autoreset, mode) -> int:
+    """The first plant whose action is not finite, or -1 (a plant that next-step mode
+    resets instead of stepping ignores its action, so it is not checked)."""
     for i in range(A.shape[0]):
         if mode == AUTORESET_NEXT_STEP and autoreset[i]:
             continue
@@ -456,7 +458,7 @@ def step_batch(table, cfg, A, obs, res, flags, counters, draws, bounds, ivars) -
     ``counters[CT_STATUS]``).
     """
     mode = ivars[IV_MODE]
-    bad = _first_bad_action(A, flags[F_AUTORESET], mode)
+    bad = first_bad_action(A, flags[F_AUTORESET], mode)
     if bad >= 0:
         return -(bad + 1)
     _step_range(0, table.shape[0], table, cfg, A, obs, res, flags, counters, draws, bounds,
@@ -542,7 +544,7 @@ def step_batch_parallel(table, cfg, A, obs, res, flags, counters, draws, bounds,
     serially for a while (the vector env does).
     """
     mode = ivars[IV_MODE]
-    bad = _first_bad_action(A, flags[F_AUTORESET], mode)
+    bad = first_bad_action(A, flags[F_AUTORESET], mode)
     if bad >= 0:
         return -(bad + 1)
     n = table.shape[0]

@@ -123,7 +123,12 @@ class EnvSetup:
             raise TypeError(f"method must be one of {sorted(_METHODS)}, got {method!r}")
         if method not in _METHODS:
             raise ValueError(f"method must be one of {sorted(_METHODS)}, got {method!r}")
-        if method == "exact" and (not sc.params.is_coulomb or {"b1", "b3"} & set(sc.ranges)):
+        # (b1, b3 drawn only when randomising; reset(options=...) checks its own episode)
+        drawn = sc.ranges if randomize else {}
+        if method == "exact" and (
+            not sc.params.is_coulomb
+            or any(drawn.get(k, (0.0, 0.0)) != (0.0, 0.0) for k in ("b1", "b3"))
+        ):
             raise ValueError("method='exact' needs the Coulomb law (b1 = b3 = 0)")
         # Every episode drawn without options (the vector env's autoresets included) stays
         # within what this checks; reset(options=...) checks its own plant.
@@ -214,9 +219,13 @@ def raise_status(status: int, action: Any, where: str = "") -> None:
     raise RuntimeError(f"plant{where}: integrator failed with status {status}")
 
 
-def coerce_action(action: Any, shape: tuple[int, ...], name: str = "action") -> np.ndarray:
+def coerce_action(
+    action: Any, shape: tuple[int, ...], name: str = "action", batch: bool = False
+) -> np.ndarray:
     """Slow path for actions that are not a C-contiguous float32/float64 ndarray of shape
-    ``shape``: a float64 copy of ``shape`` (any layout of the same number of values).
+    ``shape``: a float64 copy of ``shape`` (any layout of the same number of values; with
+    ``batch``, one whose first axis is ``shape[0]``, the plants, so that a transposed batch
+    is refused rather than read as other plants' actions).
 
     ``TypeError`` unless ``action`` is made of real numbers (None, strings, dicts, complex
     would otherwise turn into NaN, a float or a numba typing error), ``ValueError`` for the
@@ -225,7 +234,7 @@ def coerce_action(action: Any, shape: tuple[int, ...], name: str = "action") -> 
     """
     want = f"{name} must be an array of real numbers of shape {shape}"
     a = real_array(action, want)
-    if a.size != math.prod(shape):
+    if a.size != math.prod(shape) or (batch and (a.ndim == 0 or a.shape[0] != shape[0])):
         raise ValueError(f"{want}, got shape {a.shape}: {action!r}")
     return np.ascontiguousarray(a.reshape(shape), dtype=np.float64)
 
@@ -470,9 +479,19 @@ class StickSlipEnv(gym.Env):
     def reset(
         self, *, seed: int | None = None, options: dict | None = None
     ) -> tuple[np.ndarray, dict]:
+        # A rejected reset loses nothing: the generator is put back as it was before the
+        # seeding and the draw (options are checked against the drawn values).
+        rng, rng_seed = self._np_random, self._np_random_seed
+        state = None if rng is None else rng.bit_generator.state
         super().reset(seed=int(seed) if is_int(seed) else seed)  # numpy ints too
-        values = self.setup.draw(self.np_random)
-        self.setup.episode(values, options, self._P_new, self._init)
+        try:
+            values = self.setup.draw(self.np_random)
+            self.setup.episode(values, options, self._P_new, self._init)
+        except BaseException:
+            self._np_random, self._np_random_seed = rng, rng_seed
+            if rng is not None:
+                rng.bit_generator.state = state
+            raise
         K.start_episode(
             self._P, self._S, self._ctrl, self._cfg, self._P_new, self._init, self._obs, self._work
         )

@@ -141,6 +141,9 @@ class StickSlipVectorEnv(VectorEnv):
         params: dict | None = None,
         method: str = "auto",
     ):
+        # first: close() runs from __del__ even when a check below refuses the arguments
+        self._traces = None
+        self._painter = None
         num_envs = check_int("num_envs", num_envs, 1)
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(
@@ -235,8 +238,6 @@ class StickSlipVectorEnv(VectorEnv):
         self._all_true = np.ones(n, dtype=np.bool_)
         self._all_true.flags.writeable = False
 
-        self._traces = None
-        self._painter = None
         if render_mode is not None:
             from fricenv.envs.rendering import Trace  # lazy: no matplotlib unless asked
 
@@ -253,43 +254,62 @@ class StickSlipVectorEnv(VectorEnv):
         ``seed + i`` (or ``seed[i]``); other options apply to every reset plant."""
         n = self.num_envs
         seeds = plant_seeds(seed, n)
-        check_dict("options", options)  # before anything is reseeded
-        if is_int(seed):
-            super().reset(seed=int(seed))
+        check_dict("options", options)
         options = dict(options) if options else {}
         mask = options.pop("reset_mask", None)
         if mask is None:
             mask = np.ones(n, dtype=np.bool_)
         else:
             if not isinstance(mask, np.ndarray) or mask.dtype != np.bool_ or mask.shape != (n,):
-                raise ValueError(f"options['reset_mask'] must be a bool array of shape ({n},)")
+                raise ValueError(
+                    f"options['reset_mask'] must be a bool array of shape ({n},), {got(mask)}"
+                )
             if not mask.any():
                 raise ValueError("options['reset_mask'] must select at least one plant")
             if self._needs_reset and not mask.all():
                 raise ValueError("the first reset must reset every plant")
-        self._reset_plants(
-            np.flatnonzero(mask),
-            [seeds[i] for i in np.flatnonzero(mask)],
-            [options] * int(mask.sum()),
-        )
+        idx = np.flatnonzero(mask)
+        self._reset_plants(idx, [seeds[i] for i in idx.tolist()], [options] * idx.size)
+        if is_int(seed):  # (after every check: a rejected reset reseeds nothing)
+            super().reset(seed=int(seed))
         return self._obs.copy(), {}
 
     def _reset_plants(self, idx: np.ndarray, seeds: list, options: list[dict]) -> None:
-        """Start new episodes for plants ``idx`` (validating ``options``, per plant)."""
+        """Start new episodes for plants ``idx``, validating ``options`` per plant; if one
+        is rejected, every plant's generator, buffered draws and cursor are put back, so a
+        rejected reset loses nothing (options are checked against the drawn values)."""
         setup = self.setup
         P_new, init, cursor = self._new_P, self._new_init, self._cursor
+        # all new generators first: a bad seed fails before any plant changes
+        fresh = {i: seeding.np_random(s)[0] for i, s in zip(idx.tolist(), seeds, strict=True)
+                 if s is not None or self._rngs[i] is None}
+        saved = {}  # plant: (generator, its state, cursor, buffered draws), as before
         mask = np.zeros(self.num_envs, dtype=np.bool_)
-        for i, s, opt in zip(idx.tolist(), seeds, options, strict=True):
-            if s is not None or self._rngs[i] is None:
-                self._rngs[i] = seeding.np_random(s)[0]
-                cursor[i] = DRAW_ROWS  # a new stream: drop the old one's rows
-            if cursor[i] >= DRAW_ROWS:
-                self._refill(i)
-            # The row a single env would draw now (consumed even if the options are bad).
-            values = setup.scale(self._draws[i, cursor[i]])
-            cursor[i] += 1
-            setup.episode(values, opt or None, P_new[i], init[i])
-            mask[i] = True
+        try:
+            for i, opt in zip(idx.tolist(), options, strict=True):
+                rng = self._rngs[i]
+                refill = i in fresh or cursor[i] >= DRAW_ROWS
+                saved[i] = (rng, rng.bit_generator.state if refill and rng is not None else None,
+                            int(cursor[i]), self._draws[i].copy() if refill else None)
+                if i in fresh:
+                    self._rngs[i] = fresh[i]
+                    cursor[i] = DRAW_ROWS  # a new stream: drop the old one's rows
+                if cursor[i] >= DRAW_ROWS:
+                    self._refill(i)
+                # the row a single env would draw now
+                values = setup.scale(self._draws[i, cursor[i]])
+                cursor[i] += 1
+                setup.episode(values, opt or None, P_new[i], init[i])
+                mask[i] = True
+        except BaseException:
+            for i, (rng, state, row, draws) in saved.items():
+                self._rngs[i] = rng
+                if state is not None:
+                    rng.bit_generator.state = state
+                if draws is not None:
+                    self._draws[i] = draws
+                cursor[i] = row
+            raise
         K.start_batch(self._table, self._cfg, mask, self._obs_pair, self._flags, self._counters)
         self._terminated[mask] = False
         self._truncated[mask] = False
@@ -322,8 +342,12 @@ class StickSlipVectorEnv(VectorEnv):
             or a.dtype not in ACTION_DTYPES
             or not a.flags.c_contiguous
         ):
-            a = coerce_action(actions, self._act_shape, "actions")
+            a = coerce_action(actions, self._act_shape, "actions", batch=True)
         if self._traces is not None:
+            # every action checked before any trace moves (the kernel checks them too)
+            bad = K.first_bad_action(a, self._autoreset, self._ivars[K.IV_MODE])
+            if bad >= 0:
+                raise_status(K.STATUS_BAD_ACTION, a[bad], f" {bad}")
             self._record_traces(a)
         kernel = self._step_kernel
         if self._serial_left:
@@ -344,7 +368,7 @@ class StickSlipVectorEnv(VectorEnv):
         if n_failed != 0:
             if n_failed < 0:
                 i = -n_failed - 1
-                raise_status(K.STATUS_BAD_ACTION, actions[i], f" {i}")
+                raise_status(K.STATUS_BAD_ACTION, a[i], f" {i}")
             self._needs_reset = True
             i = int(np.flatnonzero(self._status)[0])
             raise_status(int(self._status[i]), None, f" {i}")
