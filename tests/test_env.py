@@ -17,7 +17,7 @@ import fricenv  # noqa: F401  (registers the environments once fricenv/__init__ 
 from fricenv.envs import ENV_IDS, register_envs
 from fricenv.envs.scenes import SCENES, Scene
 from fricenv.envs.stick_slip import StickSlipEnv
-from fricenv.envs.vector import StickSlipVectorEnv
+from fricenv.envs.vector import DRAW_ROWS, StickSlipVectorEnv
 
 register_envs()  # idempotent; keeps this file independent of fricenv/__init__
 
@@ -403,6 +403,11 @@ def test_a_rejected_reset_loses_nothing():
         vec.reset(seed=[0, 1, -1])  # plants 0 and 1 are not reseeded either
     assert vec.np_random.bit_generator.state == state
     assert np.array_equal(vec.reset()[0], twin.reset()[0])
+    for env in (vec, twin):  # spent buffers, as a step that raised after autoresets leaves
+        env._cursor[:] = DRAW_ROWS
+    with pytest.raises(ValueError, match="lam"):
+        vec.reset(options={"lam": -1.0})
+    assert np.array_equal(vec.reset()[0], twin.reset()[0])
 
 
 def test_exact_method_is_refused_only_when_episodes_can_leave_the_coulomb_law():
@@ -673,8 +678,6 @@ def test_kernel_episode_matches_python_episode():
 def test_vector_env_matches_single_envs_across_draw_buffer_refills(mode):
     """Episodes of two steps: each plant's buffered draws run out and refill many times, in
     the kernel's autoresets and in reset() (plain, with options, reseeded), in step."""
-    from fricenv.envs.vector import DRAW_ROWS
-
     horizon = 2
     native, singles = _native_and_sync(3, horizon, mode, scene="self_excited", randomize=True,
                                        action_mode="both")

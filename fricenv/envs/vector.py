@@ -283,29 +283,28 @@ class StickSlipVectorEnv(VectorEnv):
         # all new generators first: a bad seed fails before any plant changes
         fresh = {i: seeding.np_random(s)[0] for i, s in zip(idx.tolist(), seeds, strict=True)
                  if s is not None or self._rngs[i] is None}
-        saved = {}  # plant: (generator, its state, cursor, buffered draws), as before
+        # Spent buffers refilled first (a step that raised may have left some): a plant's
+        # next rows are then buffered from its own generator, and all a rejected reset must
+        # put back is the generator a new stream replaced and the unread rows it overwrote.
+        self._refill_empty()
+        saved = {}  # plant: (generator, cursor, buffered draws), as before
         mask = np.zeros(self.num_envs, dtype=np.bool_)
         try:
             for i, opt in zip(idx.tolist(), options, strict=True):
-                rng = self._rngs[i]
-                refill = i in fresh or cursor[i] >= DRAW_ROWS
-                saved[i] = (rng, rng.bit_generator.state if refill and rng is not None else None,
-                            int(cursor[i]), self._draws[i].copy() if refill else None)
                 if i in fresh:
+                    saved[i] = (self._rngs[i], int(cursor[i]), self._draws[i].copy())
                     self._rngs[i] = fresh[i]
-                    cursor[i] = DRAW_ROWS  # a new stream: drop the old one's rows
-                if cursor[i] >= DRAW_ROWS:
-                    self._refill(i)
+                    self._refill(i)  # a new stream: the old one's rows are dropped
+                else:
+                    saved[i] = (self._rngs[i], int(cursor[i]), None)
                 # the row a single env would draw now
                 values = setup.scale(self._draws[i, cursor[i]])
                 cursor[i] += 1
                 setup.episode(values, opt or None, P_new[i], init[i])
                 mask[i] = True
         except BaseException:
-            for i, (rng, state, row, draws) in saved.items():
+            for i, (rng, row, draws) in saved.items():
                 self._rngs[i] = rng
-                if state is not None:
-                    rng.bit_generator.state = state
                 if draws is not None:
                     self._draws[i] = draws
                 cursor[i] = row
