@@ -93,6 +93,17 @@ PHASE_PER_STEP_WIDE = 1.0
 # Steps are halved until the proofs hold, at most down to this fraction of the scan step.
 MIN_SPLIT = 1.0 / 1024.0
 MAX_ROOT_ITER = 200
+# The closed form writes x = x_p + H (x0 - x_p), and a tone's particular amplitude is
+# |u| / sqrt(d2), d2 = (1 - w^2)^2 + (lam w)^2. Near resonance both terms are large and
+# their sum loses digits: over tau = 60 at lam = 0, the max |x| error was 9e-13 at a gain
+# 1 / sqrt(d2) of 500, 6e-11 at 5e3 and 1e-9 at 5e4 (and a gain of 1e15, one ulp off
+# resonance, made rounding noise look like chattering). Past this gain the exact method
+# hands the call to the event method; exact resonance (d2 = 0) keeps its own closed form.
+CLOSED_FORM_MAX_GAIN = 1e3
+_D2_MIN = 1.0 / (CLOSED_FORM_MAX_GAIN * CLOSED_FORM_MAX_GAIN)
+# Returned by the closed-form runner when a tone is too close to resonance (never leaves
+# ``advance_ws`` / ``record``, which then run the event method).
+_STATUS_NEAR_RESONANCE = -1
 EVENT_REL_TOL = 1e-15  # switching instants: to rounding (a few ulps of the step time)
 GRAZE_ULPS = 8.0  # a velocity extremum this many ulps of V short of V still touches it
 # An extremum's value is insensitive to its position (error ~ f'' dt^2), so 1e-9 in time
@@ -152,9 +163,11 @@ W_I_KEY_E1, W_I_KEY_E2 = W_I_E12 + 4, W_I_E12 + 5  # the E values' own keys (sli
 W_I_AMP1, W_I_AMP2 = W_I_E12 + 6, W_I_E12 + 7  # tones' velocity amplitudes (per call)
 # Each tone's context constants (``_setup_context``), keyed on its (u, w) and lam: an agent
 # retuning one tone recomputes that tone alone. Per tone (W_T_KEY + i * N_T): the keys u, w,
-# then its shares of C_VDD_P, C_VDDD_P, C_GDD, C_GDDD.
+# then its shares of C_VDD_P, C_VDDD_P, C_GDD, C_GDDD, then 1.0 if the tone is too close to
+# resonance for the closed form (see CLOSED_FORM_MAX_GAIN).
 W_T_KEY = W_I_E12 + 8
-N_T = 6
+N_T = 7
+T_NEAR_RES = 6
 N_CX = W_T_KEY + 2 * N_T
 N_WORK = N_CX
 
@@ -268,6 +281,25 @@ def _homog(tau, lam, p2):
     return ec + 0.5 * lam * es, es, -es, ec - 0.5 * lam * es
 
 
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+def _tone_d2(w, lam):
+    """1 - w^2, lam w and d2 = |1 - w^2 + i lam w|^2, the tone's response denominator."""
+    re = 1.0 - w * w
+    im = lam * w
+    return re, im, re * re + im * im
+
+
+@njit(cache=True, error_model="numpy", _nrt=False)
+def closed_form_conditioned(P) -> bool:
+    """False when a tone of P is too close to resonance for the closed form (see
+    CLOSED_FORM_MAX_GAIN): the exact method then runs the event method."""
+    for i in range(2):
+        d2 = _tone_d2(P[P_W1 + i], P[P_LAM])[2]
+        if P[P_U1 + i] != 0.0 and 0.0 < d2 < _D2_MIN:
+            return False
+    return True
+
+
 @njit(cache=True, error_model="numpy", _nrt=False)
 def _setup_context(P, cx):
     """Constants of the run: particular-solution coefficients of each tone.
@@ -300,10 +332,9 @@ def _setup_context(P, cx):
         key = W_T_KEY + i * N_T
         if same_lam and cx[key] == u and cx[key + 1] == w:
             continue
-        re = 1.0 - w * w
-        im = lam * w
-        d2 = re * re + im * im
+        re, im, d2 = _tone_d2(w, lam)
         res = 1.0 if (u != 0.0 and d2 == 0.0) else 0.0  # lam = 0 and w = 1: resonance
+        cx[key + T_NEAR_RES] = 1.0 if (u != 0.0 and 0.0 < d2 < _D2_MIN) else 0.0
         kc = 0.0
         ks = 0.0
         if u != 0.0 and res == 0.0:
@@ -1213,7 +1244,8 @@ def _whole_interval(cx, S, T, stats, c1, s1, c2, s2):
 @njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def _run_exact(P, S, t_span, out_t, stats, max_events, out_x, out_v, out_mode, ev_t, ev_kind,
                ev_x, counts, cx):
-    """Advance S by t_span with the closed-form solver; see ``advance``.
+    """Advance S by t_span with the closed-form solver; see ``advance``. Changes nothing
+    and returns _STATUS_NEAR_RESONANCE when a tone is too close to resonance for it.
 
     A stats-only call that reads no extrema is first tried as one whole-call step when
     the scan would split it into several steps, or when it starts stuck (the stick proof
@@ -1223,6 +1255,8 @@ def _run_exact(P, S, t_span, out_t, stats, max_events, out_x, out_v, out_mode, e
     inlined, so a whole-call step never pays the call into the scan's large function.
     """
     _setup_context(P, cx)
+    if cx[W_T_KEY + T_NEAR_RES] != 0.0 or cx[W_T_KEY + N_T + T_NEAR_RES] != 0.0:
+        return _STATUS_NEAR_RESONANCE
     ph1 = S[S_PHI1]
     ph2 = S[S_PHI2]
     if ph1 == cx[W_PH1]:
@@ -2171,8 +2205,10 @@ def advance_ws(P, S, t_span, stats, method, rtol, atol, max_events, work):
     most of the cost of a short call such as one control interval of an environment.
     """
     if method == METHOD_EXACT:
-        return _run_exact(P, S, t_span, None, stats, max_events, None, None, None, None, None,
-                          None, None, work)
+        status = _run_exact(P, S, t_span, None, stats, max_events, None, None, None, None,
+                            None, None, None, work)
+        if status != _STATUS_NEAR_RESONANCE:
+            return status
     return _run_event(P, S, t_span, None, stats, max_events, rtol, atol, None, None, None,
                       None, None, None, None, work)
 
@@ -2181,7 +2217,9 @@ def advance_ws(P, S, t_span, stats, method, rtol, atol, max_events, work):
 def advance(P, S, t_span, stats, method, rtol, atol, max_events):
     """Advance the state ``S`` in place by ``t_span``, accumulating ``stats``; no trajectory.
 
-    ``method`` is METHOD_EXACT (Coulomb law only; the caller checks) or METHOD_EVENT.
+    ``method`` is METHOD_EXACT (Coulomb law only; the caller checks; a call with a tone
+    too close to resonance runs the event method, see CLOSED_FORM_MAX_GAIN) or
+    METHOD_EVENT.
     Tone phases are carried in ``S``, so P's amplitudes and frequencies may change between
     calls without a jump in the force. Returns a STATUS_* code; at most ``max_events``
     switches are allowed in the call (STATUS_EVENT_CAP beyond).
@@ -2197,7 +2235,9 @@ def record(P, S, out_t, stats, method, rtol, atol, max_events, out_x, out_v, out
     t_span = out_t[out_t.shape[0] - 1] - out_t[0]
     work = fresh_workspace()
     if method == METHOD_EXACT:
-        return _run_exact(P, S, t_span, out_t, stats, max_events, out_x, out_v, out_mode, ev_t,
-                          ev_kind, ev_x, counts, work)
+        status = _run_exact(P, S, t_span, out_t, stats, max_events, out_x, out_v, out_mode,
+                            ev_t, ev_kind, ev_x, counts, work)
+        if status != _STATUS_NEAR_RESONANCE:
+            return status
     return _run_event(P, S, t_span, out_t, stats, max_events, rtol, atol, out_x, out_v,
                       out_mode, ev_t, ev_kind, ev_x, counts, work)

@@ -107,18 +107,26 @@ def check_scan_steps(P_rows: np.ndarray, spans: np.ndarray,
 
 
 def resolve_method(params: OscillatorParams, method: str) -> str:
-    """``"auto"`` -> exact for the Coulomb law, event otherwise; validate the name."""
+    """The method that will run: ``"auto"`` -> exact for the Coulomb law, event otherwise;
+    validate the name.
+
+    ``"exact"`` with a tone too close to resonance for the closed form (a gain over
+    ``core.CLOSED_FORM_MAX_GAIN``, where it would cancel its own digits) resolves to
+    ``"event"``, as the kernels fall back, so that a result names the method that made it.
+    """
     if not isinstance(method, str):
         raise TypeError(f"method must be 'auto' or one of {sorted(METHODS)}, {got(method)}")
     if method == "auto":
-        return "exact" if params.is_coulomb else "event"
-    if method not in METHODS:
+        method = "exact" if params.is_coulomb else "event"
+    elif method not in METHODS:
         raise ValueError(f"unknown method {method!r}; expected 'auto' or one of {sorted(METHODS)}")
-    if method == "exact" and not params.is_coulomb:
+    elif method == "exact" and not params.is_coulomb:
         raise ValueError(
             f"method 'exact' needs the Coulomb law (b1 = b3 = 0), got b1={params.b1!r}, "
             f"b3={params.b3!r}; use 'event' or 'auto'"
         )
+    if method == "exact" and not core.closed_form_conditioned(params.to_array()):
+        return "event"
     return method
 
 

@@ -192,6 +192,42 @@ def test_auto_method_is_accurate_for_every_law() -> None:
         assert _compare_events(_event_list(traj), ev_ref, name) <= SCIPY_EVENT_T_TOL
 
 
+@pytest.mark.parametrize(
+    "lam, eta, nu",
+    [(0.0, 49.0, 1.0 / 49.0),  # nu * eta one ulp short of resonance
+     (0.0, 1.0 + 1e-9, 0.3), (1e-12, 1.0, 0.3), (1e-160, 1.0, 0.3)],
+)
+def test_near_resonance_is_accurate(lam: float, eta: float, nu: float) -> None:
+    """A tone within rounding reach of resonance (not on it) made the closed form cancel
+    its own digits: a spurious "chattering" error or x off by O(1). The exact method now
+    hands such calls to the event method, and says so in the result's method."""
+    from fricenv import core
+    from fricenv.layout import METHOD_EVENT, METHOD_EXACT, N_STATS
+    from fricenv.simulate import OscillatorState
+
+    p = C("coulomb", lam=lam, eta=eta, nu=nu, u0=0.5, xfk=0.5, xfs=0.8)
+    t_end = 60.0
+    t, x_ref, _, _, ev_ref = reference_solution(p, t_end, t_eval=np.arange(601) * 0.1)
+    for method in ("auto", "exact"):
+        traj = _sim()(p, t_end, dt_out=0.1, method=method)
+        assert traj.method == "event"
+        assert np.abs(_on_grid(traj, t) - x_ref).max() <= SCIPY_X_TOL
+        assert _compare_events(_event_list(traj), ev_ref, "near resonance") <= SCIPY_EVENT_T_TOL
+    # the kernels fall back on their own (an environment or a sweep passes METHOD_EXACT)
+    ends = []
+    for code in (METHOD_EXACT, METHOD_EVENT):
+        S = OscillatorState.start(p).to_array()
+        stats = np.zeros(N_STATS)
+        assert core.advance(p.to_array(), S, t_end, stats, code, 1e-10, 1e-12, 10**6) == 0
+        ends.append(S)
+    np.testing.assert_array_equal(ends[0], ends[1])
+
+
+def test_exact_resonance_keeps_the_closed_form() -> None:
+    """lam = 0 with a tone exactly at w = 1 has its own closed form (x_p ~ tau sin tau)."""
+    assert _sim()(PURE_SLIP_CASES["resonant1"], 10.0).method == "exact"
+
+
 # --------------------------------------------------------------------------------------
 # grazing: v touches V tangentially
 # --------------------------------------------------------------------------------------
