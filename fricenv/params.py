@@ -13,6 +13,13 @@ from .checks import check_finite_real
 P_LAM, P_V, P_XFK, P_XFS, P_B1, P_B3, P_U1, P_U2, P_W1, P_W2 = range(10)
 N_PARAMS = 10
 
+#: Largest magnitude a parameter may have. The model is dimensionless and its quantities
+#: are O(1) in the paper; far beyond that the kernels' squares and cubes of forces
+#: overflow (u0 = 1e156 gave a state 2 % off and a NaN (v - V)^2 integral, with no error),
+#: and a switching instant, found to rounding of tau (~1e-16), no longer resolves a slip
+#: phase as short as 1 / xfk (xfk = 1e20 gave (v - V)^2 integrals 1e13 times too large).
+PARAM_LIMIT = 1e12
+
 #: Friction laws of the paper's Fig. 2, as (b1, b3).
 FRICTION_LAWS: dict[str, tuple[float, float]] = {
     "coulomb": (0.0, 0.0),
@@ -82,8 +89,9 @@ class OscillatorParams:
     ======  ==========================================================  ========
 
     Defaults are the paper's (Sec. 3.2.1). Construction validates every field and raises
-    ``TypeError`` (not a real number) or ``ValueError`` (NaN, infinite or out of range)
-    naming the field and its value, so a bad run fails before it starts.
+    ``TypeError`` (not a real number) or ``ValueError`` (NaN, infinite, beyond
+    ``PARAM_LIMIT`` in magnitude, or out of range) naming the field and its value, so a bad
+    run fails before it starts.
     """
 
     lam: float = 0.5
@@ -104,7 +112,11 @@ class OscillatorParams:
             if value is None and f.name in ("u1", "u2"):
                 continue
             # TypeError for a non-number (None where a number goes), ValueError for NaN/inf
-            object.__setattr__(self, f.name, check_finite_real(f.name, value))
+            value = check_finite_real(f.name, value)
+            if abs(value) > PARAM_LIMIT:
+                raise ValueError(f"{f.name} must lie within +-{PARAM_LIMIT:g} (the model is "
+                                 f"dimensionless, its quantities O(1)), got {value!r}")
+            object.__setattr__(self, f.name, value)
         checks = (
             ("lam", self.lam >= 0.0, "must be >= 0"),
             ("eta", self.eta > 0.0, "must be > 0"),

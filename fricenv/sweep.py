@@ -71,7 +71,7 @@ from .layout import (
     ST_X_MIN,
     STATUS_OK,
 )
-from .params import P_U1, P_U2, P_W1, P_W2, OscillatorParams, resolve_law
+from .params import P_U1, P_U2, P_W1, P_W2, PARAM_LIMIT, OscillatorParams, resolve_law
 from .regimes import Regime, _strobe_period, classify, exact_rational, rational_denominator
 from .simulate import check_scan_steps
 
@@ -544,6 +544,9 @@ def _check_axis(name: str, a: object) -> np.ndarray:
         raise ValueError(f"{name} grid contains NaN or infinite values")
     if np.any(arr < 0):
         raise ValueError(f"{name} grid must be >= 0")
+    if np.any(arr > PARAM_LIMIT):
+        raise ValueError(f"{name} grid must lie within {PARAM_LIMIT:g} (as every parameter), "
+                         f"got {float(arr.max())!r}")
     return arr
 
 

@@ -151,6 +151,10 @@ def test_scene_validation():
         sc.replace(randomization={"xfk": (2.0, 4.5)})  # could exceed xfs
     with pytest.raises(ValueError):
         sc.replace(randomization={"mass": (1.0, 2.0)})
+    with pytest.raises(ValueError, match=r"u0 must lie within \+-1e\+12.* 1e\+200"):
+        sc.replace(u0_range=(0.0, 1e200))  # actions could reach an unphysical amplitude
+    with pytest.raises(ValueError, match=r"nu must lie within"):
+        sc.replace(nu_range=(0.1, 1e13))
     with pytest.raises(ValueError):
         gym.make(ENV_ID, scene="nope")
     with pytest.raises(ValueError):

@@ -184,6 +184,8 @@ def test_plan_uses_modulation_period() -> None:
     (dict(u0=[1.0, np.nan], nu=[0.5]), ValueError),
     (dict(u0=[1.0], nu=[0.5, np.inf]), ValueError),
     (dict(u0=[-1.0], nu=[0.5]), ValueError),
+    (dict(u0=[1.0, 1e13], nu=[0.5]), ValueError),  # beyond PARAM_LIMIT
+    (dict(u0=[1.0], nu=[0.5, 1e200]), ValueError),
     (dict(u0=[[1.0, 2.0]], nu=[0.5]), ValueError),
     (dict(u0=["a"], nu=[0.5]), TypeError),  # not numbers: the wrong type
 ])

@@ -132,6 +132,7 @@ class Scene:
             raise ValueError(f"params.u0 = {self.params.u0} lies outside u0_range {self.u0_range}")
         if not nlo <= self.params.nu <= nhi:
             raise ValueError(f"params.nu = {self.params.nu} lies outside nu_range {self.nu_range}")
+        self.params.replace(u0=uhi, nu=nhi)  # the top of the action ranges: a valid plant
         if self.params.u1 is not None or self.params.u2 is not None:
             raise ValueError("scene params must not set u1/u2; use tone_gains")
         gains = real_tuple("tone_gains", self.tone_gains, 2, "two gains >= 0, not both 0")
