@@ -48,6 +48,9 @@ MAX_EVENT_RATE = 1000.0
 #: Most scan steps a run may need (the RK4 step count shares it). Beyond it a run takes
 #: many minutes, and a fast tone or stiff damping asking for it is more likely a typo.
 MAX_SCAN_STEPS = 1e9
+#: Most output instants ``simulate`` records (three float64 arrays and a mode each: 2.5 GB
+#: at the cap); a finer grid over a long run is refused before anything is allocated.
+MAX_OUTPUTS = 1e8
 EVENT_NAMES = {EVENT_STICK: "stick", EVENT_SLIP: "slip", EVENT_REVERSAL: "reversal"}
 EVENT_DTYPE = np.dtype([("t", "f8"), ("kind", "i1"), ("name", "U8"), ("x", "f8")])
 
@@ -60,6 +63,14 @@ def _positive(name: str, value: float) -> float:
     value = check_finite_real(name, value)
     if value <= 0.0:
         raise ValueError(f"{name} must be > 0, got {value!r}")
+    return value
+
+
+def _rtol(value: float) -> float:
+    """A relative tolerance: in (0, 1), since at 1 or more the steps would track nothing."""
+    value = _positive("rtol", value)
+    if value >= 1.0:
+        raise ValueError(f"rtol must lie in (0, 1), got {value!r}")
     return value
 
 
@@ -320,10 +331,14 @@ def simulate(
     _check_params(params)
     t_end = _positive("t_end", t_end)
     dt_out = _positive("dt_out", dt_out)
-    rtol = _positive("rtol", rtol)
+    rtol = _rtol(rtol)
     atol = _positive("atol", atol)
     max_event_rate = _positive("max_event_rate", max_event_rate)
     method = resolve_method(params, method)
+    if t_end / dt_out > MAX_OUTPUTS:
+        raise ValueError(f"dt_out = {dt_out!r} asks for {t_end / dt_out:.3g} output instants up "
+                         f"to t_end = {t_end!r} (at most {MAX_OUTPUTS:g}); use a larger dt_out, "
+                         "or run_stats, which keeps no trajectory")
     state = OscillatorState.start(params, x0, v0, phase1=phase1, phase2=phase2)
     P = params.to_array()
     if method != "rk4":  # before the output arrays are allocated
@@ -407,7 +422,7 @@ def run_stats(
     stats = np.empty(N_STATS)
     core.reset_stats(stats)
     code = METHOD_EXACT if method == "exact" else METHOD_EVENT
-    status = core.advance(P, S, t_span, stats, code, _positive("rtol", rtol),
+    status = core.advance(P, S, t_span, stats, code, _rtol(rtol),
                           _positive("atol", atol), max_events)
     _raise_status(status, S[S_T], max_events, t_span)
     return RunStats.from_array(stats, OscillatorState.from_array(S))

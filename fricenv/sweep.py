@@ -135,8 +135,8 @@ class SweepSettings:
                 object.__setattr__(self, f.name, check_int(f.name, v, 0))
             else:  # TypeError for a non-number, ValueError for NaN or inf
                 object.__setattr__(self, f.name, check_finite_real(f.name, v))
-        if self.rtol <= 0.0:
-            raise ValueError(f"rtol must be > 0, got {self.rtol!r}")
+        if not 0.0 < self.rtol < 1.0:  # (at 1 or more the steps would track nothing)
+            raise ValueError(f"rtol must lie in (0, 1), got {self.rtol!r}")
         for name in ("transient_min", "transient_periods", "transient_efolds",
                      "window_periods", "atol"):
             if getattr(self, name) < 0:

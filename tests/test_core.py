@@ -150,6 +150,19 @@ def test_bad_t_end(t_end):
         simulate(OscillatorParams(), t_end)
 
 
+def test_tolerance_and_output_grid_limits():
+    """rtol >= 1 was accepted (its steps track nothing), and a grid of 1e12 output instants
+    reached numpy's MemoryError (a 7 TiB array) instead of an error naming dt_out."""
+    p = OscillatorParams(u0=1.0)
+    for call in (lambda: simulate(p, 1.0, rtol=1.0), lambda: run_stats(p, 1.0, rtol=2.0)):
+        with pytest.raises(ValueError, match=r"rtol must lie in \(0, 1\), got"):
+            call()
+    with pytest.raises(ValueError, match=r"dt_out = 0.0001 asks for 1e\+12 output instants"):
+        simulate(p, 1e8, dt_out=1e-4)
+    with pytest.raises(ValueError, match=r"rtol must lie in \(0, 1\), got 1.5"):
+        fricenv.SweepSettings(rtol=1.5)
+
+
 def test_bad_method_and_exact_needs_coulomb():
     with pytest.raises(ValueError, match="unknown method"):
         simulate(OscillatorParams(), 1.0, method="euler")
