@@ -259,11 +259,13 @@ def find_vecnormalize(model_path: Path) -> Path | None:
     return None
 
 
-def load_controller(path: str | Path, algo: str | None = None) -> tuple[TrainedController, dict]:
-    """Load a run folder (``config.yml`` + ``model.zip``) or a model file.
+def locate_model(path: str | Path, algo: str | None = None) -> tuple[Path, dict, str]:
+    """(model file, run config, algorithm) of a run folder (``config.yml`` + ``model.zip``)
+    or a model file, without loading it; ``ValueError`` saying what is missing.
 
-    The algorithm comes from the run's config, else ``algo``, else the file name's prefix
-    (``ppo_...zip``). Returns the controller and the run config (empty for a bare file).
+    A model file's config is ``<stem>.yml`` beside it, or the ``config.yml`` of the run
+    folder it lies in (``<run>/model.zip``). The algorithm comes from the config, else
+    ``algo``, else the file name's prefix (``ppo_...zip``).
     """
     path = Path(path)
     config: dict = {}
@@ -271,17 +273,30 @@ def load_controller(path: str | Path, algo: str | None = None) -> tuple[TrainedC
         cfg_file = path / "config.yml"
         if not cfg_file.exists():
             raise ValueError(f"{path} is not a run folder (no config.yml)")
-        config = yaml.safe_load(cfg_file.read_text())
         model_path = path / "model.zip"
     else:
         model_path = path
-        side = path.with_suffix(".yml")
-        if side.exists():
-            config = yaml.safe_load(side.read_text())
+        cfg_file = path.with_suffix(".yml")
+        if not cfg_file.exists():
+            cfg_file = path.parent / "config.yml"
+    if cfg_file.exists():
+        config = yaml.safe_load(cfg_file.read_text()) or {}
     if not model_path.exists():
-        raise ValueError(f"no model at {model_path}")
+        raise ValueError(f"no model at {model_path}" + (
+            " (an unfinished training run?)" if path.is_dir() else ""))
     algo = config.get("algo") or algo or model_path.stem.split("_")[0]
-    check_algo(algo)
+    try:
+        check_algo(algo)
+    except ValueError as e:
+        raise ValueError(f"{path}: {e} (name the file <algo>_*.zip or put a config beside "
+                         "it)") from None
+    return model_path, config, algo
+
+
+def load_controller(path: str | Path, algo: str | None = None) -> tuple[TrainedController, dict]:
+    """Load a run folder or a model file (see ``locate_model``); returns the controller
+    and the run config (empty for a bare file)."""
+    model_path, config, algo = locate_model(path, algo)
     model = algo_class(algo).load(model_path, device="cpu")
     vn = None
     vn_path = find_vecnormalize(model_path)

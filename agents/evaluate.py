@@ -33,7 +33,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 
 from agents.baselines import BASELINES, ZeroExcitation, make_baseline, search_best_constant
 from agents.common import (
@@ -46,6 +45,7 @@ from agents.common import (
     eval_env_seed,
     fmt_pm,
     load_controller,
+    locate_model,
     rollout,
     summarize,
 )
@@ -425,20 +425,27 @@ def prepare(args: argparse.Namespace) -> list[str]:
         raise ValueError(f"need --episodes <= {MAX_PLANTS} and fewer seeds")
     if args.grid < 2 or args.search_episodes < 2:
         raise ValueError("need --grid >= 2 and --search-episodes >= 2")
+    configs = {}
     for p in [*args.runs, *args.models]:
         if not p.exists():
             raise ValueError(f"{p} does not exist")
+        _, cfg, _ = locate_model(p)  # what is missing, before any evaluation runs
+        check_disjoint(cfg, args.seeds, args.episodes, p)
+        configs[p] = cfg
     scenes = args.scene
     if scenes is None:
         found = []
-        for p in args.runs:
-            cfg = yaml.safe_load((p / "config.yml").read_text()) if (p / "config.yml").exists(
-            ) else {}
+        for cfg in configs.values():
             if cfg.get("scene") and cfg["scene"] not in found:
                 found.append(cfg["scene"])
         if not found:
             raise ValueError("give --scene (no run folder names one)")
         scenes = found
+    else:  # a run named for another scene would be left out of every table
+        for p, cfg in configs.items():
+            if cfg.get("scene", scenes[0]) not in scenes:
+                raise ValueError(f"{p} was trained on scene {cfg['scene']!r}, not on "
+                                 f"{' or '.join(map(repr, scenes))}")
     if not args.runs and not args.models and not args.controllers:
         raise ValueError("nothing to evaluate: give --runs, --models or --controllers")
     return scenes
@@ -449,11 +456,6 @@ def evaluate_scene(scene: str, args: argparse.Namespace) -> Path:
     out: Path = args.out
     out.mkdir(parents=True, exist_ok=True)
     trained, env_kwargs = trained_entries([*args.runs, *args.models], scene)
-    for e in trained:
-        for p in e.info["paths"]:
-            cfg_file = Path(p) / "config.yml" if Path(p).is_dir() else Path(p).with_suffix(".yml")
-            cfg = yaml.safe_load(cfg_file.read_text()) if cfg_file.exists() else {}
-            check_disjoint(cfg, args.seeds, args.episodes, p)
     names = [n for n in BASELINES if n in args.controllers]
     search = {"n_u0": args.grid, "n_nu": args.grid, "episodes": args.search_episodes}
     baselines = baseline_entries(names, scene, env_kwargs, out, search)

@@ -25,6 +25,7 @@ from __future__ import annotations
 import argparse
 import csv
 import platform
+import shutil
 import sys
 import time
 from datetime import datetime
@@ -36,6 +37,7 @@ import yaml
 
 from agents.common import (
     ALGOS,
+    MAX_PLANTS,
     SCENE_ENV_IDS,
     EpisodeMetrics,
     RunSpec,
@@ -181,11 +183,25 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
+def _check_folders(args: argparse.Namespace) -> None:
+    """``ValueError`` for a --run-dir that holds anything, or a folder option that is a
+    file (before any work, so that a rerun needs nothing cleaned up)."""
+    for flag, path in (("--run-dir", args.run_dir), ("-f", args.log_folder)):
+        if path is not None and path.exists() and not path.is_dir():
+            raise ValueError(f"{flag} {path} is a file, not a folder")
+    if args.run_dir is not None and args.run_dir.exists() and any(args.run_dir.iterdir()):
+        raise ValueError(f"run folder {args.run_dir} exists and is not empty")
+
+
+class SetupError(ValueError):
+    """The environment or model could not be built from the hyperparameters (the run folder
+    made for it has been removed again)."""
+
+
 def _run_dir(args: argparse.Namespace) -> Path:
     if args.run_dir is not None:
         path = args.run_dir
-        if path.exists() and any(path.iterdir()):
-            raise ValueError(f"run folder {path} exists and is not empty")
+        _check_folders(args)
     else:
         stamp = datetime.now().strftime("%Y%m%d-%H%M%S")
         base = args.log_folder / f"{args.algo}_{args.scene}_s{args.seed}_{stamp}"
@@ -225,8 +241,11 @@ def prepare(args: argparse.Namespace) -> tuple[RunSpec, dict[str, Any], Path]:
     check_seed(args.seed)
     if args.n_timesteps is not None and args.n_timesteps < 1:
         raise ValueError(f"-n must be >= 1, got {args.n_timesteps}")
-    if args.eval_episodes < 1 or args.eval_freq < 0:
-        raise ValueError("need --eval-episodes >= 1 and --eval-freq >= 0")
+    if not 1 <= args.eval_episodes <= MAX_PLANTS or args.eval_freq < 0:
+        # (more episodes would reach the next run's block of plant seeds)
+        raise ValueError(f"need 1 <= --eval-episodes <= {MAX_PLANTS} and --eval-freq >= 0, "
+                         f"got {args.eval_episodes} and {args.eval_freq}")
+    _check_folders(args)
     if args.tensorboard:
         try:
             import tensorboard  # noqa: F401
@@ -251,16 +270,29 @@ def train(args: argparse.Namespace, prepared: tuple | None = None) -> Path:
 
     spec, raw, hp_file = prepared or prepare(args)
     seed = args.seed
+    existed = args.run_dir is not None and args.run_dir.exists()
     run_dir = _run_dir(args)
 
     torch.set_num_threads(max(1, args.threads))
-    env = make_sb3_env(args.scene, spec.n_envs, train_env_seed(seed), spec.env_kwargs,
-                       monitor_file=run_dir / "monitor.csv")
-    if spec.normalize is not None:
-        gamma = spec.algo_kwargs.get("gamma", 0.99)
-        env = VecNormalize(env, gamma=gamma, **spec.normalize)
-    model = algo_class(args.algo)(spec.policy, env, seed=seed, device="cpu", verbose=0,
-                                  **spec.algo_kwargs)
+    try:  # hyperparameters only the constructors check (env kwargs, normalize, policy)
+        env = make_sb3_env(args.scene, spec.n_envs, train_env_seed(seed), spec.env_kwargs,
+                           monitor_file=run_dir / "monitor.csv")
+        if spec.normalize is not None:
+            gamma = spec.algo_kwargs.get("gamma", 0.99)
+            env = VecNormalize(env, gamma=gamma, **spec.normalize)
+        model = algo_class(args.algo)(spec.policy, env, seed=seed, device="cpu", verbose=0,
+                                      **spec.algo_kwargs)
+    except Exception as e:
+        # leave nothing behind that would block the corrected rerun or look like a run
+        for child in run_dir.iterdir() if existed else ():
+            shutil.rmtree(child) if child.is_dir() else child.unlink()
+        if not existed:
+            shutil.rmtree(run_dir, ignore_errors=True)
+        raise SetupError(f"cannot build the training from these hyperparameters: "
+                         f"{type(e).__name__}: {e}") from e
+    # SB3 seeds the env with ``seed`` itself while building the model (plants seed + i);
+    # put back the run's own block of plant seeds, which config.yml records.
+    env.seed(train_env_seed(seed))
     outputs = [make_output_format("csv", str(run_dir))]
     if args.tensorboard:
         outputs.append(make_output_format("tensorboard", str(run_dir / "tb")))
@@ -314,11 +346,12 @@ def main(argv: list[str] | None = None) -> Path:
     args = parser.parse_args(argv)
     try:
         prepared = prepare(args)
-        if args.run_dir is not None and args.run_dir.exists() and any(args.run_dir.iterdir()):
-            raise ValueError(f"run folder {args.run_dir} exists and is not empty")
     except ValueError as e:  # bad input: a clear message and exit status 2, as argparse does
         parser.error(str(e))
-    return train(args, prepared)
+    try:
+        return train(args, prepared)
+    except SetupError as e:
+        parser.error(str(e))
 
 
 if __name__ == "__main__":

@@ -42,6 +42,7 @@ import json
 import math
 import os
 import time
+import zipfile
 from collections.abc import Callable, Iterable
 from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
@@ -67,18 +68,30 @@ from .layout import (
     ST_STICK_TIME,
     ST_V_MAX,
     ST_V_MIN,
+    ST_VR2_INT,
     ST_X_MAX,
     ST_X_MIN,
     STATUS_OK,
 )
-from .params import P_U1, P_U2, P_W1, P_W2, PARAM_LIMIT, OscillatorParams, resolve_law
+from .params import (
+    N_PARAMS,
+    P_B1,
+    P_B3,
+    P_U1,
+    P_U2,
+    P_W1,
+    P_W2,
+    PARAM_LIMIT,
+    OscillatorParams,
+    resolve_law,
+)
 from .regimes import Regime, _strobe_period, classify, exact_rational, rational_denominator
 from .simulate import check_scan_steps
 
 FORMAT = "fricenv.regime_map"
 FORMAT_VERSION = 1
 #: Version of the per-cell measurement; a stored map is resumed only if it matches.
-ALGORITHM = 9
+ALGORITHM = 10  # 10: the skipped (v - V)^2 integral is stored as NaN, not 0
 #: Label of a cell that has not been computed yet (not a :class:`Regime`).
 NOT_COMPUTED = -1
 
@@ -244,6 +257,7 @@ def _run_cell(P: np.ndarray, x0: float, v0: float, t_trans: float, t_seg: float,
         period = _strobe_period(xs, vs, m_max, tol)
         if period > 0 or not _converging(xs, vs, m_max):
             break
+    stats[ST_VR2_INT] = np.nan  # skipped (the maps never read it): not a measured 0
     return status, period
 
 
@@ -369,8 +383,40 @@ def run_cells(P_cells: np.ndarray, t_transient: np.ndarray, t_segment: np.ndarra
     engine under :func:`regime_map`; it is public so that other scans (e.g. amplitude versus
     eta) reuse the same measured quantities.
     """
-    P_cells = np.ascontiguousarray(P_cells, dtype=np.float64)
+    P_cells = np.ascontiguousarray(real_array(P_cells, "P_cells must be an array of real "
+                                              "numbers"), dtype=np.float64)
+    if P_cells.ndim != 2 or P_cells.shape[1] != N_PARAMS:
+        raise ValueError(f"P_cells must have shape (n, {N_PARAMS}) (a row of params.P_* per "
+                         f"cell), got {P_cells.shape}")
     n = P_cells.shape[0]
+    spans = {}
+    for name, a in (("t_transient", t_transient), ("t_segment", t_segment),
+                    ("n_segment", n_segment), ("tries", tries)):
+        a = real_array(a, f"{name} must be an array of real numbers")
+        if a.shape != (n,):  # the kernel reads one entry per cell, unchecked
+            raise ValueError(f"{name} must have one entry per cell, shape ({n},), got {a.shape}")
+        spans[name] = a
+    bad = ~np.isfinite(spans["t_transient"]) | (spans["t_transient"] < 0)
+    bad |= ~np.isfinite(spans["t_segment"]) | (spans["t_segment"] <= 0)
+    bad |= (spans["n_segment"] < 1) | (spans["tries"] < 0)
+    bad |= (spans["n_segment"] % 1 != 0) | (spans["tries"] % 1 != 0)
+    if bad.any():
+        i = int(np.argmax(bad))
+        raise ValueError(f"cell {i}: need a finite t_transient >= 0, t_segment > 0 and whole "
+                         f"n_segment >= 1, tries >= 0; got {spans['t_transient'][i]!r}, "
+                         f"{spans['t_segment'][i]!r}, {spans['n_segment'][i]!r}, "
+                         f"{spans['tries'][i]!r}")
+    if method not in (METHOD_EXACT, METHOD_EVENT):
+        raise ValueError(f"method must be METHOD_EXACT ({METHOD_EXACT}) or METHOD_EVENT "
+                         f"({METHOD_EVENT}), got {method!r}")
+    if method == METHOD_EXACT and n:
+        friction = (P_cells[:, P_B1] != 0.0) | (P_cells[:, P_B3] != 0.0)
+        if friction.any():  # the closed form would silently drop b1, b3
+            i = int(np.argmax(friction))
+            raise ValueError(f"cell {i}: METHOD_EXACT needs the Coulomb law (b1 = b3 = 0), "
+                             f"got b1 = {P_cells[i, P_B1]!r}, b3 = {P_cells[i, P_B3]!r}")
+    t_transient, t_segment = spans["t_transient"], spans["t_segment"]
+    n_segment, tries = spans["n_segment"].astype(np.int64), spans["tries"].astype(np.int64)
     out_stats = np.empty((n, N_STATS))
     out_status = np.empty(n, dtype=np.int64)
     out_period = np.empty(n, dtype=np.int64)
@@ -492,16 +538,24 @@ class RegimeMap:
     @classmethod
     def load(cls, path: str | os.PathLike) -> RegimeMap:
         """Read a map written by :meth:`save` (``ValueError`` if it is not one)."""
-        with np.load(Path(path), allow_pickle=False) as z:
+        try:
+            z = np.load(Path(path), allow_pickle=False)
+        except (ValueError, OSError, zipfile.BadZipFile) as exc:  # not an npz archive
+            raise ValueError(f"{path} is not a fricenv regime map ({exc})") from None
+        if not isinstance(z, np.lib.npyio.NpzFile):
+            raise ValueError(f"{path} is not a fricenv regime map (a single array)")
+        with z:
             try:
                 meta = json.loads(str(z["meta"][()]))
-            except KeyError as exc:
+            except (KeyError, ValueError) as exc:
                 raise ValueError(f"{path} is not a fricenv regime map (no metadata)") from exc
             if meta.get("format") != FORMAT or meta.get("version") != FORMAT_VERSION:
                 raise ValueError(f"{path}: unsupported format {meta.get('format')!r} "
                                  f"version {meta.get('version')!r}")
-            arrays = {k: z[k] for k in ("u0", "nu", "labels", "stats", "period", "status",
-                                        "done", "q")}
+            missing = [k for k in _MAP_ARRAYS if k not in z.files]
+            if missing:
+                raise ValueError(f"{path} is not a complete regime map: no {missing}")
+            arrays = {k: z[k] for k in _MAP_ARRAYS}
             names = [f"plan_{f.name}" for f in fields(CellPlan)]
             plan = (CellPlan(*(z[n] for n in names)) if all(n in z.files for n in names)
                     else None)
@@ -515,6 +569,9 @@ class RegimeMap:
         return cls(params=params, settings=settings, elapsed=float(meta["elapsed_s"]),
                    meta=extra, plan=plan, **arrays)
 
+
+#: Arrays a saved map holds besides its metadata.
+_MAP_ARRAYS = ("u0", "nu", "labels", "stats", "period", "status", "done", "q")
 
 #: Metadata keys written by :meth:`RegimeMap.metadata` itself; user ``meta`` cannot set them.
 _RESERVED_META = frozenset({"format", "version", "algorithm", "params", "settings",
@@ -610,6 +667,8 @@ def regime_map(params: OscillatorParams | str, u0: object, nu: object, *,
     """
     params = _as_params(params)
     check_dict("meta", meta)
+    if callback is not None and not callable(callback):  # before any cell runs
+        raise TypeError(f"callback must be callable, {got(callback)}")
     if meta:
         try:  # before any cell runs: meta is written as JSON with every save
             json.dumps(dict(meta))

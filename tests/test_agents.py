@@ -121,6 +121,13 @@ def test_hyperparameter_overrides_and_schedules():
     (["--algo", "ppo", "--scene", "paper", "-params", "bogus:1"], "unknown ppo hyperparameter"),
     (["--algo", "ppo", "--scene", "paper", "-n", "0"], "-n must be >= 1"),
     (["--algo", "ppo", "--scene", "paper", "--seed", "-1"], "seed must be an integer"),
+    # more would reach the next run's block of plant seeds
+    (["--algo", "ppo", "--scene", "paper", "--eval-episodes", "501"], "--eval-episodes <= 500"),
+    # checked only by the constructors: the run folder made for them is removed again
+    (["--algo", "ppo", "--scene", "paper", "-params", "env_kwargs:{foo: 1}"],
+     "cannot build the training"),
+    (["--algo", "ppo", "--scene", "paper", "-params", "normalize:{norm_obs: true, foo: 1}"],
+     "cannot build the training"),
 ])
 def test_train_cli_rejects_bad_input_clearly(argv, needle, capsys, tmp_path):
     with pytest.raises(SystemExit) as exc:
@@ -131,6 +138,39 @@ def test_train_cli_rejects_bad_input_clearly(argv, needle, capsys, tmp_path):
     if "invalid choice: 'nope'" in needle:
         assert "self_excited" in err  # the valid names are listed
     assert not any(tmp_path.iterdir())  # nothing written
+
+
+def test_train_folder_options_must_be_folders(capsys, tmp_path):
+    """A --run-dir or -f naming a file was a NotADirectoryError traceback."""
+    note = tmp_path / "notes.txt"
+    note.write_text("keep me")
+    for argv in (["--run-dir", str(note)], ["-f", str(note)]):
+        with pytest.raises(SystemExit) as exc:
+            T.main(["--algo", "ppo", "--scene", "paper", *argv])
+        assert exc.value.code == 2 and "is a file, not a folder" in capsys.readouterr().err
+    assert note.read_text() == "keep me"
+
+
+def test_training_plants_are_the_runs_own_block(tmp_path, monkeypatch):
+    """SB3 reseeds the env with the model's seed (plants s + i), so runs of neighbouring
+    seeds shared most of their plants; the run's block (1000 s + i, in config.yml) is put
+    back before training."""
+    import fricenv.envs.sb3 as sb3
+
+    first = []
+    reset = sb3.StickSlipSB3VecEnv.reset
+
+    def spy(self):
+        first.append([int(s) for s in self._seeds])
+        return reset(self)
+
+    monkeypatch.setattr(sb3.StickSlipSB3VecEnv, "reset", spy)
+    run = T.main(["--algo", "ppo", "--scene", "self_excited", "--seed", "2", "-n", "32",
+                  "--eval-freq", "0", "--eval-episodes", "1", "--no-progress",
+                  "--run-dir", str(tmp_path / "run"), "-params", "n_envs:4", "n_steps:8",
+                  "batch_size:32"])
+    lo, hi = yaml.safe_load((run / "config.yml").read_text())["train_env_seeds"]
+    assert first[0] == list(range(lo, hi + 1)) == list(range(2000, 2004))
 
 
 def test_cli_errors_as_users_see_them():
@@ -146,11 +186,31 @@ def test_evaluate_cli_rejects_bad_input(capsys, tmp_path):
         (["--scene", "self_excited", "--seeds", "0"], "--seeds >= 1"),
         (["--runs", str(tmp_path / "missing")], "does not exist"),
         (["--controllers", "zero"], "give --scene"),
+        # a named model of another scene was dropped from the table without a word
+        (["--scene", "paper", "--models", str(ROOT / "agents/pretrained/ppo_self_excited.zip")],
+         "trained on scene 'self_excited', not on 'paper'"),
     ):
         with pytest.raises(SystemExit) as exc:
             E.main([*argv, "--out", str(tmp_path / "out")])
         assert exc.value.code == 2
         assert needle in capsys.readouterr().err
+
+
+def test_evaluate_reports_unusable_runs_clearly(ppo_run, capsys, tmp_path):
+    """An unfinished run (config, no model) and a misnamed model file were tracebacks; a
+    run's model.zip named on its own is evaluated with its run's config."""
+    unfinished = tmp_path / "unfinished"
+    unfinished.mkdir()
+    (unfinished / "config.yml").write_text((ppo_run / "config.yml").read_text())
+    stray = tmp_path / "mystery.zip"
+    stray.write_bytes((ppo_run / "model.zip").read_bytes())
+    for argv, needle in ((["--runs", str(unfinished)], "an unfinished training run"),
+                         (["--models", str(stray)], "unknown algorithm 'mystery'")):
+        with pytest.raises(SystemExit) as exc:
+            E.main([*argv, "--out", str(tmp_path / "out")])
+        assert exc.value.code == 2 and needle in capsys.readouterr().err
+    ctrl, cfg = load_controller(ppo_run / "model.zip")
+    assert cfg["seed"] == 3 and ctrl.vecnormalize is not None
 
 
 # -- baselines ----------------------------------------------------------------------------------

@@ -333,3 +333,57 @@ def test_slowly_converging_orbit_locks_with_extensions() -> None:
                       transient_efolds=0.0, lock_extensions=0)
     assert lock.labels[0, 0] == Regime.PERIODIC_OSCILLATION and lock.period[0, 0] == 1
     assert once.labels[0, 0] == Regime.WM1 and once.period[0, 0] == 0
+
+
+# -- input checks of the engine and the map files (each was silent or a bare traceback) -----
+def test_run_cells_checks_what_its_kernel_would_not() -> None:
+    """Short span arrays were read past their end, METHOD_EXACT ran a Stribeck row as the
+    Coulomb plant, and NaN or negative spans gave empty windows with status OK."""
+    from fricenv.layout import METHOD_EVENT, METHOD_EXACT
+    from fricenv.sweep import run_cells
+
+    s = SweepSettings()
+    P = np.stack([PARAMS.replace(u0=1.0).to_array()] * 3)
+    ok = (np.full(3, 10.0), np.full(3, 5.0), np.full(3, 2), np.zeros(3, np.int64))
+    stats, status, _ = run_cells(P, *ok, s, METHOD_EXACT)
+    assert np.all(status == STATUS_OK)
+    assert np.all(np.isnan(stats[:, 9]))  # (v - V)^2 is skipped: NaN, not a measured 0
+    cases = [
+        ((P, np.full(2, 10.0), *ok[1:]), METHOD_EXACT, "t_transient must have one entry"),
+        ((P, ok[0], np.array([5.0, np.nan, 5.0]), *ok[2:]), METHOD_EXACT, "cell 1: need"),
+        ((P, np.array([10.0, 10.0, -1.0]), *ok[1:]), METHOD_EXACT, "cell 2: need"),
+        ((P[:, :4], *ok), METHOD_EXACT, r"P_cells must have shape \(n, 10\)"),
+        ((P, *ok), 7, "method must be METHOD_EXACT"),
+    ]
+    stribeck = P.copy()
+    stribeck[1] = OscillatorParams.preset("stribeck", u0=1.0).to_array()
+    cases.append(((stribeck, *ok), METHOD_EXACT, "cell 1: METHOD_EXACT needs the Coulomb"))
+    for args, method, match in cases:
+        with pytest.raises(ValueError, match=match):
+            run_cells(*args, s, method)
+    run_cells(stribeck, *ok, s, METHOD_EVENT)
+
+
+def test_map_stats_mark_the_skipped_integral(reference: RegimeMap) -> None:
+    assert np.all(np.isnan(reference.stats[..., 9]))
+    assert np.isnan(cell_statistics([PARAMS.replace(u0=1.0)])[1][0, 9])
+
+
+def test_loading_something_else_than_a_map_is_a_value_error(tmp_path) -> None:
+    partial = tmp_path / "partial.npz"
+    np.savez(partial, meta=np.array(json.dumps({"format": "fricenv.regime_map",
+                                                "version": 1})), u0=U0)
+    notes = tmp_path / "notes.npz"
+    notes.write_text("not an archive")
+    for path, match in ((partial, "not a complete regime map"), (notes, "not a fricenv regime")):
+        with pytest.raises(ValueError, match=match):
+            RegimeMap.load(path)
+        with pytest.raises(ValueError, match=match):
+            regime_map(PARAMS, [1.0], [0.5], path=path, progress=False)
+    assert notes.read_text() == "not an archive"  # and nothing was overwritten
+
+
+def test_callback_is_checked_before_any_cell(tmp_path) -> None:
+    with pytest.raises(TypeError, match=r"callback must be callable, got 5 \(int\)"):
+        regime_map(PARAMS, [1.0], [0.5], callback=5, path=tmp_path / "m.npz")
+    assert not any(tmp_path.iterdir())
