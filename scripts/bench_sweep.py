@@ -30,7 +30,13 @@ from fricenv import core  # noqa: E402
 from fricenv.layout import METHOD_EVENT, METHOD_EXACT, N_STATE, N_STATS, S_V, S_X  # noqa: E402
 from fricenv.params import P_W2, OscillatorParams  # noqa: E402
 from fricenv.reproduce import FULL, MAP_FIGURES, eta_name, map_grid  # noqa: E402
-from fricenv.sweep import SweepSettings, plan_cells, regime_map, run_cells  # noqa: E402
+from fricenv.sweep import (  # noqa: E402
+    SweepSettings,
+    check_n_threads,
+    plan_cells,
+    regime_map,
+    run_cells,
+)
 
 #: Cells of the comparison: (nu, u0) at the paper's defaults, one per regime family.
 CELLS = [(0.5, 0.3), (0.5, 2.0), (1.5, 2.0), (0.5, 30.0), (2.0, 1.0), (0.25, 5.0)]
@@ -136,6 +142,13 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--skip-panel", action="store_true", help="skip the 200x200 panel")
     ap.add_argument("--json", type=Path, default=Path("out/bench_sweep.json"))
     a = ap.parse_args(argv)
+    if a.threads is not None:
+        try:
+            check_n_threads(a.threads)
+        except ValueError as e:
+            ap.error(f"--threads: {e}")
+    if a.reps < 1:
+        ap.error(f"--reps must be >= 1, got {a.reps}")
     out: dict = {"threads": a.threads or numba.config.NUMBA_NUM_THREADS}
 
     print("== per-cell throughput vs SciPy solve_ivp (DOP853, event-driven) ==", flush=True)
