@@ -199,9 +199,8 @@ class SetupError(ValueError):
 
 
 def _run_dir(args: argparse.Namespace) -> Path:
-    if args.run_dir is not None:
+    if args.run_dir is not None:  # (checked empty by ``prepare``)
         path = args.run_dir
-        _check_folders(args)
     else:
         stamp = datetime.now().strftime("%Y%m%d-%H%M%S")
         base = args.log_folder / f"{args.algo}_{args.scene}_s{args.seed}_{stamp}"
@@ -284,10 +283,10 @@ def train(args: argparse.Namespace, prepared: tuple | None = None) -> Path:
                                       **spec.algo_kwargs)
     except Exception as e:
         # leave nothing behind that would block the corrected rerun or look like a run
-        for child in run_dir.iterdir() if existed else ():
-            shutil.rmtree(child) if child.is_dir() else child.unlink()
-        if not existed:
-            shutil.rmtree(run_dir, ignore_errors=True)
+        # (a --run-dir the user made was empty: it stays, empty)
+        shutil.rmtree(run_dir, ignore_errors=True)
+        if existed:
+            run_dir.mkdir()
         raise SetupError(f"cannot build the training from these hyperparameters: "
                          f"{type(e).__name__}: {e}") from e
     # SB3 seeds the env with ``seed`` itself while building the model (plants seed + i);
