@@ -57,6 +57,15 @@ def check_finite_real(name: str, value: Any) -> float:
     return x
 
 
+def check_rtol(value: Any) -> float:
+    """A relative tolerance as a float: ``TypeError`` unless a real number, ``ValueError``
+    unless in (0, 1) (at 1 or more the steps would track nothing)."""
+    x = check_finite_real("rtol", value)
+    if not 0.0 < x < 1.0:
+        raise ValueError(f"rtol must lie in (0, 1), got {value!r}")
+    return x
+
+
 def check_bool(name: str, value: Any) -> bool:
     """``value`` as a bool; ``TypeError`` naming ``name`` unless it is one (numpy's included:
     a truthy string such as ``'no'`` or a number would otherwise pass as True)."""

@@ -53,7 +53,15 @@ from numba import njit, prange
 
 from . import core
 from .atomic import fetch_add
-from .checks import check_bool, check_dict, check_finite_real, check_int, got, real_array
+from .checks import (
+    check_bool,
+    check_dict,
+    check_finite_real,
+    check_int,
+    check_rtol,
+    got,
+    real_array,
+)
 from .layout import (
     METHOD_EVENT,
     METHOD_EXACT,
@@ -148,8 +156,7 @@ class SweepSettings:
                 object.__setattr__(self, f.name, check_int(f.name, v, 0))
             else:  # TypeError for a non-number, ValueError for NaN or inf
                 object.__setattr__(self, f.name, check_finite_real(f.name, v))
-        if not 0.0 < self.rtol < 1.0:  # (at 1 or more the steps would track nothing)
-            raise ValueError(f"rtol must lie in (0, 1), got {self.rtol!r}")
+        check_rtol(self.rtol)
         for name in ("transient_min", "transient_periods", "transient_efolds",
                      "window_periods", "atol"):
             if getattr(self, name) < 0:
