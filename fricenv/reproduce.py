@@ -222,6 +222,20 @@ def band(rmap: RegimeMap) -> Band:
     return Band(rmap.nu, onset, end, cat[-1] == 2, mono)
 
 
+def _median(a: np.ndarray) -> float:
+    """Median ignoring NaN (a column without that boundary); NaN, silently, when nothing is
+    left (a grid too coarse for the selection, or no band at all)."""
+    a = np.asarray(a, dtype=float)
+    a = a[~np.isnan(a)]
+    return float(np.median(a)) if a.size else math.nan
+
+
+def _mean(a: np.ndarray) -> float:
+    """Mean, NaN (silently) for an empty selection."""
+    a = np.asarray(a, dtype=float)
+    return float(a.mean()) if a.size else math.nan
+
+
 def _frac(mask: np.ndarray, sel: np.ndarray) -> float:
     sel = np.broadcast_to(sel, mask.shape)
     return float(mask[sel].mean()) if sel.any() else math.nan
@@ -269,8 +283,10 @@ class Report:
         return "\n".join(self.lines) + "\n"
 
 
-def _verdict(ok: bool | None, partly: bool = False) -> str:
-    if ok is None:
+def _verdict(ok: bool | None, partly: bool = False, inputs: Sequence[float] = ()) -> str:
+    """The verdict on an observation; "n/a" when any number it rests on is NaN (the grid
+    has no cell for that selection), since a comparison with NaN would read as "differ"."""
+    if ok is None or any(math.isnan(v) for v in inputs):
         return "n/a"
     return "agree" if ok else ("partly" if partly else "differ")
 
@@ -506,9 +522,9 @@ def _map_observations(rep: Report, maps: dict[int, list[RegimeMap]]) -> None:
 
     # M1: WM -> SSM -> WM with growing u0
     non_int = {fig: [~np.isclose(b.nu, np.round(b.nu)) for b in bs] for fig, bs in bands.items()}
-    mono = {fig: [float(b.monotone[s].mean()) for b, s in zip(bs, non_int[fig], strict=True)]
+    mono = {fig: [_mean(b.monotone[s]) for b, s in zip(bs, non_int[fig], strict=True)]
             for fig, bs in bands.items()}
-    reach = [float(b.reaches_wm2[s].mean()) for fig, bs in bands.items()
+    reach = [_mean(b.reaches_wm2[s]) for fig, bs in bands.items()
              for b, s in zip(bs, non_int[fig], strict=True)]
     first = [float(np.all(np.isfinite(b.onset))) for bs in bands.values() for b in bs]
     worst = min(min(v) for v in mono.values())
@@ -524,7 +540,7 @@ def _map_observations(rep: Report, maps: dict[int, list[RegimeMap]]) -> None:
             "stick islands beyond the second boundary (mostly Stribeck, η ≥ 3/5) and "
             "columns next to integer ν, where the slow drift of the tones' relative phase "
             "keeps stick phases alive up to very large u0.",
-            _verdict(worst > 0.9, partly=True))
+            _verdict(worst > 0.9, partly=True, inputs=[v for vs in mono.values() for v in vs]))
 
     # M2: SSM1 / SSM2 split at nu = 1
     jumps = []
@@ -542,7 +558,7 @@ def _map_observations(rep: Report, maps: dict[int, list[RegimeMap]]) -> None:
 
     # M3: small eta -> stick starts at large u0
     if 8 in bands:
-        med_on = [float(np.nanmedian(b.onset)) for b in bands[8]]
+        med_on = [_median(b.onset) for b in bands[8]]
         rep.obs("Fig. 8a/8b", "for small η (1/9, 1/5) stick-slip needs large u0 (first "
                 "boundary far from the ν axis) and it starts at smaller u0 as ν grows",
                 "median stick onset u0: " + ", ".join(
@@ -551,62 +567,65 @@ def _map_observations(rep: Report, maps: dict[int, list[RegimeMap]]) -> None:
                     f"η={eta_name(e)}: {b.at(0.5)[0]:.3g} / {b.at(2.5)[0]:.3g} / "
                     f"{b.at(3.9)[0]:.3g}" for e, b in zip(etas[8], bands[8], strict=True)),
                 _verdict(med_on[0] > med_on[2] and med_on[1] > med_on[2]
-                         and bands[8][0].at(3.9)[0] < bands[8][0].at(0.5)[0]))
+                         and bands[8][0].at(3.9)[0] < bands[8][0].at(0.5)[0],
+                         inputs=med_on[:3]))
 
         # M4: nu in (1, 3): SSM2 mostly nil for eta = 1/9, 1/5
-        txt, ok = [], True
+        txt, ok, shares = [], True, []
         for k in (0, 1):
             m = maps[8][k]
             stick = contact_category(m) == 1
             sel13 = (m.nu > 1) & (m.nu < 3) & non_int[8][k]
             sel34 = (m.nu > 3) & non_int[8][k]
             f13, f34 = _frac(stick, sel13[None, :]), _frac(stick, sel34[None, :])
-            on13 = np.nanmedian(bands[8][k].onset[sel13])
-            end13 = np.nanmedian(bands[8][k].end[sel13])
+            on13 = _median(bands[8][k].onset[sel13])
+            end13 = _median(bands[8][k].end[sel13])
             txt.append(f"η={eta_name(etas[8][k])}: {100 * f13:.0f} % of the cells with "
                        f"1 < ν < 3 have stick phases ({100 * f34:.0f} % for ν > 3); median "
                        f"band u0 ∈ [{on13:.3g}, {end13:.3g}]")
             ok &= f13 < 0.1
+            shares.append(f13)
         rep.obs("Fig. 8a/8b", "for 1 < ν < 3 there is almost no SSM2 at η = 1/9 and none "
                 "at η = 1/5; some u0 near ν = 1 fall outside the diagram",
                 "; ".join(txt) + ". Near ν = 1 the band's far edge leaves the plotted "
-                "range (beats).", _verdict(ok))
+                "range (beats).", _verdict(ok, inputs=shares))
 
         # M5/M6: band for nu > 3 and its growth with nu when eta < 1
-        txt, trend = [], []
+        txt, trend, widths = [], [], []
         for k in (0, 1):
             b = bands[8][k]
             lin = b.end - b.onset
             sel_lo = (b.nu > 0.2) & (b.nu < 0.8)
             sel_hi = b.nu > 3
             txt.append(f"η={eta_name(etas[8][k])}: band width in u0 (end − onset) median "
-                       f"{np.nanmedian(lin[sel_lo]):.3g} for 0.2<ν<0.8 vs "
-                       f"{np.nanmedian(lin[sel_hi]):.3g} for ν>3; in decades "
-                       f"{np.nanmedian(b.decades()[sel_lo]):.2f} vs "
-                       f"{np.nanmedian(b.decades()[sel_hi]):.2f}")
-            trend.append(np.nanmedian(lin[sel_hi]) > np.nanmedian(lin[sel_lo]))
+                       f"{_median(lin[sel_lo]):.3g} for 0.2<ν<0.8 vs "
+                       f"{_median(lin[sel_hi]):.3g} for ν>3; in decades "
+                       f"{_median(b.decades()[sel_lo]):.2f} vs "
+                       f"{_median(b.decades()[sel_hi]):.2f}")
+            widths += [_median(lin[sel_hi]), _median(lin[sel_lo])]
+            trend.append(widths[-2] > widths[-1])
         rep.obs("Fig. 8", "for ω1 < ω0 the stick-slip band widens as ν increases, and for "
                 "ν > 3 it is wide at small u0",
                 "; ".join(txt) + ". The band moves to smaller u0 as ν grows, but it gets "
-                "narrower, both in u0 and in decades.", _verdict(all(trend)))
+                "narrower, both in u0 and in decades.", _verdict(all(trend), inputs=widths))
 
         # M8: eta > 1 shrinks the band
-        dec = [float(np.nanmedian(b.decades())) for b in bands[8]]
-        on8 = [float(np.nanmedian(b.onset)) for b in bands[8]]
+        dec = [_median(b.decades()) for b in bands[8]]
+        on8 = [_median(b.onset) for b in bands[8]]
         rep.obs("Fig. 8c/8d", "for η > 1 the curves lie at the right and stick is "
                 "suppressed; larger η shrinks the stick-slip band",
                 "median band width in decades of u0: " + ", ".join(
                     f"η={eta_name(e)}: {d:.2f}" for e, d in zip(etas[8], dec, strict=True))
                 + "; median onset u0: " + ", ".join(
-                    f"η={eta_name(e)}: {np.nanmedian(b.onset):.3g}"
+                    f"η={eta_name(e)}: {_median(b.onset):.3g}"
                     for e, b in zip(etas[8], bands[8], strict=True))
                 + ". The band is narrower for η > 1 but it is not suppressed, and it starts at "
                 "smaller u0 than for η < 1 (its first boundary lies further left).",
                 _verdict(max(dec[2:]) < min(dec[:2]) and min(on8[2:]) > max(on8[:2]),
-                         partly=max(dec[2:]) < min(dec[:2])))
+                         partly=max(dec[2:]) < min(dec[:2]), inputs=dec + on8))
 
     # M7: integer nu rows
-    per_txt, ok = [], True
+    per_txt, ok, shares = [], True, []
     for fig, ms in maps.items():
         for k, m in enumerate(ms):
             ints = np.isclose(m.nu, np.round(m.nu))
@@ -614,13 +633,14 @@ def _map_observations(rep: Report, maps: dict[int, list[RegimeMap]]) -> None:
             per = np.isin(lab, [Regime.PERIODIC_OSCILLATION, Regime.PERIODIC_STICK_SLIP])
             stick = contact_category(m)[:, ints] == 1
             pss = (lab == Regime.PERIODIC_STICK_SLIP)
-            per_txt.append(f"{name(fig, k)}: {100 * per.mean():.0f} % periodic"
+            shares.append(_mean(per))
+            per_txt.append(f"{name(fig, k)}: {100 * shares[-1]:.0f} % periodic"
                            f" ({100 * _frac(pss, stick):.0f} % of the stick cells)")
-            ok &= per.mean() > 0.5
+            ok &= shares[-1] > 0.5
     rep.obs("Figs. 8–10", "at integer ν: periodic oscillation on both sides of the "
             "stick-slip band, periodic stick-slip inside it",
             "share of integer-ν cells with a locked response: " + "; ".join(per_txt),
-            _verdict(ok, partly=True))
+            _verdict(ok, partly=True, inputs=shares))
 
     # Fig. 9 and 10
     for fig in (9, 10):
@@ -641,7 +661,8 @@ def _map_observations(rep: Report, maps: dict[int, list[RegimeMap]]) -> None:
                         f"{100 * a:.0f} % vs {100 * b:.0f} %"
                         for a, b in zip(mid, rest, strict=True)),
                     _verdict(max(low) < 0.05 and all(a < 0.5 * b for a, b in zip(mid, rest,
-                                                                                   strict=True))))
+                                                                                   strict=True)),
+                             inputs=low + mid + rest))
         straight_k = 1 if fig == 9 else 2
         b = bands[fig][straight_k]
         st_on = _straightness(b.nu, b.onset)
@@ -655,9 +676,9 @@ def _map_observations(rep: Report, maps: dict[int, list[RegimeMap]]) -> None:
                 "onset: " + ", ".join(f"{v:.2f}" for v in others)
                 + f". The onset goes from {b.at(0.1)[0]:.3g} at ν = 0.1 to "
                 f"{b.at(3.9)[0]:.3g} at ν = 3.9",
-                _verdict(st_on < 0.1, partly=st_on <= min(others)))
-        dec = [float(np.nanmedian(bb.decades())) for bb in bands[fig]]
-        ons = [float(np.nanmedian(bb.onset)) for bb in bands[fig]]
+                _verdict(st_on < 0.1, partly=st_on <= min(others), inputs=[st_on, *others]))
+        dec = [_median(bb.decades()) for bb in bands[fig]]
+        ons = [_median(bb.onset) for bb in bands[fig]]
         rep.obs(f"Fig. {fig}d", "η = 7/3: the stick-slip band is weak / partly disappears "
                 "and needs large u0",
                 "median band width in decades of u0 (from the stick onset to the last stick): "
@@ -666,24 +687,25 @@ def _map_observations(rep: Report, maps: dict[int, list[RegimeMap]]) -> None:
                 + "; median onset u0: " + ", ".join(
                     f"η={eta_name(e)}: {o:.3g}" for e, o in zip(etas[fig], ons, strict=True)),
                 _verdict(dec[3] < min(dec[:3]) and ons[3] > max(ons[:3]),
-                         partly=dec[3] < max(dec[:3]) or ons[3] > min(ons[:3])))
+                         partly=dec[3] < max(dec[:3]) or ons[3] > min(ons[:3]),
+                         inputs=dec + ons))
     if 10 in bands and 8 in bands and 9 in bands:
         rows = []
         for k_strib, k_coul, k_visc in ((0, 0, 0), (3, 3, 3)):
             b10, b8, b9 = bands[10][k_strib], bands[8][k_coul], bands[9][k_visc]
             rows.append(f"η={eta_name(etas[10][k_strib])}: median onset "
-                        f"{np.nanmedian(b8.onset):.3g} / {np.nanmedian(b9.onset):.3g} / "
-                        f"{np.nanmedian(b10.onset):.3g}, median end "
-                        f"{np.nanmedian(b8.end):.3g} / {np.nanmedian(b9.end):.3g} / "
-                        f"{np.nanmedian(b10.end):.3g} (Coulomb / viscous / Stribeck)")
-        on_ok = all(abs(np.nanmedian(bands[10][k].onset) / np.nanmedian(bands[9][k].onset) - 1)
-                    < 0.1 for k in (0, 3))
-        end_ok = all(np.nanmedian(bands[10][k].end) / np.nanmedian(bands[9][k].end) < 1.5
-                     for k in (0, 3))
+                        f"{_median(b8.onset):.3g} / {_median(b9.onset):.3g} / "
+                        f"{_median(b10.onset):.3g}, median end "
+                        f"{_median(b8.end):.3g} / {_median(b9.end):.3g} / "
+                        f"{_median(b10.end):.3g} (Coulomb / viscous / Stribeck)")
+        ratios = [(_median(bands[10][k].onset) / _median(bands[9][k].onset),
+                   _median(bands[10][k].end) / _median(bands[9][k].end)) for k in (0, 3)]
+        on_ok = all(abs(on - 1) < 0.1 for on, _ in ratios)
+        end_ok = all(end < 1.5 for _, end in ratios)
         rep.obs("Fig. 10", "Stribeck maps are not very different from Fig. 9", "; ".join(rows)
                 + ". The first boundary hardly moves; the cubic term pushes the second one "
                 "to much larger u0 and leaves stick islands beyond it.",
-                _verdict(on_ok and end_ok, partly=on_ok))
+                _verdict(on_ok and end_ok, partly=on_ok, inputs=[v for r in ratios for v in r]))
     rep.flush_table()
 
 

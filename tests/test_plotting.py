@@ -121,6 +121,24 @@ def test_reproduce_cli_small_parts(tmp_path) -> None:
         main(["--only", "11"])
 
 
+def test_reproduce_coarse_maps_judge_nothing_they_cannot(tmp_path) -> None:
+    """2 x 2 cells per panel leave the report's selections (0.2 < nu < 0.8, non-integer nu,
+    ...) empty: those observations must read "n/a", not "differ", and warn about nothing."""
+    import warnings
+
+    from fricenv.reproduce import main
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert main(["--only", "8-10", "--resolution", "2", "--out", str(tmp_path),
+                     "--no-progress"]) == 0
+    rows = [r for r in (tmp_path / "report.md").read_text().splitlines()
+            if r.startswith("| Fig")]
+    verdicts = [r.rsplit("|", 2)[1].strip() for r in rows]
+    assert verdicts.count("n/a") >= 10, verdicts
+    assert "differ" not in verdicts, verdicts
+
+
 @pytest.mark.parametrize(
     ("argv", "needle"),
     [(["--resolution", "0"], "--resolution"), (["--threads", "0"], "--threads"),
