@@ -57,6 +57,16 @@ def check_finite_real(name: str, value: Any) -> float:
     return x
 
 
+def check_bounded_real(name: str, value: Any, limit: float) -> float:
+    """``value`` as a finite float of magnitude at most ``limit`` (:func:`check_finite_real`,
+    then ``ValueError`` naming ``name`` beyond the limit)."""
+    x = check_finite_real(name, value)
+    if abs(x) > limit:
+        raise ValueError(f"{name} must lie within +-{limit:g} (the model is dimensionless, "
+                         f"its quantities O(1)), got {value!r}")
+    return x
+
+
 def check_rtol(value: Any) -> float:
     """A relative tolerance as a float: ``TypeError`` unless a real number, ``ValueError``
     unless in (0, 1) (at 1 or more the steps would track nothing)."""

@@ -1780,6 +1780,8 @@ _RALPHA3 = 3.0 / 5.0
 # A slip step is stiff when |df/dv| h exceeds this: the Taylor steps' length is then set by
 # their stability (the error control holds them near its limit), not by accuracy.
 STIFF_HK = 2.5
+# Most Taylor steps between Rosenbrock retries in a stiff stretch where they keep failing
+ROS_BACKOFF_MAX = 64.0
 
 
 @njit(cache=True, error_model="numpy", _nrt=False, inline="always")
@@ -1859,6 +1861,8 @@ def _run_event(P, S, t_span, out_t, stats, max_events, rtol, atol, out_x, out_v,
     fresh = True
     h = min(cap, 0.05)  # the last Taylor step's natural length (for the stiffness test)
     h_ros = -1.0  # Rosenbrock step size while in a stiff stretch (-1: not in one)
+    ros_backoff = 1.0  # Taylor steps to take before trying Rosenbrock again ...
+    ros_skip = 0.0  # ... and those taken so far
     phases_stale = True
     n_carried = 0
     j_out = 1
@@ -1894,6 +1898,16 @@ def _run_event(P, S, t_span, out_t, stats, max_events, rtol, atol, out_x, out_v,
                 h_stab = STIFF_HK / k_stiff  # about the Taylor step's stiff limit
                 if not h_ros > 0.0:
                     h_ros = 2.0 * h_stab
+                    ros_backoff = 1.0
+                elif not h_ros > 1.5 * h_stab:
+                    # Rejections shrank it to a Taylor step's length: try again after
+                    # ros_backoff Taylor steps (doubling while it keeps failing), or one bad
+                    # spot would leave the rest of the stretch on stability-bound steps.
+                    ros_skip += 1.0
+                    if ros_skip >= ros_backoff:
+                        ros_skip = 0.0
+                        ros_backoff = min(2.0 * ros_backoff, ROS_BACKOFF_MAX)
+                        h_ros = 2.0 * h_stab
                 while h_ros > 1.5 * h_stab:
                     hr = min(h_ros, cap, t_stop - t)
                     xr, vr1, ar, ex, ev = _ros4_step(cx, sd, x, v, acc, hr)
@@ -1905,6 +1919,7 @@ def _run_event(P, S, t_span, out_t, stats, max_events, rtol, atol, out_x, out_v,
                         ros_taken = (sd * (vr1 - V) > 0.0 and acc * ar > 0.0 and v * vr1 > 0.0
                                      and sd * vr0 > 0.0)
                         if ros_taken:
+                            ros_backoff = 1.0
                             stats[ST_N_STEPS] += 1.0
                             j0 = _jerk(cx, v, acc, cx[C_SP1], cx[C_SP2])
                             j1 = _jerk(cx, vr1, ar, cx[C_SE1], cx[C_SE2])

@@ -6,7 +6,7 @@ from dataclasses import asdict, dataclass, fields, replace
 
 import numpy as np
 
-from .checks import check_finite_real
+from .checks import check_bounded_real
 
 # Layout of the float64 parameter vector that every kernel takes. Frequencies are stored,
 # not (eta, nu), so that a controller may retune a tone without touching the other.
@@ -112,10 +112,8 @@ class OscillatorParams:
             if value is None and f.name in ("u1", "u2"):
                 continue
             # TypeError for a non-number (None where a number goes), ValueError for NaN/inf
-            value = check_finite_real(f.name, value)
-            if abs(value) > PARAM_LIMIT:
-                raise ValueError(f"{f.name} must lie within +-{PARAM_LIMIT:g} (the model is "
-                                 f"dimensionless, its quantities O(1)), got {value!r}")
+            # or a magnitude beyond PARAM_LIMIT
+            value = check_bounded_real(f.name, value, PARAM_LIMIT)
             object.__setattr__(self, f.name, value)
         checks = (
             ("lam", self.lam >= 0.0, "must be >= 0"),

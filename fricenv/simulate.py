@@ -8,7 +8,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import core
-from .checks import check_finite_real, check_int, check_rtol, got
+from .checks import check_bounded_real, check_finite_real, check_int, check_rtol, got
 from .layout import (
     EVENT_REVERSAL,
     EVENT_SLIP,
@@ -40,7 +40,7 @@ from .layout import (
     STATUS_NONFINITE,
     STATUS_OK,
 )
-from .params import P_LAM, P_W1, P_W2, OscillatorParams
+from .params import P_LAM, P_W1, P_W2, PARAM_LIMIT, OscillatorParams
 
 #: Default cap on switching events per unit of dimensionless time. A physical run switches a
 #: few times per forcing period; far more means chattering (a Zeno-like accumulation).
@@ -166,7 +166,8 @@ class OscillatorState:
               t0: float = 0.0, phase1: float = 0.0, phase2: float = 0.0) -> OscillatorState:
         """A consistent start: stick iff v0 == V and the static friction can hold the block."""
         _check_params(params)
-        x0, v0 = check_finite_real("x0", x0), check_finite_real("v0", v0)
+        x0 = check_bounded_real("x0", x0, PARAM_LIMIT)
+        v0 = check_bounded_real("v0", v0, PARAM_LIMIT)
         t0 = check_finite_real("t0", t0)
         phase1 = check_finite_real("phase1", phase1)
         phase2 = check_finite_real("phase2", phase2)

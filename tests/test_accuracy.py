@@ -359,6 +359,22 @@ def test_random_cases_match_scipy_reference() -> None:
     print(f"\n[random sweep] worst max|dx| = {worst:.2e}")
 
 
+def test_stiff_stretch_goes_back_to_rosenbrock_after_rejections() -> None:
+    """From rest at u0 = 1e10, the fast start makes Rosenbrock steps fail at first; the
+    stretch must try them again rather than stay on stability-bound Taylor steps for the
+    rest of the run (which took 37 s per unit of tau at u0 = 1e12)."""
+    from fricenv import run_stats, simulate
+
+    p = C("stribeck", u0=1e10, nu=0.5)
+    s = run_stats(p, 1.5)
+    ref = simulate(p, 1.5, dt_out=1.5)  # Taylor steps throughout
+    assert s.n_steps < 0.01 * ref.n_steps, (s.n_steps, ref.n_steps)
+    assert (s.n_reversals, s.n_stick) == (ref.n_reversals, ref.n_stick)
+    scale = max(abs(ref.x[-1]), abs(ref.v[-1]))
+    assert abs(s.state.x - ref.x[-1]) <= 1e-8 * scale
+    assert abs(s.state.v - ref.v[-1]) <= 1e-8 * scale
+
+
 @pytest.mark.parametrize("u0", [2000.0, 5000.0])
 def test_stiff_stretches_on_the_stats_path(u0: float) -> None:
     """At large u0 the cubic law's slope makes slip stiff; the stats-only path then takes

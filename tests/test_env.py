@@ -151,10 +151,14 @@ def test_scene_validation():
         sc.replace(randomization={"xfk": (2.0, 4.5)})  # could exceed xfs
     with pytest.raises(ValueError):
         sc.replace(randomization={"mass": (1.0, 2.0)})
-    with pytest.raises(ValueError, match=r"u0 must lie within \+-1e\+12.* 1e\+200"):
+    with pytest.raises(ValueError, match=r"u0_range must lie within \+-1e\+12.* 1e\+200"):
         sc.replace(u0_range=(0.0, 1e200))  # actions could reach an unphysical amplitude
-    with pytest.raises(ValueError, match=r"nu must lie within"):
+    with pytest.raises(ValueError, match=r"nu_range must lie within"):
         sc.replace(nu_range=(0.1, 1e13))
+    with pytest.raises(ValueError, match=r"x0_range must lie within"):
+        sc.replace(x0_range=(-1e13, 0.0))  # a start whose square overflows the reward
+    with pytest.raises(ValueError, match=r"randomization\['V'\] must lie within"):
+        sc.replace(randomization={"V": (1.0, 1e200)})
     with pytest.raises(ValueError):
         gym.make(ENV_ID, scene="nope")
     with pytest.raises(ValueError):
@@ -728,6 +732,48 @@ def test_vector_reset_mask_and_seed_list():
 
 
 # -- rendering ------------------------------------------------------------------------------
+def test_starts_far_out_are_bounded_like_parameters():
+    """A start at x0 = 1e200 overflowed the reward to NaN; one at 1e12 (the bound) is
+    accepted, rewards stay in range, and a frame of the block that far out is cheap (a belt
+    mark per unit was a 7 TiB array)."""
+    env = gym.make(ENV_ID, render_mode="rgb_array")
+    env.reset(seed=0)  # (Gymnasium's env checker breaks if the very first reset is refused)
+    for key in ("x0", "v0"):
+        with pytest.raises(ValueError, match=rf"reset option '{key}' must lie within"):
+            env.reset(seed=0, options={key: -1e200})
+    with pytest.raises(ValueError, match=r"x0 must lie within"):
+        fricenv.simulate(fricenv.OscillatorParams(), 1.0, x0=1e13)
+    env.reset(seed=0, options={"x0": 1e12, "v0": -1e12})
+    reward, terminated = env.step(env.action_space.sample())[1:3]
+    assert -1.6 <= reward <= 0.0 and terminated  # far outside the observation box
+    frame = env.render()
+    assert frame.ndim == 3 and frame.std() > 0
+    env.close()
+
+
+def test_params_given_at_make_are_not_randomised():
+    env = gym.make(ENV_ID, randomize=True, params={"lam": 0.2, "V": 3.0}).unwrapped
+    for seed in range(4):
+        env.reset(seed=seed)
+        assert env.snapshot()["V"] == 3.0
+        assert env._P[fricenv.params.P_LAM] == 0.2
+        assert env._P[fricenv.params.P_XFK] != 2.5  # the others are still drawn
+    vec = gym.make_vec(ENV_ID, num_envs=3, randomize=True, params={"lam": 0.2})
+    vec.reset(seed=0)
+    assert np.all(vec.unwrapped._P[:, fricenv.params.P_LAM] == 0.2)
+
+
+def test_sampled_stuck_flag_is_the_mode_at_that_instant():
+    env = gym.make(SELF_ID).unwrapped
+    env.reset(seed=1)
+    rng = np.random.default_rng(0)
+    for _ in range(150):
+        a = rng.uniform(-1, 1, 2).astype(np.float32)
+        stuck = env.sample_interval(a, 1)[2]
+        obs = env.step(a)[0]
+        assert stuck[-1] == bool(obs[2])
+
+
 def test_render_rgb_array_single_and_vector():
     env = gym.make(ENV_ID, render_mode="rgb_array")
     env.reset(seed=0)

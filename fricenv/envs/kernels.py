@@ -49,6 +49,7 @@ from fricenv.layout import (
     S_X,
     ST_STICK_TIME,
     ST_VR2_INT,
+    STATUS_NONFINITE,
 )
 from fricenv.params import N_PARAMS, P_B1, P_B3, P_LAM, P_U1, P_U2, P_V, P_W1, P_W2, P_XFK, P_XFS
 
@@ -224,7 +225,9 @@ def control_interval(P, S, ctrl, cfg, a, stats, res, work) -> int:
     # Variance of v - V over the interval: the mean of v is exactly (x_end - x_start) / dt.
     mean_vr = (S[S_X] - x_start) / dt - V
     var = stats[ST_VR2_INT] / dt - mean_vr * mean_vr
-    if var < 0.0:
+    if not var > 0.0:
+        if math.isnan(var):  # the state is finite but its square overflowed
+            return STATUS_NONFINITE
         var = 0.0
     fluct = var / (var + max(V * V, 1e-12))
     effort = (P[P_U1] * P[P_U1] + P[P_U2] * P[P_U2]) * cfg[C_EFFORT_NORM]
@@ -608,7 +611,7 @@ def sample_interval(P, S, ctrl, cfg, a, stats, t_out, v_out, stick_out) -> int:
             return status
         t_out[k] = t0 + (k + 1) * h
         v_out[k] = Sc[S_V]
-        stick_out[k] = stats[ST_STICK_TIME] > 0.5 * h
+        stick_out[k] = Sc[S_MODE] == 0.0
     return 0
 
 

@@ -109,8 +109,9 @@ class Painter:
         lo = min(self.WALL - 1.0, x - 2.0)
         hi = max(9.0, x + self.BLOCK_W + 2.0)
         ax.set_xlim(lo, hi)
-        # Belt marks move with the belt.
-        spacing = 1.0
+        # Belt marks move with the belt: one per unit, or per power of ten keeping them under
+        # 100 when the block is far out (a mark per unit at x = 1e12 was a 7 TiB array).
+        spacing = 10.0 ** max(0, math.ceil(math.log10((hi - lo) / 100.0)))
         shift = (V * t) % spacing
         marks = np.arange(math.floor(lo) - 1, hi + 1, spacing) + shift
         self.ticks.set_data(marks, np.full_like(marks, -0.3))

@@ -17,8 +17,8 @@ import numpy as np
 
 from fricenv.checks import (
     check_bool,
+    check_bounded_real,
     check_dict,
-    check_finite_real,
     check_int,
     check_real,
     got,
@@ -36,6 +36,7 @@ from fricenv.params import (
     P_W2,
     P_XFK,
     P_XFS,
+    PARAM_LIMIT,
     OscillatorParams,
     check_known_fields,
 )
@@ -77,6 +78,9 @@ def _pair(name: str, value: Any) -> tuple[float, float]:
     lo, hi = real_tuple(name, value, 2, "a finite (lo, hi) with lo <= hi")
     if not (math.isfinite(lo) and math.isfinite(hi)) or lo > hi:
         raise ValueError(f"{name} must be a finite (lo, hi) with lo <= hi, got {value!r}")
+    if max(abs(lo), abs(hi)) > PARAM_LIMIT:
+        raise ValueError(f"{name} must lie within +-{PARAM_LIMIT:g} (as every parameter), "
+                         f"got {value!r}")
     return lo, hi
 
 
@@ -280,8 +284,9 @@ def episode_from_draws(
             raise ValueError(f"unknown reset option(s) {unknown}; expected some of {OPTION_KEYS}")
         for key, value in options.items():
             # TypeError for a non-number (complex would pass as np.number, cut to its real
-            # part), ValueError for NaN or inf
-            vals[key] = check_finite_real(f"reset option {key!r}", value)
+            # part), ValueError for NaN, inf or a magnitude beyond PARAM_LIMIT (a start at
+            # x0 = 1e200 overflowed the reward to NaN)
+            vals[key] = check_bounded_real(f"reset option {key!r}", value, PARAM_LIMIT)
         # Validates the plant (raises ValueError naming the field).
         plant = scene.params.replace(**{k: vals[k] for k in RANDOMIZABLE})
         u0 = float(options.get("u0", u0))

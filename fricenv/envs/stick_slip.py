@@ -111,6 +111,9 @@ class EnvSetup:
         check_dict("params", params, "a dict of plant parameters, e.g. {'lam': 0.2},")
         if params:
             changes["params"] = sc.params.replace(**params)
+            # a value given explicitly is kept for every episode, not drawn over
+            changes["randomization"] = tuple(
+                (k, r) for k, r in sc.randomization if k not in params)
         if action_mode is not None:
             changes["action_mode"] = action_mode
         if control_dt is not None:
@@ -364,7 +367,8 @@ class StickSlipEnv(gym.Env):
       period).
     - `randomize`: draw the plant parameters per episode from the scene's ranges (a bool).
     - `reward_weights`: `(w_stick, w_velocity, w_effort)` or a dict with those keys.
-    - `params`: overrides of the scene's nominal plant, e.g. `{"lam": 0.2}`. A plant so stiff
+    - `params`: overrides of the scene's nominal plant, e.g. `{"lam": 0.2}`; with `randomize`,
+      a parameter given here keeps its value in every episode. A plant so stiff
       (large `lambda`) or a tone so fast that one control interval would need more than
       `scenes.MAX_INTERVAL_SCAN_STEPS` (1e6) scan steps, seconds per step, is refused with a
       `ValueError` naming its values: at construction (with `randomize`, the ranges' worst
