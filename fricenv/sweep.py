@@ -99,7 +99,7 @@ from .simulate import check_scan_steps
 FORMAT = "fricenv.regime_map"
 FORMAT_VERSION = 1
 #: Version of the per-cell measurement; a stored map is resumed only if it matches.
-ALGORITHM = 10  # 10: the skipped (v - V)^2 integral is stored as NaN, not 0
+ALGORITHM = 11  # 11: stiff stretches retry Rosenbrock steps (stats of stiff cells move)
 #: Label of a cell that has not been computed yet (not a :class:`Regime`).
 NOT_COMPUTED = -1
 
