@@ -1,5 +1,6 @@
 """The atomic counter with which parallel kernels share their work out."""
 
+import numba
 import numpy as np
 import pytest
 from numba import njit, prange
@@ -9,11 +10,18 @@ from fricenv.atomic import fetch_add
 
 
 @njit(parallel=True)
-def _claim_all(n, n_workers, counter, hits):
-    for _ in prange(n_workers):
+def _claim_all(n, n_workers, counter, hits, gate, claims):
+    for w in prange(n_workers):
+        # Start together: each worker checks in and waits (boundedly, never hanging the
+        # suite) for the others, so the claims below really race.
+        fetch_add(gate, 0, 1)
+        spins = 0
+        while fetch_add(gate, 0, 0) < n_workers and spins < 2_000_000_000:
+            spins += 1
         i = fetch_add(counter, 0, 1)
         while i < n:
             fetch_add(hits, i, 1)  # atomic too, so a doubly claimed index shows as 2
+            claims[w] += 1
             i = fetch_add(counter, 0, 1)
 
 
@@ -23,12 +31,20 @@ def _add(arr, idx, inc):
 
 
 def test_workers_claim_every_index_exactly_once():
-    n, n_workers = 20_000, 4
+    """Workers racing for one counter (one per thread, started together) claim every index
+    exactly once. (Before the start gate, one worker claimed all 20 000 indices before the
+    other began, and a non-atomic read-modify-write passed too.)"""
+    n_workers = numba.get_num_threads()
+    if n_workers < 2:
+        pytest.skip("needs two threads to race")
+    n = 200_000
     counter = np.zeros(1, dtype=np.int64)
     hits = np.zeros(n, dtype=np.int64)
-    _claim_all(n, n_workers, counter, hits)
+    claims = np.zeros(n_workers, dtype=np.int64)
+    _claim_all(n, n_workers, counter, hits, np.zeros(1, dtype=np.int64), claims)
     assert np.all(hits == 1)
     assert counter[0] == n + n_workers  # each worker's last claim came back empty
+    assert claims.sum() == n and np.count_nonzero(claims) >= 2, claims.tolist()
 
 
 def test_returns_the_old_value_and_adds():
