@@ -8,6 +8,7 @@ import math
 import numbers
 import operator
 from collections.abc import Iterable, Mapping
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -129,3 +130,26 @@ def check_dict(name: str, value: Any, what: str = "a dict") -> None:
     """``TypeError`` naming ``name`` unless ``value`` is a mapping or None."""
     if value is not None and not isinstance(value, Mapping):
         raise TypeError(f"{name} must be {what} or None, {got(value)}")
+
+
+def check_output_dir(name: str, path: Any) -> Path:
+    """``path`` as a folder a run may create or write into: ``ValueError`` naming ``name``
+    if it, or the nearest of its parents that exists, is not a folder. Checked before the
+    work, so a long run cannot end in ``FileExistsError`` with its results unsaved."""
+    p = Path(path)
+    for q in (p, *p.parents):
+        if q.exists():
+            if not q.is_dir():
+                raise ValueError(f"{name} {str(path)!r}: {str(q)!r} exists and is not a folder")
+            break
+    return p
+
+
+def check_output_file(name: str, path: Any) -> Path:
+    """``path`` as a file a run may (over)write: ``ValueError`` naming ``name`` if it is a
+    folder or its folder cannot be made (see :func:`check_output_dir`)."""
+    p = Path(path)
+    if p.is_dir():
+        raise ValueError(f"{name} {str(path)!r} is a folder, not a file")
+    check_output_dir(name, p.parent)
+    return p

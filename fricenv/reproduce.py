@@ -21,6 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .checks import check_output_dir
 from .layout import (
     METHOD_EXACT,
     ST_DURATION,
@@ -86,6 +87,9 @@ class Resolution:
 
 FULL = Resolution(200, 200, 600, 30)
 QUICK = Resolution(32, 40, 300, 12)
+#: Largest --resolution: 12 panels of 1000 x 1000 cells are about 1 GB of maps and many
+#: hours; far beyond it a typo would end in a MemoryError.
+MAX_RESOLUTION = 1000
 
 
 def eta_name(eta: float) -> str:
@@ -729,9 +733,15 @@ def main(argv: Sequence[str] | None = None) -> int:
             check_n_threads(a.threads)
         except ValueError as e:
             ap.error(f"--threads: {e}")
-    if a.resolution is not None and a.resolution < 2:
-        ap.error(f"--resolution must be at least 2 cells per axis, got {a.resolution}")
+    if a.resolution is not None and not 2 <= a.resolution <= MAX_RESOLUTION:
+        ap.error(f"--resolution must be 2 to {MAX_RESOLUTION} cells per axis, got {a.resolution}")
     out = a.out or Path("out") / ("reproduce-quick" if a.quick else "reproduce")
+    try:  # before any map is computed: a late FileExistsError would leave half a report
+        check_output_dir("--out", out)
+        if a.docs is not None:
+            check_output_dir("--docs", a.docs)
+    except ValueError as e:
+        ap.error(str(e))
     only = tuple(s.strip() for s in a.only.split(","))
     bad = set(only) - {"2", "3", "4-7", "8-10"}
     if bad:

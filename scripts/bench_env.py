@@ -36,6 +36,7 @@ from collections.abc import Callable
 import gymnasium as gym
 import numpy as np
 
+from fricenv.checks import check_output_file
 from fricenv.envs import ENV_IDS, register_envs
 
 #: Idle time before each contender's round (see ``_rounds``): the 20 ms after which
@@ -290,6 +291,11 @@ def main() -> None:
     ap.add_argument("--no-ppo", action="store_true", help="skip the PPO share measurement")
     ap.add_argument("--json", help="write the results to this file")
     args = ap.parse_args()
+    if args.json:
+        try:  # before the benchmark, not after minutes of it
+            check_output_file("--json", args.json)
+        except ValueError as e:
+            ap.error(str(e))
     register_envs()
 
     steps = bench_steps(args.quick)

@@ -32,6 +32,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 import fricenv  # noqa: E402
+from fricenv.checks import check_output_dir  # noqa: E402
 from fricenv.params import PAPER_CASES, OscillatorParams  # noqa: E402
 
 T_END = 200.0
@@ -304,6 +305,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--quick", action="store_true", help="fewer timing repeats")
     ap.add_argument("--out", type=Path, default=ROOT / "out" / "bench")
     args = ap.parse_args(argv)
+    try:  # before the benchmark, not after minutes of it
+        check_output_dir("--out", args.out)
+    except ValueError as e:
+        ap.error(str(e))
     run(args.quick, args.out)
     return 0
 

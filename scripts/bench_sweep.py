@@ -27,6 +27,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))  # the SciPy reference lives with the tests
 
 from fricenv import core  # noqa: E402
+from fricenv.checks import check_output_file  # noqa: E402
 from fricenv.layout import METHOD_EVENT, METHOD_EXACT, N_STATE, N_STATS, S_V, S_X  # noqa: E402
 from fricenv.params import P_W2, OscillatorParams  # noqa: E402
 from fricenv.reproduce import FULL, MAP_FIGURES, eta_name, map_grid  # noqa: E402
@@ -149,6 +150,10 @@ def main(argv: list[str] | None = None) -> int:
             ap.error(f"--threads: {e}")
     if a.reps < 1:
         ap.error(f"--reps must be >= 1, got {a.reps}")
+    try:  # before the benchmark, not after minutes of it
+        check_output_file("--json", a.json)
+    except ValueError as e:
+        ap.error(str(e))
     out: dict = {"threads": a.threads or numba.config.NUMBA_NUM_THREADS}
 
     print("== per-cell throughput vs SciPy solve_ivp (DOP853, event-driven) ==", flush=True)

@@ -14,6 +14,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
 import fricenv  # noqa: E402
+from fricenv.checks import check_output_dir  # noqa: E402
 from fricenv.params import PAPER_CASES as CASES  # noqa: E402
 
 
@@ -22,6 +23,12 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--out", type=Path, default=Path("out"), help="output folder")
     parser.add_argument("--t-end", type=float, default=200.0, help="horizon in tau")
     args = parser.parse_args(argv)
+    if not 0.0 < args.t_end < float("inf"):
+        parser.error(f"--t-end must be a finite time > 0, got {args.t_end}")
+    try:
+        check_output_dir("--out", args.out)
+    except ValueError as e:
+        parser.error(str(e))
     args.out.mkdir(parents=True, exist_ok=True)
     fig, axes = plt.subplots(len(CASES), 2, figsize=(11, 2.2 * len(CASES)), sharex=True)
     print(f"{'fig':>4} {'nu':>5} {'u0':>5} {'stick frac':>10} {'sticks':>6} {'reversals':>9}"

@@ -153,6 +153,49 @@ def test_reproduce_cli_rejects_bad_numbers(argv, needle, capsys, tmp_path) -> No
     assert not any(tmp_path.iterdir())  # refused before anything is computed or written
 
 
+@pytest.mark.parametrize(
+    ("argv", "needle"),
+    [(["--resolution", "100000"], "--resolution must be 2 to 1000"),
+     (["--out", "{file}"], "--out"), (["--out", "{file}/sub"], "--out"),
+     (["--out", "{tmp}/rp", "--docs", "{file}"], "--docs")],
+)
+def test_reproduce_cli_checks_its_folders_first(argv, needle, capsys, tmp_path) -> None:
+    """A late FileExistsError (after minutes of maps) left half a report behind."""
+    from fricenv.reproduce import main
+
+    (tmp_path / "afile").write_text("")
+    argv = [a.format(file=tmp_path / "afile", tmp=tmp_path) for a in argv]
+    with pytest.raises(SystemExit) as e:
+        main(["--only", "8-10", *argv])
+    assert e.value.code == 2 and needle in capsys.readouterr().err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["afile"]
+
+
+@pytest.mark.parametrize(
+    ("script", "argv", "needle"),
+    [("paper_cases.py", ["--t-end", "-5", "--out", "{tmp}/pc"], "--t-end"),
+     ("paper_cases.py", ["--t-end", "nan", "--out", "{tmp}/pc"], "--t-end"),
+     ("paper_cases.py", ["--out", "{file}"], "--out"),
+     ("bench_sweep.py", ["--json", "{tmp}"], "--json"),
+     ("bench_env.py", ["--json", "{tmp}"], "--json"),
+     ("bench_solvers.py", ["--out", "{file}"], "--out")],
+)
+def test_scripts_check_arguments_before_working(script, argv, needle, tmp_path) -> None:
+    """Each refuses a bad option at once (exit 2, naming it), writing nothing; the benchmarks
+    used to find an unusable output path only after minutes of measuring."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    (tmp_path / "afile").write_text("")
+    argv = [a.format(file=tmp_path / "afile", tmp=tmp_path) for a in argv]
+    path = Path(__file__).resolve().parents[1] / "scripts" / script
+    r = subprocess.run([sys.executable, str(path), *argv], capture_output=True, text=True,
+                       timeout=300)
+    assert r.returncode == 2 and needle in r.stderr, r.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["afile"]
+
+
 @pytest.mark.slow
 def test_reproduce_quick_end_to_end(tmp_path) -> None:
     from fricenv.reproduce import main
