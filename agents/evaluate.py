@@ -42,6 +42,7 @@ from agents.common import (
     SEED_STRIDE,
     Controller,
     EpisodeMetrics,
+    TrainedController,
     eval_env_seed,
     fmt_pm,
     load_controller,
@@ -49,9 +50,12 @@ from agents.common import (
     rollout,
     summarize,
 )
+from fricenv.checks import check_output_dir
+from fricenv.envs import kernels as K
 from fricenv.envs.scenes import SCENES
 
 LABELS = {"ppo": "PPO", "sac": "SAC"}
+OBS_SHAPE = (K.N_OBS,)  #: every scene's observation
 COLUMNS = (
     ("stick_fraction", "stick-time fraction", 4),
     ("rms_vr", "RMS relative velocity", 3),
@@ -94,15 +98,31 @@ def check_disjoint(config: dict, n_seeds: int, episodes: int, where: str) -> Non
 
 
 # -- building the controllers -----------------------------------------------------------------
-def trained_entries(paths: list[Path], scene: str) -> tuple[list[Entry], dict]:
+def load_models(paths: list[Path]) -> dict[Path, tuple[TrainedController, dict]]:
+    """Each run folder's or model file's controller and config; ``ValueError`` naming a file
+    SB3 cannot load (a corrupt zip was a traceback after the output folder was made)."""
+    loaded = {}
+    for p in paths:
+        try:
+            loaded[p] = load_controller(p)
+        except Exception as e:
+            raise ValueError(f"{p}: cannot load the model ({type(e).__name__}: {e})") from e
+    return loaded
+
+
+def trained_entries(paths: list[Path], scene: str,
+                    loaded: dict[Path, tuple[TrainedController, dict]] | None = None,
+                    ) -> tuple[list[Entry], dict]:
     """Group run folders of ``scene`` by algorithm (model files stay on their own rows);
-    also return the runs' common env kwargs."""
+    also return the runs' common env kwargs. ``ValueError`` for a model that does not fit
+    the scene. ``loaded``: what ``load_models`` returned, to load nothing twice."""
     from agents.baselines import ActionMap
 
+    loaded = loaded if loaded is not None else load_models(paths)
     groups: dict[str, list[tuple[Any, dict, Path]]] = {}
     env_kwargs: dict | None = None
     for p in paths:
-        ctrl, cfg = load_controller(p)
+        ctrl, cfg = loaded[p]
         if cfg.get("scene", scene) != scene:
             continue
         kw = cfg.get("env_kwargs") or {}
@@ -110,10 +130,18 @@ def trained_entries(paths: list[Path], scene: str) -> tuple[list[Entry], dict]:
             env_kwargs = kw
         elif kw != env_kwargs:
             raise ValueError(f"{p}: env_kwargs {kw} differ from other runs' {env_kwargs}")
-        want = ActionMap(scene, kw).action_space.shape
+        try:
+            want = ActionMap(scene, kw).action_space.shape
+        except (TypeError, ValueError) as e:
+            raise ValueError(f"{p}: its env_kwargs {kw} do not build scene {scene!r}: "
+                             f"{e}") from None
         if ctrl.action_space.shape != want:
             raise ValueError(f"{p}: the model's actions have shape {ctrl.action_space.shape}, "
                              f"scene {scene!r} needs {want}")
+        obs = ctrl.model.observation_space.shape
+        if obs != OBS_SHAPE:
+            raise ValueError(f"{p}: the model's observations have shape {obs}, "
+                             f"the environments give {OBS_SHAPE}")
         key = ctrl.name if p.is_dir() else f"{ctrl.name}:{p.name}"
         groups.setdefault(key, []).append((ctrl, cfg, p))
     entries = []
@@ -416,8 +444,13 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
-def prepare(args: argparse.Namespace) -> list[str]:
-    """Check the command line; returns the scenes to evaluate (``ValueError`` if bad)."""
+Prepared = dict[str, tuple[list[Entry], dict]]  #: scene -> trained entries, env kwargs
+
+
+def prepare(args: argparse.Namespace) -> Prepared:
+    """Check the command line, load the models and check they fit their scenes
+    (``ValueError`` if anything is bad, before the output folder is made); returns the
+    scenes to evaluate with their trained entries."""
     if args.seeds < 1 or args.episodes < 1:
         raise ValueError("need --seeds >= 1 and --episodes >= 1")
     if args.episodes > MAX_PLANTS or args.seeds > (SEARCH_SEED_BASE - eval_env_seed(0)) // (
@@ -425,6 +458,7 @@ def prepare(args: argparse.Namespace) -> list[str]:
         raise ValueError(f"need --episodes <= {MAX_PLANTS} and fewer seeds")
     if args.grid < 2 or args.search_episodes < 2:
         raise ValueError("need --grid >= 2 and --search-episodes >= 2")
+    check_output_dir("--out", args.out)
     configs = {}
     for p in [*args.runs, *args.models]:
         if not p.exists():
@@ -448,18 +482,23 @@ def prepare(args: argparse.Namespace) -> list[str]:
                                  f"{' or '.join(map(repr, scenes))}")
     if not args.runs and not args.models and not args.controllers:
         raise ValueError("nothing to evaluate: give --runs, --models or --controllers")
-    return scenes
+    paths = [*args.runs, *args.models]
+    loaded = load_models(paths)
+    return {scene: trained_entries(paths, scene, loaded) for scene in scenes}
 
 
-def evaluate_scene(scene: str, args: argparse.Namespace) -> Path:
+def evaluate_scene(scene: str, args: argparse.Namespace,
+                   trained: tuple[list[Entry], dict] | None = None) -> Path:
+    """Evaluate and write ``scene``'s outputs; ``trained``: its entry of ``prepare``'s
+    result (else the models are loaded here)."""
     t0 = time.perf_counter()
     out: Path = args.out
     out.mkdir(parents=True, exist_ok=True)
-    trained, env_kwargs = trained_entries([*args.runs, *args.models], scene)
+    trained_list, env_kwargs = trained or trained_entries([*args.runs, *args.models], scene)
     names = [n for n in BASELINES if n in args.controllers]
     search = {"n_u0": args.grid, "n_nu": args.grid, "episodes": args.search_episodes}
     baselines = baseline_entries(names, scene, env_kwargs, out, search)
-    entries = baselines + trained
+    entries = baselines + trained_list
     for e in entries:
         run_entry(e, scene, env_kwargs, args.seeds, args.episodes)
 
@@ -470,12 +509,12 @@ def evaluate_scene(scene: str, args: argparse.Namespace) -> Path:
         shown += [(e.label, e.factories[0](0)) for e in entries
                   if e.key in ("best_constant", "feedback")]
         shown += [(f"{e.label.split(' (')[0]} (training seed {e.info['seeds'][0]})",
-                   e.factories[0](0)) for e in trained]
+                   e.factories[0](0)) for e in trained_list]
         name = f"{scene}_time_history.png"
         time_history(shown, scene, env_kwargs, eval_env_seed(0), out / name)
         plots.append(name)
         name = f"{scene}_learning_curves.png"
-        if learning_curves(trained, baselines, out / name):
+        if learning_curves(trained_list, baselines, out / name):
             plots.append(name)
 
     md = markdown(scene, entries, args.seeds, args.episodes, plots)
@@ -498,10 +537,16 @@ def main(argv: list[str] | None = None) -> list[Path]:
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
-        scenes = prepare(args)
+        prepared = prepare(args)
     except ValueError as e:
         parser.error(str(e))
-    return [evaluate_scene(scene, args) for scene in scenes]
+    made = not args.out.exists()
+    try:
+        return [evaluate_scene(scene, args, trained) for scene, trained in prepared.items()]
+    except ValueError as e:  # found only while evaluating: still no traceback, no empty --out
+        if made and args.out.is_dir() and not any(args.out.iterdir()):
+            args.out.rmdir()
+        parser.error(str(e))
 
 
 if __name__ == "__main__":

@@ -45,6 +45,7 @@ from agents.common import (
     algo_class,
     apply_overrides,
     callback_env_seed,
+    check_hyperparams,
     check_seed,
     load_hyperparams,
     make_sb3_env,
@@ -52,6 +53,7 @@ from agents.common import (
     split_hyperparams,
     train_env_seed,
 )
+from fricenv.checks import check_output_dir
 
 
 def _callbacks() -> tuple[type, type]:
@@ -184,11 +186,11 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _check_folders(args: argparse.Namespace) -> None:
-    """``ValueError`` for a --run-dir that holds anything, or a folder option that is a
-    file (before any work, so that a rerun needs nothing cleaned up)."""
+    """``ValueError`` for a --run-dir that holds anything, or a folder option that is (or
+    lies in) a file (before any work, so that a rerun needs nothing cleaned up)."""
     for flag, path in (("--run-dir", args.run_dir), ("-f", args.log_folder)):
-        if path is not None and path.exists() and not path.is_dir():
-            raise ValueError(f"{flag} {path} is a file, not a folder")
+        if path is not None:
+            check_output_dir(flag, path)
     if args.run_dir is not None and args.run_dir.exists() and any(args.run_dir.iterdir()):
         raise ValueError(f"run folder {args.run_dir} exists and is not empty")
 
@@ -196,6 +198,19 @@ def _check_folders(args: argparse.Namespace) -> None:
 class SetupError(ValueError):
     """The environment or model could not be built from the hyperparameters (the run folder
     made for it has been removed again)."""
+
+
+class TrainingError(RuntimeError):
+    """Training stopped with an exception; the unfinished run folder (no model) has been
+    removed so that it neither blocks a rerun nor passes for a run."""
+
+
+def _discard(run_dir: Path, existed: bool) -> None:
+    """Remove an unfinished run folder; a --run-dir the user made (empty: ``prepare``
+    checked) is remade, empty."""
+    shutil.rmtree(run_dir, ignore_errors=True)
+    if existed:
+        run_dir.mkdir()
 
 
 def _run_dir(args: argparse.Namespace) -> Path:
@@ -238,6 +253,8 @@ def _plain(value: Any) -> Any:
 def prepare(args: argparse.Namespace) -> tuple[RunSpec, dict[str, Any], Path]:
     """Check the command line and resolve the hyperparameters (``ValueError`` if bad)."""
     check_seed(args.seed)
+    if args.threads < 1:
+        raise ValueError(f"--threads must be >= 1, got {args.threads}")
     if args.n_timesteps is not None and args.n_timesteps < 1:
         raise ValueError(f"-n must be >= 1, got {args.n_timesteps}")
     if not 1 <= args.eval_episodes <= MAX_PLANTS or args.eval_freq < 0:
@@ -258,6 +275,7 @@ def prepare(args: argparse.Namespace) -> tuple[RunSpec, dict[str, Any], Path]:
     raw = apply_overrides(load_hyperparams(args.algo, args.scene, hp_file), args.params)
     if args.n_timesteps is not None:
         raw["n_timesteps"] = args.n_timesteps
+    raw = check_hyperparams(args.algo, raw)  # (config.yml records checked numbers)
     return split_hyperparams(args.algo, raw), raw, hp_file
 
 
@@ -272,7 +290,7 @@ def train(args: argparse.Namespace, prepared: tuple | None = None) -> Path:
     existed = args.run_dir is not None and args.run_dir.exists()
     run_dir = _run_dir(args)
 
-    torch.set_num_threads(max(1, args.threads))
+    torch.set_num_threads(args.threads)
     try:  # hyperparameters only the constructors check (env kwargs, normalize, policy)
         env = make_sb3_env(args.scene, spec.n_envs, train_env_seed(seed), spec.env_kwargs,
                            monitor_file=run_dir / "monitor.csv")
@@ -283,10 +301,7 @@ def train(args: argparse.Namespace, prepared: tuple | None = None) -> Path:
                                       **spec.algo_kwargs)
     except Exception as e:
         # leave nothing behind that would block the corrected rerun or look like a run
-        # (a --run-dir the user made was empty: it stays, empty)
-        shutil.rmtree(run_dir, ignore_errors=True)
-        if existed:
-            run_dir.mkdir()
+        _discard(run_dir, existed)
         raise SetupError(f"cannot build the training from these hyperparameters: "
                          f"{type(e).__name__}: {e}") from e
     # SB3 seeds the env with ``seed`` itself while building the model (plants seed + i);
@@ -320,7 +335,15 @@ def train(args: argparse.Namespace, prepared: tuple | None = None) -> Path:
                              args.eval_episodes, args.eval_freq, run_dir, status)
     bar = ProgressBar(spec.n_timesteps, status, enabled=not args.no_progress)
     t0 = time.perf_counter()
-    model.learn(spec.n_timesteps, callback=[evaluator, bar])
+    try:
+        model.learn(spec.n_timesteps, callback=[evaluator, bar])
+    except Exception as e:  # (as a failed setup: a half-written folder would block a rerun)
+        model.logger.close()
+        env.close()
+        _discard(run_dir, existed)
+        raise TrainingError(f"training failed after {model.num_timesteps} steps "
+                            f"({type(e).__name__}: {e}); removed the unfinished run folder "
+                            f"{run_dir}") from e
     train_seconds = time.perf_counter() - t0
 
     model.save(run_dir / "model.zip")
@@ -351,6 +374,8 @@ def main(argv: list[str] | None = None) -> Path:
         return train(args, prepared)
     except SetupError as e:
         parser.error(str(e))
+    except TrainingError as e:  # not a usage error, but no traceback of SB3's insides
+        parser.exit(1, f"{parser.prog}: error: {e}\n")
 
 
 if __name__ == "__main__":

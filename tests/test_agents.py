@@ -128,8 +128,33 @@ def test_hyperparameter_overrides_and_schedules():
      "cannot build the training"),
     (["--algo", "ppo", "--scene", "paper", "-params", "normalize:{norm_obs: true, foo: 1}"],
      "cannot build the training"),
+    # failed inside SB3 (after the run folder was written) or were taken silently
+    (["--algo", "ppo", "--scene", "paper", "-params", "gamma:nan"],
+     "gamma must be a number in (0, 1], got 'nan'"),
+    (["--algo", "ppo", "--scene", "paper", "-params", "gamma:1.5"], "got 1.5"),
+    (["--algo", "ppo", "--scene", "paper", "-params", "gae_lambda:-0.1"], "gae_lambda"),
+    (["--algo", "ppo", "--scene", "paper", "-params", "clip_range:-1"], "clip_range"),
+    (["--algo", "ppo", "--scene", "paper", "-params", "learning_rate:lin_0"], "'lin_0'"),
+    (["--algo", "ppo", "--scene", "paper", "-params", "n_epochs:0"], "n_epochs"),
+    (["--algo", "ppo", "--scene", "paper", "-params", "n_envs:2.9"], "n_envs"),
+    (["--algo", "ppo", "--scene", "paper", "-params", "n_envs:true"], "got True"),
+    (["--algo", "ppo", "--scene", "paper", "-params", "n_timesteps:.inf"], "n_timesteps"),
+    (["--algo", "sac", "--scene", "paper", "-params", "ent_coef:auto_0"], "'auto_0'"),
+    (["--algo", "ppo", "--scene", "paper", "-params", "env_kwargs:5"], "env_kwargs must be"),
+    (["--algo", "ppo", "--scene", "paper", "-params", "gamma:[1,"], "cannot parse '[1,'"),
+    (["--algo", "ppo", "--scene", "paper", "-params", "policy_kwargs:dict(net_arch=[64,"],
+     "policy_kwargs string must be"),
+    (["--algo", "ppo", "--scene", "paper", "--threads", "0"], "--threads must be >= 1, got 0"),
+    (["--algo", "ppo", "--scene", "paper", "--threads", "-3"], "got -3"),
 ])
-def test_train_cli_rejects_bad_input_clearly(argv, needle, capsys, tmp_path):
+def test_train_cli_rejects_bad_input_clearly(argv, needle, capsys, tmp_path, monkeypatch):
+    from stable_baselines3 import PPO, SAC
+
+    def learn(self, *a, **k):  # an input taken silently fails fast instead of training
+        raise AssertionError("bad input reached training")
+
+    for cls in (PPO, SAC):
+        monkeypatch.setattr(cls, "learn", learn)
     with pytest.raises(SystemExit) as exc:
         T.main([*argv, "-f", str(tmp_path)])
     assert exc.value.code == 2
@@ -140,6 +165,66 @@ def test_train_cli_rejects_bad_input_clearly(argv, needle, capsys, tmp_path):
     assert not any(tmp_path.iterdir())  # nothing written
 
 
+def test_numeric_strings_are_numbers_and_kinds_are_checked():
+    """YAML 1.1 reads ``1e-3`` as a string, which SB3 failed on mid-training."""
+    spec = split_hyperparams("ppo", {"ent_coef": "1e-3", "gamma": "0.98", "n_timesteps": "1e3"})
+    assert spec.algo_kwargs["ent_coef"] == 0.001 and spec.algo_kwargs["gamma"] == 0.98
+    assert spec.n_timesteps == 1000 and isinstance(spec.n_timesteps, int)
+    assert split_hyperparams("sac", {"ent_coef": "auto_0.1"}).algo_kwargs["ent_coef"] == (
+        "auto_0.1")
+    for hp, needle in (({"n_steps": 64.0}, "n_steps must be an integer"),
+                       ({"n_timesteps": 100.5}, "n_timesteps must be a whole"),
+                       ({"normalize_advantage": 1}, "true or false"),
+                       ({"ent_coef": "auto"}, "ent_coef must be")):  # SAC's, not PPO's
+        with pytest.raises(ValueError, match=needle):
+            split_hyperparams("ppo", hp)
+
+
+@pytest.mark.parametrize("text, needle", [
+    (None, "cannot read hyperparameter file"),  # a folder
+    ("fricenv/StickSlip-v0: [1, 2\n", "is not valid YAML"),
+    ("fricenv/StickSlip-v0: 5\n", "must be a mapping of hyperparameters, got 5"),
+    ("[1, 2]\n", "must map environment ids to entries"),
+])
+def test_bad_hyperparameter_file_is_a_clear_error(text, needle, capsys, tmp_path):
+    """A folder, broken YAML or a non-mapping entry was a traceback."""
+    hp = tmp_path / "hp.yml"
+    if text is None:
+        hp.mkdir()
+    else:
+        hp.write_text(text)
+    runs = tmp_path / "runs"
+    with pytest.raises(SystemExit) as exc:
+        T.main(["--algo", "ppo", "--scene", "paper", "--hyperparams", str(hp), "-f", str(runs)])
+    err = capsys.readouterr().err
+    assert exc.value.code == 2 and needle in err and str(hp) in err
+    assert not runs.exists()
+
+
+@pytest.mark.parametrize("made", [False, True])
+def test_failed_training_leaves_no_run_folder(made, monkeypatch, capsys, tmp_path):
+    """A run that fails inside ``learn`` left config and logs but no model, and the folder
+    then blocked the corrected rerun ("exists and is not empty")."""
+    from stable_baselines3 import PPO
+
+    def boom(self, *a, **k):
+        raise RuntimeError("boom in learn")
+
+    monkeypatch.setattr(PPO, "learn", boom)
+    run = tmp_path / "run"
+    if made:
+        run.mkdir()
+    argv = ["--algo", "ppo", "--scene", "paper", "-n", "32", "--eval-freq", "0",
+            "--eval-episodes", "1", "--no-progress", "--run-dir", str(run),
+            "-params", "n_envs:2", "n_steps:16", "batch_size:32"]
+    with pytest.raises(SystemExit) as exc:
+        T.main(argv)
+    err = capsys.readouterr().err
+    assert exc.value.code == 1 and "boom in learn" in err and "removed" in err
+    assert (run.exists() and not any(run.iterdir())) if made else not run.exists()
+    T._check_folders(T.build_parser().parse_args(argv))  # a rerun is not blocked
+
+
 def test_train_folder_options_must_be_folders(capsys, tmp_path):
     """A --run-dir or -f naming a file was a NotADirectoryError traceback."""
     note = tmp_path / "notes.txt"
@@ -147,7 +232,7 @@ def test_train_folder_options_must_be_folders(capsys, tmp_path):
     for argv in (["--run-dir", str(note)], ["-f", str(note)]):
         with pytest.raises(SystemExit) as exc:
             T.main(["--algo", "ppo", "--scene", "paper", *argv])
-        assert exc.value.code == 2 and "is a file, not a folder" in capsys.readouterr().err
+        assert exc.value.code == 2 and "exists and is not a folder" in capsys.readouterr().err
     assert note.read_text() == "keep me"
 
 
@@ -211,6 +296,31 @@ def test_evaluate_reports_unusable_runs_clearly(ppo_run, capsys, tmp_path):
         assert exc.value.code == 2 and needle in capsys.readouterr().err
     ctrl, cfg = load_controller(ppo_run / "model.zip")
     assert cfg["seed"] == 3 and ctrl.vecnormalize is not None
+
+
+def test_evaluate_checks_models_and_out_before_writing(capsys, tmp_path):
+    """A bare model of the wrong shape, a corrupt model and --out naming a file were
+    tracebacks after the output folder was made."""
+    bare = tmp_path / "ppo_bare.zip"  # no config beside it: its scene is unknown
+    bare.write_bytes((ROOT / "agents/pretrained/ppo_self_excited.zip").read_bytes())
+    corrupt = tmp_path / "ppo_corrupt.zip"
+    corrupt.write_text("garbage")
+    note = tmp_path / "notes.txt"
+    note.write_text("keep me")
+    out = tmp_path / "out"
+    for argv, needle in (
+        (["--scene", "paper", "--models", str(bare), "--out", str(out)],
+         "the model's actions have shape (2,), scene 'paper' needs (1,)"),
+        (["--scene", "self_excited", "--models", str(corrupt), "--out", str(out)],
+         f"{corrupt}: cannot load the model"),
+        (["--scene", "self_excited", "--out", str(note)], "exists and is not a folder"),
+        (["--scene", "self_excited", "--out", str(note / "sub")], "exists and is not a folder"),
+    ):
+        with pytest.raises(SystemExit) as exc:
+            E.main([*argv, "--controllers", "zero", "--seeds", "1", "--episodes", "1",
+                    "--no-plots"])
+        assert exc.value.code == 2 and needle in capsys.readouterr().err
+    assert not out.exists() and note.read_text() == "keep me"
 
 
 # -- baselines ----------------------------------------------------------------------------------
