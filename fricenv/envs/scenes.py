@@ -78,9 +78,8 @@ def _pair(name: str, value: Any) -> tuple[float, float]:
     lo, hi = real_tuple(name, value, 2, "a finite (lo, hi) with lo <= hi")
     if not (math.isfinite(lo) and math.isfinite(hi)) or lo > hi:
         raise ValueError(f"{name} must be a finite (lo, hi) with lo <= hi, got {value!r}")
-    if max(abs(lo), abs(hi)) > PARAM_LIMIT:
-        raise ValueError(f"{name} must lie within +-{PARAM_LIMIT:g} (as every parameter), "
-                         f"got {value!r}")
+    for bound in (lo, hi):
+        check_bounded_real(name, bound, PARAM_LIMIT)  # (as every parameter)
     return lo, hi
 
 
