@@ -375,6 +375,39 @@ def test_stiff_stretch_goes_back_to_rosenbrock_after_rejections() -> None:
     assert abs(s.state.v - ref.v[-1]) <= 1e-8 * scale
 
 
+def _recorded_vr2(p, t_span: float, rtol: float) -> tuple[float, float]:
+    """(v - V)^2 integral and step count of the recording path (Taylor steps only, each
+    step's polynomial integrated exactly), from rest."""
+    from fricenv import OscillatorState, core
+    from fricenv.layout import METHOD_EVENT, N_STATS, ST_N_STEPS, ST_VR2_INT
+
+    S = OscillatorState.start(p).to_array()
+    stats = np.zeros(N_STATS)
+    core.reset_stats(stats)
+    two = np.zeros(2)
+    status = core.record(p.to_array(), S, np.array([0.0, t_span]), stats, METHOD_EVENT, rtol,
+                         rtol, 100, two.copy(), two.copy(), two.copy(), np.zeros(100),
+                         np.zeros(100, dtype=np.int64), np.zeros(100), np.zeros(2, np.int64))
+    assert status == 0
+    return stats[ST_VR2_INT], stats[ST_N_STEPS]
+
+
+@pytest.mark.parametrize(("rtol", "tol"), [(1e-6, 1e-6), (1e-8, 1e-9), (1e-10, 1e-9)])
+def test_vr2_integral_over_rosenbrock_steps(rtol: float, tol: float) -> None:
+    """A Rosenbrock step's share of the (v - V)^2 integral comes from the step's values,
+    not from v' and v'' of the equation of motion: in a stiff stretch these carry the
+    state's error times |df/dv| h and its square, and the integral was 5.7 times itself
+    off at rtol 1e-6 (2.4e-3 at 1e-8). Reference: the recording path's Taylor steps."""
+    from fricenv import run_stats
+
+    p = C("stribeck", u0=1e8, nu=0.5)
+    ref, ref_steps = _recorded_vr2(p, 1.0, 1e-12)
+    s = run_stats(p, 1.0, rtol=rtol, atol=1e-2 * rtol)
+    if rtol == 1e-8:
+        assert s.n_steps < 0.05 * ref_steps  # (Rosenbrock steps, nearly all)
+    assert abs(s.vr2_integral / ref - 1.0) <= tol
+
+
 @pytest.mark.parametrize("u0", [2000.0, 5000.0])
 def test_stiff_stretches_on_the_stats_path(u0: float) -> None:
     """At large u0 the cubic law's slope makes slip stiff; the stats-only path then takes
