@@ -72,9 +72,12 @@ def _check_params(params: OscillatorParams) -> None:
 
 
 def _check_state(state: OscillatorState, params: OscillatorParams, t_span: float) -> None:
-    """``ValueError`` for a state the kernels cannot continue from consistently."""
-    for name in ("t", "x", "v", "phase1", "phase2"):
+    """``ValueError`` for a state the kernels cannot continue from consistently (x and v
+    beyond ``PARAM_LIMIT`` overflow them as a parameter would: a NaN integral, status OK)."""
+    for name in ("t", "phase1", "phase2"):
         check_finite_real(f"state.{name}", getattr(state, name))
+    for name in ("x", "v"):
+        check_bounded_real(f"state.{name}", getattr(state, name), PARAM_LIMIT)
     if check_int("state.mode", state.mode) not in (-1, 0, 1):
         raise ValueError(f"state.mode must be -1, 0 or 1, got {state.mode!r}")
     if state.t + t_span == state.t:
@@ -288,11 +291,13 @@ class Trajectory:
 
 
 def output_times(t0: float, t_end: float, dt_out: float) -> np.ndarray:
-    """t0, t0 + dt_out, ... up to t_end; t_end itself is appended if off the grid."""
+    """t0, t0 + dt_out, ... up to t_end (``t_end > t0``); t_end itself is appended if off
+    the grid, and replaces a last grid point within rounding of it, but never t0 (a span
+    under 1e-9 dt_out gives [t0, t_end], not a run of length 0)."""
     span = t_end - t0
     n = int(math.floor(span / dt_out * (1.0 + 1e-12) + 1e-9))
     t = t0 + dt_out * np.arange(n + 1)
-    if span - n * dt_out > 1e-9 * dt_out:
+    if n == 0 or span - n * dt_out > 1e-9 * dt_out:
         t = np.append(t, t_end)
     else:
         t[-1] = t_end
@@ -319,11 +324,15 @@ def simulate(
     ``method``: ``"exact"`` (closed form, Coulomb law), ``"event"`` (Taylor-series
     steps in slip, any law; ``rtol``/``atol`` set its accuracy), ``"rk4"`` (the paper's
     fixed-step scheme with step ``dt``; it cannot stick) or ``"auto"`` (exact where it
-    applies, event otherwise). Output times are 0, dt_out, ... and t_end.
+    applies, event otherwise). ``dt`` is checked (a finite number > 0) whatever the method,
+    though only ``"rk4"`` uses it, so a bad value never passes unseen. Output times are 0,
+    dt_out, 2 dt_out, ... and t_end (appended when off the grid): always at least 0 and
+    t_end.
     """
     _check_params(params)
     t_end = _positive("t_end", t_end)
     dt_out = _positive("dt_out", dt_out)
+    dt = _positive("dt", dt)  # every method: dt='abc' passed silently unless method='rk4'
     rtol = check_rtol(rtol)
     atol = _positive("atol", atol)
     max_event_rate = _positive("max_event_rate", max_event_rate)
@@ -343,13 +352,15 @@ def simulate(
     out_mode = np.empty(n)
     stats = np.empty(N_STATS)
     if method == "rk4":
-        dt = _positive("dt", dt)
         if t_end / dt > MAX_SCAN_STEPS:
             raise ValueError(f"dt = {dt!r} needs {t_end / dt:.3g} RK4 steps to reach "
                              f"t_end = {t_end!r} (at most {MAX_SCAN_STEPS:g})")
         S = state.to_array()
         core.reset_stats(stats)
-        status = core.run_rk4(P, S, t_end, dt, out_t, stats, out_x, out_v, out_mode)
+        # a span under 1e-9 dt would take no step (and fill no output); over (1e-9 dt, dt]
+        # the one step is t_end long either way
+        status = core.run_rk4(P, S, t_end, min(dt, t_end), out_t, stats, out_x, out_v,
+                              out_mode)
         _raise_status(status, S[S_T], 0, t_end)
         empty = np.empty(0)
         return Trajectory(params, method, out_t, out_x, out_v, out_mode.astype(np.int8),

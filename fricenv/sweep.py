@@ -55,9 +55,11 @@ from . import core
 from .atomic import fetch_add
 from .checks import (
     check_bool,
+    check_bounded_real,
     check_dict,
     check_finite_real,
     check_int,
+    check_output_dir,
     check_rtol,
     got,
     real_array,
@@ -85,10 +87,13 @@ from .params import (
     N_PARAMS,
     P_B1,
     P_B3,
+    P_LAM,
     P_U1,
     P_U2,
     P_W1,
     P_W2,
+    P_XFK,
+    P_XFS,
     PARAM_LIMIT,
     OscillatorParams,
     resolve_law,
@@ -108,8 +113,21 @@ STAT_NAMES = ("duration", "stick_time", "n_stick", "n_slip", "n_reversal", "v_ma
 assert len(STAT_NAMES) == N_STATS
 
 
-#: The integer-valued fields of :class:`SweepSettings`.
-_INT_SETTINGS = ("q_max", "m_max", "lock_extensions", "n_strobe")
+#: Most stroboscopic samples a cell keeps (two float64 each): ample for any sensible window
+#: (about 40 at eta = 7/3, 1600 at eta = 100), far below what would exhaust memory.
+MAX_SEGMENTS = 1_000_000
+#: Largest tested denominator / candidate period (the map stores both as int16, and a
+#: common period of 1000 forcing periods, sampled n_strobe times, already runs for hours).
+MAX_PERIOD = 1000
+#: Most repeated windows of a slowly locking cell (each is a full window).
+MAX_LOCK_EXTENSIONS = 100
+#: A cell that the kernel never wrote (its outputs start so): not a :mod:`layout` status.
+STATUS_NOT_RUN = -1
+
+#: The integer-valued fields of :class:`SweepSettings` and their largest values: beyond
+#: them the int64 kernels' arguments or the segment counts would overflow.
+_INT_SETTINGS = {"q_max": MAX_PERIOD, "m_max": MAX_PERIOD,
+                 "lock_extensions": MAX_LOCK_EXTENSIONS, "n_strobe": MAX_SEGMENTS}
 
 
 @dataclass(frozen=True)
@@ -123,6 +141,9 @@ class SweepSettings:
     every cell checked (scripts/bench_sweep.py repeats the check) at half the cost.
     ``max_event_rate``: events allowed per unit time before a cell is declared UNRESOLVED
     (chattering); ``q_max, m_max, n_strobe, strobe_tol, lock_extensions``: periodicity test.
+    ``x0, v0`` lie within ``PARAM_LIMIT`` like every parameter; ``q_max`` and ``m_max`` are
+    at most ``MAX_PERIOD``, ``lock_extensions`` at most ``MAX_LOCK_EXTENSIONS`` and
+    ``n_strobe`` at most ``MAX_SEGMENTS`` (``ValueError`` naming the field).
     """
 
     x0: float = 0.0
@@ -153,7 +174,13 @@ class SweepSettings:
                     raise ValueError(f"method must be 'auto', 'exact' or 'event', got {v!r}")
                 continue
             if f.name in _INT_SETTINGS:  # counts: 12.0 is a TypeError, not silently 12
-                object.__setattr__(self, f.name, check_int(f.name, v, 0))
+                n = check_int(f.name, v, 0)
+                if n > _INT_SETTINGS[f.name]:
+                    raise ValueError(f"{f.name} must be an integer <= {_INT_SETTINGS[f.name]}, "
+                                     f"{got(v)}")
+                object.__setattr__(self, f.name, n)
+            elif f.name in ("x0", "v0"):  # a state as large as no parameter may be
+                object.__setattr__(self, f.name, check_bounded_real(f.name, v, PARAM_LIMIT))
             else:  # TypeError for a non-number, ValueError for NaN or inf
                 object.__setattr__(self, f.name, check_finite_real(f.name, v))
         check_rtol(self.rtol)
@@ -216,10 +243,26 @@ def plan_cells(params: OscillatorParams, nu: np.ndarray, settings: SweepSettings
     win = np.maximum(settings.window_min, settings.window_periods * t_mod)
     tc = q * t1
     n_seg = np.where(q > 0, np.maximum(np.ceil(win / np.where(q > 0, tc, 1.0) - 1e-9),
-                                        settings.n_strobe), 1).astype(np.int64)
+                                        settings.n_strobe), 1)
+    over = ~(n_seg <= MAX_SEGMENTS)  # tested as floats: the int64 cast would wrap (or NaN)
+    if over.any():
+        i = int(np.argmax(over))
+        cause = ("window_min" if settings.window_min >= settings.window_periods * t_mod[i]
+                 else "window_periods")
+        raise ValueError(
+            f"nu = {float(nu[i])!r}: a window of {win[i]:.4g} would keep {_count(n_seg[i])} "
+            f"stroboscopic samples (at most {MAX_SEGMENTS}), one per common forcing period of "
+            f"{tc[i]:.4g}; check eta = {params.eta!r} and the setting {cause} = "
+            f"{getattr(settings, cause)!r}")
+    n_seg = n_seg.astype(np.int64)
     t_seg = np.where(q > 0, tc, win)
     tries = np.where(q == 1, 1 + settings.lock_extensions, np.where(q > 0, 1, 0))
     return CellPlan(nu_exact, q, t_tr, t_seg, n_seg, tries.astype(np.int64))
+
+
+def _count(n: float) -> str:
+    """A float count for a message: whole digits, or 4 significant ones when huge."""
+    return f"{n:.0f}" if n < 1e15 else f"{n:.4g}"
 
 
 @njit(cache=True, error_model="numpy")
@@ -344,11 +387,6 @@ class _Threads:
             numba.set_num_threads(self.old)
 
 
-#: Most stroboscopic samples a cell keeps (two float64 each): ample for any sensible window
-#: (about 40 at eta = 7/3, 1600 at eta = 100), far below what would exhaust memory.
-MAX_SEGMENTS = 1_000_000
-
-
 def _cell_rows(base: np.ndarray, u0: np.ndarray, nu: np.ndarray) -> np.ndarray:
     """Parameter vectors of map cells: ``base`` with both tones at ``u0[k]`` and the second
     tone at ``nu[k]`` times the first's frequency."""
@@ -380,21 +418,58 @@ def _check_cells(P_cells: np.ndarray, t_transient: np.ndarray, t_segment: np.nda
         "and window_min")
 
 
+#: What each column of a parameter row is (layout ``params.P_*``), for messages.
+_P_COLUMNS = ("lam", "V", "xfk", "xfs", "b1", "b3", "u1", "u2", "w1 = eta", "w2 = nu * eta")
+assert len(_P_COLUMNS) == N_PARAMS
+
+
+def _check_rows(P: np.ndarray) -> None:
+    """``ValueError`` naming the first entry of ``P`` (rows in layout ``params.P_*``) that
+    :class:`OscillatorParams` would refuse: the kernels would run it to numbers without a
+    word (a NaN row to status 2, lam = -5 or xfs < xfk to made-up statistics)."""
+    big = ~(np.abs(P) <= PARAM_LIMIT)  # NaN and inf too
+    if big.any():
+        i, j = (int(k) for k in np.argwhere(big)[0])
+        raise ValueError(f"P_cells[{i}, {j}] ({_P_COLUMNS[j]}) must be finite and within "
+                         f"+-{PARAM_LIMIT:g} (as every parameter), got {float(P[i, j])!r}")
+    rules = ((P_LAM, P[:, P_LAM] >= 0.0, "must be >= 0"),
+             (P_W1, P[:, P_W1] > 0.0, "must be > 0"),
+             (P_W2, P[:, P_W2] >= 0.0, "must be >= 0"),
+             (P_U1, P[:, P_U1] >= 0.0, "must be >= 0"),
+             (P_U2, P[:, P_U2] >= 0.0, "must be >= 0"),
+             (P_XFK, P[:, P_XFK] >= 0.0, "must be >= 0"),
+             (P_XFS, P[:, P_XFS] >= P[:, P_XFK], "must be >= xfk"))
+    for j, ok, why in rules:
+        if not ok.all():
+            i = int(np.argmin(ok))
+            raise ValueError(f"P_cells[{i}, {j}] ({_P_COLUMNS[j]}) {why}, got "
+                             f"{float(P[i, j])!r}"
+                             + (f" (xfk = {float(P[i, P_XFK])!r})" if j == P_XFS else ""))
+
+
 def run_cells(P_cells: np.ndarray, t_transient: np.ndarray, t_segment: np.ndarray,
               n_segment: np.ndarray, tries: np.ndarray, settings: SweepSettings,
               method: int, n_threads: int | None = None
               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Run independent cells in parallel: returns (stats[n, N_STATS], status[n], period[n]).
 
-    ``P_cells`` holds one parameter vector per row (layout ``params.P_*``). This is the
-    engine under :func:`regime_map`; it is public so that other scans (e.g. amplitude versus
-    eta) reuse the same measured quantities.
+    ``P_cells`` holds one parameter vector per row (layout ``params.P_*``), each obeying
+    :class:`OscillatorParams`' rules; ``n_segment`` is at most ``MAX_SEGMENTS`` and ``tries``
+    at most ``1 + MAX_LOCK_EXTENSIONS``. This is the engine under :func:`regime_map`; it is
+    public so that other scans (e.g. amplitude versus eta) reuse the same measured
+    quantities.
     """
+    if not isinstance(settings, SweepSettings):  # its fields are the kernel's arguments
+        raise TypeError(f"settings must be a fricenv.SweepSettings, {got(settings)}")
+    if check_int("method", method) not in (METHOD_EXACT, METHOD_EVENT):  # not True or 1.0
+        raise ValueError(f"method must be METHOD_EXACT ({METHOD_EXACT}) or METHOD_EVENT "
+                         f"({METHOD_EVENT}), got {method!r}")
     P_cells = np.ascontiguousarray(real_array(P_cells, "P_cells must be an array of real "
                                               "numbers"), dtype=np.float64)
     if P_cells.ndim != 2 or P_cells.shape[1] != N_PARAMS:
         raise ValueError(f"P_cells must have shape (n, {N_PARAMS}) (a row of params.P_* per "
                          f"cell), got {P_cells.shape}")
+    _check_rows(P_cells)
     n = P_cells.shape[0]
     spans = {}
     for name, a in (("t_transient", t_transient), ("t_segment", t_segment),
@@ -413,9 +488,12 @@ def run_cells(P_cells: np.ndarray, t_transient: np.ndarray, t_segment: np.ndarra
                          f"n_segment >= 1, tries >= 0; got {spans['t_transient'][i]!r}, "
                          f"{spans['t_segment'][i]!r}, {spans['n_segment'][i]!r}, "
                          f"{spans['tries'][i]!r}")
-    if method not in (METHOD_EXACT, METHOD_EVENT):
-        raise ValueError(f"method must be METHOD_EXACT ({METHOD_EXACT}) or METHOD_EVENT "
-                         f"({METHOD_EVENT}), got {method!r}")
+    for name, most in (("n_segment", MAX_SEGMENTS), ("tries", 1 + MAX_LOCK_EXTENSIONS)):
+        over = spans[name] > most  # checked as floats: the int64 cast would wrap 1e20
+        if over.any():
+            i = int(np.argmax(over))
+            raise ValueError(f"cell {i}: {name} must be at most {most}, got "
+                             f"{float(spans[name][i])!r}")
     if method == METHOD_EXACT and n:
         friction = (P_cells[:, P_B1] != 0.0) | (P_cells[:, P_B3] != 0.0)
         if friction.any():  # the closed form would silently drop b1, b3
@@ -424,9 +502,11 @@ def run_cells(P_cells: np.ndarray, t_transient: np.ndarray, t_segment: np.ndarra
                              f"got b1 = {P_cells[i, P_B1]!r}, b3 = {P_cells[i, P_B3]!r}")
     t_transient, t_segment = spans["t_transient"], spans["t_segment"]
     n_segment, tries = spans["n_segment"].astype(np.int64), spans["tries"].astype(np.int64)
-    out_stats = np.empty((n, N_STATS))
-    out_status = np.empty(n, dtype=np.int64)
-    out_period = np.empty(n, dtype=np.int64)
+    # A cell the kernel never writes must not read as a result (np.empty once returned
+    # stale memory with status OK): NaN statistics and a status that is not a layout one.
+    out_stats = np.full((n, N_STATS), np.nan)
+    out_status = np.full(n, STATUS_NOT_RUN, dtype=np.int64)
+    out_period = np.zeros(n, dtype=np.int64)
     if n == 0:
         return out_stats, out_status, out_period
     _check_cells(P_cells, t_transient, t_segment, n_segment, tries)
@@ -441,6 +521,10 @@ def run_cells(P_cells: np.ndarray, t_transient: np.ndarray, t_segment: np.ndarra
                       float(settings.max_event_rate), int(settings.m_max),
                       float(settings.strobe_tol), out_stats, out_status, out_period,
                       numba.get_num_threads(), np.zeros(1, dtype=np.int64))
+    missed = np.flatnonzero(out_status == STATUS_NOT_RUN)
+    if missed.size:  # an exception inside prange is lost: say so rather than return them
+        raise RuntimeError(f"the cell kernel left {missed.size} cell(s) unrun (first: cell "
+                           f"{int(missed[0])}); this is a bug in fricenv.sweep")
     return out_stats, out_status, out_period
 
 
@@ -522,10 +606,10 @@ class RegimeMap:
         }
 
     def save(self, path: str | os.PathLike) -> Path:
-        """Write atomically to ``path`` (``.npz``; arrays plus a JSON ``meta`` entry)."""
-        path = Path(path)
-        if path.suffix != ".npz":
-            path = path.with_name(path.name + ".npz")
+        """Write atomically to ``path`` (``.npz`` appended if missing; arrays plus a JSON
+        ``meta`` entry). ``TypeError`` / ``ValueError`` naming ``path`` before anything is
+        written if it is not a file name or cannot be one (:func:`_map_path`)."""
+        path = _map_path(path)
         path.parent.mkdir(parents=True, exist_ok=True)
         tmp = path.with_name(path.name + f".tmp{os.getpid()}")
         plan = {} if self.plan is None else {
@@ -544,9 +628,11 @@ class RegimeMap:
 
     @classmethod
     def load(cls, path: str | os.PathLike) -> RegimeMap:
-        """Read a map written by :meth:`save` (``ValueError`` if it is not one)."""
+        """Read a map written by :meth:`save` (``ValueError`` naming the file if it is not
+        one, is incomplete or inconsistent)."""
+        path = _path_arg(path)
         try:
-            z = np.load(Path(path), allow_pickle=False)
+            z = np.load(path, allow_pickle=False)
         except (ValueError, OSError, zipfile.BadZipFile) as exc:  # not an npz archive
             raise ValueError(f"{path} is not a fricenv regime map ({exc})") from None
         if not isinstance(z, np.lib.npyio.NpzFile):
@@ -556,25 +642,84 @@ class RegimeMap:
                 meta = json.loads(str(z["meta"][()]))
             except (KeyError, ValueError) as exc:
                 raise ValueError(f"{path} is not a fricenv regime map (no metadata)") from exc
+            if not isinstance(meta, dict):
+                raise ValueError(f"{path} is not a fricenv regime map (its metadata is a "
+                                 f"{type(meta).__name__}, not a JSON object)")
             if meta.get("format") != FORMAT or meta.get("version") != FORMAT_VERSION:
                 raise ValueError(f"{path}: unsupported format {meta.get('format')!r} "
                                  f"version {meta.get('version')!r}")
             missing = [k for k in _MAP_ARRAYS if k not in z.files]
             if missing:
                 raise ValueError(f"{path} is not a complete regime map: no {missing}")
-            arrays = {k: z[k] for k in _MAP_ARRAYS}
             names = [f"plan_{f.name}" for f in fields(CellPlan)]
-            plan = (CellPlan(*(z[n] for n in names)) if all(n in z.files for n in names)
-                    else None)
-        params = OscillatorParams(**meta["params"])
-        settings = SweepSettings(**meta["settings"])
+            try:  # (an object array is refused without pickle: ValueError)
+                arrays = {k: z[k] for k in _MAP_ARRAYS}
+                plan = (CellPlan(*(z[n] for n in names)) if all(n in z.files for n in names)
+                        else None)
+            except (ValueError, OSError, zipfile.BadZipFile) as exc:
+                raise ValueError(f"{path}: unreadable regime map arrays ({exc})") from None
+        try:  # written by save, so anything else is a damaged or foreign file
+            params = OscillatorParams(**meta["params"])
+            settings = SweepSettings(**meta["settings"])
+            elapsed = check_finite_real("elapsed_s", meta["elapsed_s"])
+            algorithm = check_int("algorithm", meta.get("algorithm", 0))
+            _check_map_arrays(arrays, plan)
+        except (KeyError, TypeError, ValueError) as exc:
+            what = f"no {exc}" if isinstance(exc, KeyError) else str(exc)
+            raise ValueError(f"{path} is not a valid regime map: {what}") from None
         extra = {k: v for k, v in meta.items()
                  if k not in ("format", "version", "params", "settings", "stats_layout",
                               "algorithm",
                               "regimes", "not_computed", "axes", "elapsed_s", "n_done")}
-        extra["algorithm"] = int(meta.get("algorithm", 0))
-        return cls(params=params, settings=settings, elapsed=float(meta["elapsed_s"]),
+        extra["algorithm"] = algorithm
+        return cls(params=params, settings=settings, elapsed=elapsed,
                    meta=extra, plan=plan, **arrays)
+
+
+def _check_map_arrays(arrays: dict[str, np.ndarray], plan: CellPlan | None) -> None:
+    """``ValueError`` unless a loaded map's arrays have the kinds and shapes :func:`_empty_map`
+    gives them (a wrong-shape ``labels`` used to load, then fail a resume mid-sweep)."""
+    u0 = _check_axis("u0", arrays["u0"])
+    nu = _check_axis("nu", arrays["nu"])
+    grid = (u0.size, nu.size)
+    want = {"u0": ((u0.size,), "iuf"), "nu": ((nu.size,), "iuf"), "labels": (grid, "iu"),
+            "stats": (grid + (N_STATS,), "f"), "period": (grid, "iu"),
+            "status": (grid, "iu"), "done": (grid, "b"), "q": ((nu.size,), "iu")}
+    if plan is not None:
+        want.update({f"plan_{f.name}": ((nu.size,), "iuf") for f in fields(CellPlan)})
+    for name, (shape, kinds) in want.items():
+        a = (getattr(plan, name[5:]) if name.startswith("plan_") else arrays[name])
+        if a.shape != shape or a.dtype.kind not in kinds:
+            raise ValueError(f"{name} must be of shape {shape} and kind {kinds!r} for a "
+                             f"{grid[0]} x {grid[1]} grid, got {a.shape} {a.dtype}")
+
+
+def _path_arg(path: object) -> Path:
+    """``path`` as a Path: ``TypeError`` naming it unless a str or ``os.PathLike`` of str
+    (an int would be a file descriptor to ``open``, bytes a second spelling)."""
+    if isinstance(path, os.PathLike):
+        fs = os.fspath(path)
+        if isinstance(fs, str):
+            return Path(fs)
+    elif isinstance(path, str):
+        return Path(path)
+    raise TypeError(f"path must be a str or os.PathLike, {got(path)}")
+
+
+def _map_path(path: object) -> Path:
+    """Where a map is saved: ``path`` with ``.npz`` appended if missing. ``TypeError`` for a
+    non-path, ``ValueError`` naming ``path`` for a name that is no file ('', '.', '..') or
+    a file that cannot be written (a folder there, a file among its parents), so that a
+    sweep fails before its first chunk rather than at the first save."""
+    p = _path_arg(path)
+    if p.name in ("", ".", ".."):
+        raise ValueError(f"path must name a file, got {str(path)!r}")
+    if p.suffix != ".npz":
+        p = p.with_name(p.name + ".npz")
+    if p.is_dir():  # (checks.check_output_file, with the file's name in the message)
+        raise ValueError(f"path {str(p)!r} is a folder, not a file")
+    check_output_dir(f"path {str(p)!r} needs the folder", p.parent)
+    return p
 
 
 #: Arrays a saved map holds besides its metadata.
@@ -663,24 +808,33 @@ def regime_map(params: OscillatorParams | str, u0: object, nu: object, *,
     """Classify every cell of the ``u0 x nu`` grid (axis 0: u0, axis 1: nu).
 
     ``params`` (or a friction-law name for the paper's defaults) fixes everything but the
-    grid; both tones get amplitude ``u0`` and the second tone frequency ``nu * eta``.
-    ``settings`` / keyword ``overrides`` set the transient, window and periodicity test
-    (:class:`SweepSettings`). With ``path`` the map is saved after every chunk and a run with
-    the same arguments resumes from the file (``resume=False`` starts over; a file made with
-    other arguments raises ``ValueError``). ``n_threads`` sets numba's thread count for the
-    call; ``progress`` shows a tqdm bar (default: when there are more than 2000 cells);
-    ``callback(map, n_new)`` is called after each chunk is stored. ``meta`` adds free-form
-    JSON-able entries to the metadata.
+    grid; both tones get amplitude ``u0`` and the second tone frequency ``nu * eta``
+    (``params.u0`` and ``params.nu`` are replaced by the grid's; ``params.u1`` and ``u2``
+    must be None, as they would be dropped). ``settings`` / keyword ``overrides`` set the
+    transient, window and periodicity test (:class:`SweepSettings`). With ``path`` the map
+    is saved after every chunk and a run with the same arguments resumes from the file
+    (``resume=False`` starts over; a file made with other arguments raises ``ValueError``;
+    ``.npz`` is appended if missing; a ``path`` that cannot be written is refused before
+    any cell runs). ``n_threads`` sets numba's thread count for the call; ``progress``
+    shows a tqdm bar (default: when there are more than 2000 cells); ``callback(map,
+    n_new)`` is called after each chunk is stored. ``meta`` adds free-form JSON-able
+    entries under str keys to the metadata.
     """
     params = _as_params(params)
+    if params.u1 is not None or params.u2 is not None:  # would be dropped without a word
+        raise ValueError(f"params.u1 / params.u2 must be None in a regime map (both tones "
+                         f"get amplitude u0 from the grid), got u1 = {params.u1!r}, "
+                         f"u2 = {params.u2!r}")
+    if path is not None:
+        path = _map_path(path)
     check_dict("meta", meta)
     if callback is not None and not callable(callback):  # before any cell runs
         raise TypeError(f"callback must be callable, {got(callback)}")
     if meta:
-        try:  # before any cell runs: meta is written as JSON with every save
-            json.dumps(dict(meta))
+        try:  # before any cell runs, as every save writes it: sorted among the map's own keys
+            json.dumps({**dict.fromkeys(_RESERVED_META), **meta}, sort_keys=True)
         except (TypeError, ValueError) as e:
-            raise TypeError(f"meta must hold JSON-able values: {e}") from None
+            raise TypeError(f"meta must hold JSON-able values under str keys: {e}") from None
     if meta and _RESERVED_META & set(meta):
         raise ValueError(f"meta must not set the reserved key(s) "
                          f"{sorted(_RESERVED_META & set(meta))}")
@@ -704,9 +858,6 @@ def regime_map(params: OscillatorParams | str, u0: object, nu: object, *,
 
     rmap = None
     if path is not None:
-        path = Path(path)
-        if path.suffix != ".npz":
-            path = path.with_name(path.name + ".npz")
         if resume and path.exists():
             rmap = RegimeMap.load(path)
             same = (rmap.meta.get("algorithm") == ALGORITHM

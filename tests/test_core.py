@@ -295,6 +295,10 @@ def test_continuation_with_phase_carry():
         (OscillatorState(t=float("inf")), "state.t"),
         (OscillatorState(x=float("nan")), "state.x"),
         (OscillatorState(t=1e300), "lost in rounding"),
+        # beyond PARAM_LIMIT, as simulate's x0 / v0: ran to a NaN integral with status OK
+        (OscillatorState(x=1e200), r"state\.x must lie within \+-1e\+12"),
+        (OscillatorState(x=-1e13), r"state\.x must lie within \+-1e\+12"),
+        (OscillatorState(v=-1e13), r"state\.v must lie within \+-1e\+12"),
     ],
 )
 def test_run_stats_rejects_inconsistent_states(state, match):
@@ -319,6 +323,29 @@ def test_tiny_tolerances_do_not_stall_the_event_method():
     ref = run_stats(p, 10.0, rtol=1e-13, atol=1e-15)
     tiny = run_stats(p, 10.0, rtol=1e-300, atol=1e-300)
     assert abs(tiny.state.x - ref.state.x) < 1e-9
+
+
+@pytest.mark.parametrize("method", ["exact", "event", "rk4"])
+@pytest.mark.parametrize("t_end", [1e-10, 1e-300])
+def test_output_grid_of_a_tiny_span_starts_at_zero(method, t_end):
+    """For t_end <= 1e-9 dt_out the grid was [t_end] alone: no 0 (against the docstring),
+    and the kernels ran a span of 0, returning the start as the state at t_end."""
+    tr = simulate(OscillatorParams(u0=1.0), t_end, x0=0.3, v0=-0.2, method=method)
+    assert tr.t.tolist() == [0.0, t_end]
+    assert (tr.x[0], tr.v[0]) == (0.3, -0.2)
+    assert tr.final_state.t == t_end and tr.stats.duration == t_end
+    assert np.all(np.isfinite(tr.x)) and np.all(np.isfinite(tr.v))
+
+
+def test_dt_is_checked_whatever_the_method():
+    """dt was checked only for method='rk4': dt='abc' or -1 passed silently otherwise."""
+    p = OscillatorParams(u0=1.0)
+    for method in ("auto", "exact", "event"):
+        with pytest.raises(TypeError, match=r"dt must be a real number, got 'abc' \(str\)"):
+            simulate(p, 1.0, dt="abc", method=method)
+        with pytest.raises(ValueError, match=r"dt must be > 0, got -1"):
+            simulate(p, 1.0, dt=-1, method=method)
+    assert simulate(p, 1.0, dt=0.5, method="exact").t[-1] == 1.0  # valid: ignored there
 
 
 def test_rk4_step_count_is_bounded():

@@ -387,3 +387,228 @@ def test_callback_is_checked_before_any_cell(tmp_path) -> None:
     with pytest.raises(TypeError, match=r"callback must be callable, got 5 \(int\)"):
         regime_map(PARAMS, [1.0], [0.5], callback=5, path=tmp_path / "m.npz")
     assert not any(tmp_path.iterdir())
+
+
+# -- review 18: checks before the work, and nothing unwritten read as a result ---------------
+def _count_cells(monkeypatch) -> list[int]:
+    """Record the cells every run_cells call would run (regime_map's engine)."""
+    from fricenv import sweep
+
+    ran: list[int] = []
+    real = sweep.run_cells
+
+    def counting(P, *args, **kwargs):
+        ran.append(len(P))
+        return real(P, *args, **kwargs)
+
+    monkeypatch.setattr(sweep, "run_cells", counting)
+    return ran
+
+
+def test_run_cells_bounds_counts_before_the_int_cast() -> None:
+    """n_segment = 1e20 was cast to INT_MIN, passed every check, and the cell came back as
+    uninitialised memory, sometimes with status OK; tries = 1e20 ran as tries = 1."""
+    from fricenv.layout import METHOD_EXACT
+    from fricenv.sweep import MAX_LOCK_EXTENSIONS, MAX_SEGMENTS, run_cells
+
+    P = np.stack([PARAMS.replace(u0=1.0, nu=0.5).to_array()] * 3)
+    t = np.full(3, 5.0)
+    with pytest.raises(ValueError, match=r"cell 1: n_segment must be at most 1000000, got 1e\+20"):
+        run_cells(P, t, t, [1, 1e20, 1], [0, 0, 0], SweepSettings(), METHOD_EXACT)
+    with pytest.raises(ValueError, match=rf"cell 0: tries must be at most "
+                                         rf"{1 + MAX_LOCK_EXTENSIONS}, got 1e\+20"):
+        run_cells(P, t, t, [1, 1, 1], [1e20, 0, 0], SweepSettings(), METHOD_EXACT)
+    with pytest.raises(ValueError, match="n_segment must be at most"):
+        run_cells(P, t, t, [1, MAX_SEGMENTS + 1, 1], [0, 0, 0], SweepSettings(), METHOD_EXACT)
+
+
+@pytest.mark.parametrize("column, value, match", [
+    (0, np.nan, r"P_cells\[1, 0\] \(lam\) must be finite and within \+-1e\+12 .*got nan"),
+    (0, -5.0, r"P_cells\[1, 0\] \(lam\) must be >= 0, got -5\.0"),
+    (2, 1e300, r"P_cells\[1, 2\] \(xfk\) must be finite and within"),
+    (3, 1.0, r"P_cells\[1, 3\] \(xfs\) must be >= xfk, got 1\.0 \(xfk = 2\.5\)"),
+    (6, -1.0, r"P_cells\[1, 6\] \(u1\) must be >= 0"),
+    (8, 0.0, r"P_cells\[1, 8\] \(w1 = eta\) must be > 0"),
+])
+def test_run_cells_refuses_rows_that_oscillator_params_would(column: int, value: float,
+                                                            match: str) -> None:
+    """Rows were not checked: a NaN lam gave status 2, lam = -5, xfs < xfk or xfk = 1e300
+    ran to numbers without a word."""
+    from fricenv.layout import METHOD_EVENT
+    from fricenv.sweep import run_cells
+
+    P = np.stack([PARAMS.replace(u0=1.0, nu=0.5).to_array()] * 3)
+    P[1, column] = value
+    t = np.full(3, 5.0)
+    with pytest.raises(ValueError, match=match):
+        run_cells(P, t, t, np.ones(3), np.zeros(3), SweepSettings(), METHOD_EVENT)
+
+
+def test_run_cells_checks_the_type_of_method_and_settings() -> None:
+    from fricenv.sweep import run_cells
+
+    P = PARAMS.replace(u0=1.0, nu=0.5).to_array()[None]
+    one = ([5.0], [5.0], [1], [0])
+    for method in (True, 0.0):  # were accepted as METHOD_EVENT / METHOD_EXACT
+        with pytest.raises(TypeError, match=r"method must be an integer, got "):
+            run_cells(P, *one, SweepSettings(), method)
+    with pytest.raises(TypeError, match=r"settings must be a fricenv\.SweepSettings, got None"):
+        run_cells(P, *one, None, 0)  # was AttributeError: no 'x0'
+
+
+def test_run_cells_never_returns_a_cell_its_kernel_did_not_write(monkeypatch) -> None:
+    """Outputs were np.empty: a cell the kernel skipped (an exception inside prange is lost)
+    read as whatever the memory held. Now they start as NaN / STATUS_NOT_RUN, and any
+    left so is an error."""
+    from fricenv import sweep
+    from fricenv.layout import METHOD_EXACT
+
+    monkeypatch.setattr(sweep, "_cells_kernel", lambda *args: None)  # writes nothing
+    P = PARAMS.replace(u0=1.0, nu=0.5).to_array()[None]
+    with pytest.raises(RuntimeError, match=r"left 1 cell\(s\) unrun"):
+        sweep.run_cells(P, [5.0], [5.0], [1], [0], SweepSettings(), METHOD_EXACT)
+
+
+@pytest.mark.parametrize("path, error, match", [
+    (5, TypeError, r"path must be a str or os\.PathLike, got 5 \(int\)"),
+    (b"x.npz", TypeError, r"path must be a str or os\.PathLike, got b'x\.npz' \(bytes\)"),
+    ("", ValueError, r"path must name a file, got ''"),
+])
+def test_map_path_of_wrong_type_or_no_name(path: object, error: type, match: str,
+                                          reference: RegimeMap) -> None:
+    """These were TypeErrors from os / pathlib that named nothing ('' a ValueError about
+    PosixPath('.'))."""
+    with pytest.raises(error, match=match):
+        regime_map(PARAMS, [1.0], [0.5], path=path, progress=False)
+    with pytest.raises(error, match=match):
+        reference.save(path)
+    if error is TypeError:
+        with pytest.raises(error, match=match):
+            RegimeMap.load(path)
+
+
+def test_unwritable_map_path_and_bad_meta_are_refused_before_any_cell(tmp_path,
+                                                                      monkeypatch) -> None:
+    """Each failed only at the first save, after a chunk of up to 2048 cells had run."""
+    ran = _count_cells(monkeypatch)
+    (tmp_path / "afile").touch()
+    (tmp_path / "adir.npz").mkdir()
+    cases = [
+        (dict(path=tmp_path / "afile" / "m.npz"), ValueError, r"path .*afile.* is not a folder"),
+        (dict(path=tmp_path / "adir.npz", resume=False), ValueError, r"adir\.npz' is a folder"),
+        (dict(path=tmp_path / "adir"), ValueError, r"adir\.npz' is a folder"),  # .npz added
+        # the check was json.dumps without the save's sort_keys: a non-str key passed it
+        (dict(path=tmp_path / "m.npz", meta={1: "a"}), TypeError,
+         "meta must hold JSON-able values under str keys"),
+    ]
+    for kwargs, error, match in cases:
+        with pytest.raises(error, match=match):
+            regime_map(PARAMS, [0.5, 1.0], [0.5], progress=False, **kwargs)
+    assert ran == []
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["adir.npz", "afile"]
+    m = regime_map(PARAMS, [0.5], [0.5], progress=False, meta={"note": 1})
+    with pytest.raises(ValueError, match="is a folder"):
+        m.save(tmp_path / "adir.npz")  # was IsADirectoryError from os.replace
+
+
+def test_regime_map_refuses_tone_amplitudes_it_would_drop(monkeypatch) -> None:
+    """params.u1 / u2 were silently replaced by the grid's u0 (and a file made with u1 = 3
+    resumed as the same map)."""
+    ran = _count_cells(monkeypatch)
+    for kw in (dict(u1=3.0), dict(u2=0.0)):
+        with pytest.raises(ValueError, match=r"params\.u1 / params\.u2 must be None"):
+            regime_map(PARAMS.replace(**kw), [1.0], [0.5], progress=False)
+    assert ran == []
+
+
+@pytest.mark.parametrize("kwargs, match", [
+    (dict(x0=1e13), r"x0 must lie within \+-1e\+12"),
+    (dict(v0=1e200), r"v0 must lie within \+-1e\+12"),
+    (dict(m_max=2**70), r"m_max must be an integer <= 1000, got 1180591620717411303424"),
+    (dict(q_max=1001), r"q_max must be an integer <= 1000, got 1001"),
+    (dict(lock_extensions=2**70), r"lock_extensions must be an integer <= 100, got"),
+    (dict(n_strobe=2**70), r"n_strobe must be an integer <= 1000000, got"),
+])
+def test_sweep_settings_bounds(kwargs: dict, match: str, monkeypatch) -> None:
+    """x0 = 1e300 / v0 = 1e200 ran (a WM2 label for a start at v0 = 1e200); huge counts gave
+    a numba TypingError, an OverflowError or an int64 overflow blamed on n_segment."""
+    ran = _count_cells(monkeypatch)
+    with pytest.raises(ValueError, match=match):
+        SweepSettings(**kwargs)
+    with pytest.raises(ValueError, match=match):
+        regime_map(PARAMS, [0.5], [1.0], progress=False, transient_min=5.0, window_min=5.0,
+                   **kwargs)
+    assert ran == []
+
+
+def test_sweep_settings_maxima_are_accepted() -> None:
+    from fricenv.sweep import MAX_LOCK_EXTENSIONS, MAX_PERIOD, MAX_SEGMENTS
+
+    s = SweepSettings(q_max=MAX_PERIOD, m_max=MAX_PERIOD, lock_extensions=MAX_LOCK_EXTENSIONS,
+                      n_strobe=MAX_SEGMENTS, x0=-1e12, v0=1e12)
+    assert (s.q_max, s.n_strobe, s.v0) == (1000, 1_000_000, 1e12)
+
+
+@pytest.mark.parametrize("kwargs, match", [
+    (dict(window_min=1e300), r"nu = 0\.5: a window of 1e\+300 would keep 4\.775e\+298 "
+                             r"stroboscopic samples .*the setting window_min = 1e\+300"),
+    (dict(window_periods=1e10), r"would keep \d+ stroboscopic samples .*"
+                                r"the setting window_periods = 10000000000\.0"),
+])
+def test_plan_names_the_setting_behind_too_many_segments(kwargs: dict, match: str) -> None:
+    """The float segment count wrapped in the int64 cast (a RuntimeWarning, then an error
+    about an internal n_segment of -9.2e18)."""
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no "invalid value encountered in cast"
+        with pytest.raises(ValueError, match=match):
+            plan_cells(PARAMS, np.array([0.5]), SweepSettings(**kwargs))
+        with pytest.raises(ValueError, match=match):
+            regime_map(PARAMS, [0.5], [0.5], progress=False, **kwargs)
+
+
+def _rewrite(src, dst, **changes) -> None:
+    """Copy the map file ``src`` to ``dst`` with some entries replaced (None: removed)."""
+    with np.load(src) as z:
+        entries = {k: z[k] for k in z.files}
+    for k, v in changes.items():
+        if v is None:
+            entries.pop(k)
+        else:
+            entries[k] = v
+    np.savez(dst, **entries)
+
+
+def test_malformed_map_files_are_value_errors_naming_the_file(tmp_path, reference: RegimeMap,
+                                                             monkeypatch) -> None:
+    """Metadata of another shape gave AttributeError or KeyError; a labels array of the
+    wrong shape loaded, and a resume from it failed mid-sweep with IndexError."""
+    good = reference.save(tmp_path / "good.npz")
+    with np.load(good) as z:
+        meta = json.loads(str(z["meta"][()]))
+    no_params = {k: v for k, v in meta.items() if k != "params"}
+    bad_settings = {**meta, "settings": {**meta["settings"], "n_strobe": "12"}}
+    cases = {
+        "list": (dict(meta=np.array("[1]")), "its metadata is a list"),
+        "noparams": (dict(meta=np.array(json.dumps(no_params))), "no 'params'"),
+        "settings": (dict(meta=np.array(json.dumps(bad_settings))), "n_strobe must be"),
+        "elapsed": (dict(meta=np.array(json.dumps({**meta, "elapsed_s": "x"}))), "elapsed_s"),
+        "labels": (dict(labels=np.zeros((2, 2), np.int8)), r"labels must be of shape \(4, 5\)"),
+        "stats": (dict(stats=np.zeros((4, 5, 3))), r"stats must be of shape \(4, 5, 11\)"),
+        "done": (dict(done=np.zeros((4, 5), np.int8)), "done must be of shape"),
+        "q": (dict(q=np.zeros(4, np.int16)), r"q must be of shape \(5,\)"),
+        "plan": (dict(plan_tries=np.zeros(2, np.int64)), r"plan_tries must be of shape"),
+        "nu": (dict(nu=np.array([0.5, np.nan, 1, 2, 3])), "nu grid contains NaN"),
+        "object": (dict(u0=np.array([None, 1.0], dtype=object)), "unreadable"),
+    }
+    ran = _count_cells(monkeypatch)
+    for name, (changes, match) in cases.items():
+        path = tmp_path / f"{name}.npz"
+        _rewrite(good, path, **changes)  # (np.savez pickles the object array)
+        with pytest.raises(ValueError, match=rf"{name}\.npz.*{match}"):
+            RegimeMap.load(path)
+        with pytest.raises(ValueError, match=rf"{name}\.npz.*{match}"):  # before any cell
+            regime_map(PARAMS, U0, NU, path=path, progress=False)
+    assert ran == []
+    _same(reference, RegimeMap.load(good))
