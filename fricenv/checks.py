@@ -7,16 +7,49 @@ from __future__ import annotations
 import math
 import numbers
 import operator
+import sys
 from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+#: Largest float64 magnitude: a real number beyond it (a huge int or Fraction) cannot be
+#: converted, and ``float`` would raise an ``OverflowError`` naming nothing.
+FLOAT_MAX = sys.float_info.max
+
+
+def _int_head(n: int) -> tuple[str, int]:
+    """A huge int as ``1.23456e+400`` and its number of digits, without converting all of it
+    to a string."""
+    m = abs(n)
+    digits = int(m.bit_length() * math.log10(2)) + 1
+    if 10 ** (digits - 1) > m:  # the estimate may be one too large
+        digits -= 1
+    head = str(m // 10 ** (digits - 6))
+    return f"{'-' if n < 0 else ''}{head[0]}.{head[1:]}e+{digits - 1}", digits
+
+
+def short_repr(value: Any, limit: int = 80) -> str:
+    """``repr(value)`` for an error message, abbreviated when long: a huge int as its leading
+    digits and its length (``repr`` of an int beyond 4300 digits even raises)."""
+    if is_int(value) and abs(int(value)).bit_length() > 200:
+        text, digits = _int_head(int(value))
+        return f"{text} (an int of {digits} digits)"
+    if isinstance(value, numbers.Rational) and not isinstance(value, numbers.Integral):
+        parts = [f"~{_int_head(int(k))[0]}" if abs(int(k)).bit_length() > 200 else repr(int(k))
+                 for k in (value.numerator, value.denominator)]
+        return f"{type(value).__name__}({parts[0]}, {parts[1]})"
+    try:
+        r = repr(value)
+    except ValueError:  # e.g. an int subclass beyond the str conversion limit
+        return f"<{type(value).__name__} too long to print>"
+    return r if len(r) <= limit else f"{r[:limit - 20]}...{r[-15:]}"
+
 
 def got(value: Any) -> str:
     """The end of an error message: what was passed, and its type."""
-    return f"got {value!r} ({type(value).__name__})"
+    return f"got {short_repr(value)} ({type(value).__name__})"
 
 
 def is_int(value: Any) -> bool:
@@ -33,7 +66,7 @@ def check_int(name: str, value: Any, minimum: int | None = None) -> int:
         raise TypeError(f"{name} must be an integer, {got(value)}")
     n = operator.index(value)
     if minimum is not None and n < minimum:
-        raise ValueError(f"{name} must be an integer >= {minimum}, got {value!r}")
+        raise ValueError(f"{name} must be an integer >= {minimum}, got {short_repr(value)}")
     return n
 
 
@@ -42,29 +75,35 @@ def is_real(value: Any) -> bool:
     return isinstance(value, numbers.Real) and not isinstance(value, (bool, np.bool_))
 
 
-def check_real(name: str, value: Any) -> float:
-    """``value`` as a float; ``TypeError`` naming ``name`` unless it is a real number."""
+def check_real(name: str, value: Any, limit: float = FLOAT_MAX) -> float:
+    """``value`` as a float; ``TypeError`` naming ``name`` unless it is a real number,
+    ``ValueError`` naming it for one beyond float64 (a huge int or Fraction), whose
+    conversion would raise a bare ``OverflowError``. ``limit``: the bound the message cites."""
     if not is_real(value):
         raise TypeError(f"{name} must be a real number, {got(value)}")
-    return float(value)
+    try:
+        return float(value)
+    except OverflowError:
+        bound = f"+-{limit:g}" + (" (float64)" if limit == FLOAT_MAX else "")
+        raise ValueError(f"{name} must lie within {bound}, got {short_repr(value)}") from None
 
 
-def check_finite_real(name: str, value: Any) -> float:
+def check_finite_real(name: str, value: Any, limit: float = FLOAT_MAX) -> float:
     """``value`` as a finite float: ``TypeError`` naming ``name`` unless it is a real number
     (:func:`check_real`), ``ValueError`` if it is NaN or infinite."""
-    x = check_real(name, value)
+    x = check_real(name, value, limit)
     if not math.isfinite(x):
-        raise ValueError(f"{name} must be finite, got {value!r}")
+        raise ValueError(f"{name} must be finite, got {short_repr(value)}")
     return x
 
 
 def check_bounded_real(name: str, value: Any, limit: float) -> float:
     """``value`` as a finite float of magnitude at most ``limit`` (:func:`check_finite_real`,
     then ``ValueError`` naming ``name`` beyond the limit)."""
-    x = check_finite_real(name, value)
+    x = check_finite_real(name, value, limit)
     if abs(x) > limit:
         raise ValueError(f"{name} must lie within +-{limit:g} (the model is dimensionless, "
-                         f"its quantities O(1)), got {value!r}")
+                         f"its quantities O(1)), got {short_repr(value)}")
     return x
 
 
@@ -73,7 +112,7 @@ def check_rtol(value: Any) -> float:
     unless in (0, 1) (at 1 or more the steps would track nothing)."""
     x = check_finite_real("rtol", value)
     if not 0.0 < x < 1.0:
-        raise ValueError(f"rtol must lie in (0, 1), got {value!r}")
+        raise ValueError(f"rtol must lie in (0, 1), got {short_repr(value)}")
     return x
 
 
@@ -88,18 +127,28 @@ def check_bool(name: str, value: Any) -> bool:
 def real_array(value: Any, what: str) -> np.ndarray:
     """``value`` as a float64 array: ``TypeError`` unless it is made of real numbers (None,
     strings, dicts, complex or bools would otherwise become NaN, a parsed float or a numba
-    typing error; Fractions convert), ``ValueError`` for ragged nesting. ``what`` opens the
+    typing error; Fractions convert), ``ValueError`` for ragged nesting or a number beyond
+    float64 (a huge int, which would raise a bare ``OverflowError``). ``what`` opens the
     message ("u0 must be ...")."""
     a = None
     if value is not None and not isinstance(value, (str, bytes)):
         try:
             a = np.asarray(value)
         except ValueError as exc:  # ragged nesting: numbers, but no array shape
-            raise ValueError(f"{what}, got {value!r}") from exc
+            raise ValueError(f"{what}, got {short_repr(value)}") from exc
         except TypeError:  # e.g. a failing __array__
             a = None
         if a is not None and a.dtype.kind == "O":
-            a = a.astype(np.float64) if all(is_real(v) for v in a.flat) else None
+            if not all(is_real(v) for v in a.flat):
+                a = None
+            else:
+                for v in a.flat:  # (only object arrays can hold numbers beyond float64)
+                    try:
+                        float(v)
+                    except OverflowError:
+                        raise ValueError(f"{what}, each within +-{FLOAT_MAX:g} (float64), "
+                                         f"got {short_repr(v)}") from None
+                a = a.astype(np.float64)
     if a is None or a.dtype.kind not in "iuf":  # (bools are flags, not amounts)
         raise TypeError(f"{what}, {got(value)}")
     return a.astype(np.float64)
@@ -122,7 +171,7 @@ def real_tuple(name: str, value: Any, n: int, what: str) -> tuple[float, ...]:
     if items is None:
         raise TypeError(f"{name} must be {what}, {got(value)}")
     if len(items) != n:
-        raise ValueError(f"{name} must be {what}, got {len(items)} values: {value!r}")
+        raise ValueError(f"{name} must be {what}, got {len(items)} values: {short_repr(value)}")
     return tuple(check_real(f"{name}[{i}]", v) for i, v in enumerate(items))
 
 

@@ -6,7 +6,7 @@ from dataclasses import asdict, dataclass, fields, replace
 
 import numpy as np
 
-from .checks import check_bounded_real
+from .checks import check_bounded_real, got
 
 # Layout of the float64 parameter vector that every kernel takes. Frequencies are stored,
 # not (eta, nu), so that a controller may retune a tone without touching the other.
@@ -168,8 +168,16 @@ class OscillatorParams:
 
         ``law`` is ``"coulomb"``, ``"viscous"`` (Coulomb + viscosity, b1 = 0.2) or
         ``"stribeck"`` (b1 = 0.2, b3 = 0.16). Keyword overrides replace any field.
+        ``TypeError`` naming ``law`` unless it is a str (``str(5)`` would be looked up).
         """
-        b1, b3 = FRICTION_LAWS[resolve_law(law)]
+        if not isinstance(law, str):
+            raise TypeError(f"law must be a friction law name (str), one of "
+                            f"{sorted(FRICTION_LAWS)}, {got(law)}")
+        try:
+            key = resolve_law(law)
+        except ValueError as e:
+            raise ValueError(f"law: {e}") from None
+        b1, b3 = FRICTION_LAWS[key]
         check_known_fields(cls, overrides, "parameter")
         return cls(**{"b1": b1, "b3": b3, **overrides})
 

@@ -18,6 +18,7 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
 
+from .checks import check_finite_real, check_output_file, got, items_of, real_array
 from .params import FRICTION_LAWS, OscillatorParams
 from .regimes import Regime
 
@@ -44,11 +45,43 @@ LAW_TITLES = {"coulomb": "Coulomb", "viscous": "Coulomb + viscosity",
               "stribeck": "complete (Stribeck)"}
 
 
-def save(fig: Figure, path: str | os.PathLike, dpi: int = 130) -> Path:
-    """Write ``fig`` (format from the suffix), create the folder, close the figure."""
+#: Largest raster :func:`save` writes, in pixels (figure size x dpi squared): 1e8 is about
+#: 400 MB of RGBA. dpi = 1e5 on a Fig. 2 ended in ``MemoryError: std::bad_alloc``.
+MAX_PIXELS = 1e8
+
+
+def save(fig: Figure, path: str | os.PathLike, dpi: float = 130) -> Path:
+    """Write ``fig`` to ``path`` and return the path written, creating its folder.
+
+    The format comes from the suffix; a path without one gets ``.png``. Everything is
+    checked before the folder is made (``TypeError``/``ValueError`` naming ``fig``, ``path``
+    or ``dpi``): a known format, no folder at ``path``, a positive ``dpi`` giving at most
+    ``MAX_PIXELS`` pixels. The figure is left open and usable: it was built without
+    ``pyplot``, so nothing holds it and there is nothing to close.
+    """
+    if not isinstance(fig, Figure):
+        raise TypeError(f"fig must be a matplotlib Figure, {got(fig)}")
+    if not isinstance(path, (str, os.PathLike)) or isinstance(os.fspath(path), bytes):
+        raise TypeError(f"path must be a str or os.PathLike file name, {got(path)}")
     path = Path(path)
+    if not path.name or path.is_dir():  # (with .png appended it would be written beside)
+        raise ValueError(f"path must name a file, got the folder {str(path)!r}")
+    if not path.suffix:
+        path = path.with_name(path.name + ".png")
+    fmt = path.suffix[1:].lower()
+    formats = fig.canvas.get_supported_filetypes()
+    if fmt not in formats:
+        raise ValueError(f"path {str(path)!r}: unknown image format {fmt!r}; expected a "
+                         f"suffix in {sorted(formats)}")
+    check_output_file("path", path)
+    dpi = check_finite_real("dpi", dpi)
+    w, h = fig.get_size_inches()
+    if not dpi > 0 or w * h * dpi * dpi > MAX_PIXELS:
+        raise ValueError(f"dpi must be > 0 and give at most {MAX_PIXELS:g} pixels for this "
+                         f"{w:g} x {h:g} inch figure (dpi <= {(MAX_PIXELS / (w * h)) ** 0.5:.0f})"
+                         f", got {dpi!r}")
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=dpi, bbox_inches="tight")
+    fig.savefig(path, dpi=dpi, bbox_inches="tight", format=fmt)
     return path
 
 
@@ -195,6 +228,36 @@ def regime_cmap() -> tuple[ListedColormap, BoundaryNorm]:
     return cmap, norm
 
 
+def _axis(name: str, value: object) -> np.ndarray:
+    a = real_array(value, f"{name} must be a 1-d array of real numbers")
+    if a.ndim != 1 or a.size == 0 or not np.all(np.isfinite(a)):
+        raise ValueError(f"{name} must be a non-empty 1-d array of finite numbers, got "
+                         f"shape {a.shape}")
+    return a
+
+
+def _sorted_grid(rmap: object) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``rmap``'s ``(u0, nu, labels)`` with both axes in increasing order. A map may be
+    computed on an unsorted grid (cells are independent), but cell edges and boundary lines
+    need order: drawn as given they were meaningless. A repeated value has no cell of its
+    own, so it is a ``ValueError`` naming the axis."""
+    for k in ("u0", "nu", "labels"):
+        if not hasattr(rmap, k):
+            raise TypeError(f"rmap must be a RegimeMap (with u0, nu and labels), {got(rmap)}")
+    u0, nu = _axis("rmap.u0", rmap.u0), _axis("rmap.nu", rmap.nu)
+    labels = np.asarray(rmap.labels)
+    if labels.shape != (u0.size, nu.size):
+        raise ValueError(f"rmap.labels must have shape (u0, nu) = {(u0.size, nu.size)}, got "
+                         f"{labels.shape}")
+    iu, jn = np.argsort(u0, kind="stable"), np.argsort(nu, kind="stable")
+    u0, nu, labels = u0[iu], nu[jn], labels[np.ix_(iu, jn)]
+    for name, a in (("rmap.u0", u0), ("rmap.nu", nu)):
+        if np.any(np.diff(a) == 0):
+            raise ValueError(f"{name} must not repeat a value, got "
+                             f"{float(a[np.flatnonzero(np.diff(a) == 0)[0]])!r} twice")
+    return u0, nu, labels
+
+
 def draw_regime_map(ax: Axes, rmap: object, boundaries: bool = True,
                     title: str | None = None) -> None:
     """One (u0, nu) panel: u0 on x (log if the grid is geometric), nu on y.
@@ -206,7 +269,7 @@ def draw_regime_map(ax: Axes, rmap: object, boundaries: bool = True,
     Rows at integer nu, where the periodic labels live, are redrawn as thick strips so that a
     single grid row stays visible.
     """
-    u0, nu, labels = np.asarray(rmap.u0), np.asarray(rmap.nu), np.asarray(rmap.labels)
+    u0, nu, labels = _sorted_grid(rmap)
     log = _is_log(u0)
     cmap, norm = regime_cmap()
     ax.pcolormesh(_edges(u0, log), _edges(nu, False), labels.T.astype(float), cmap=cmap,
@@ -246,7 +309,24 @@ def regime_legend_handles(include_unresolved: bool = True) -> list:
 
 def regime_maps_figure(maps: Sequence[object], titles: Sequence[str] | None = None,
                        suptitle: str | None = None) -> Figure:
-    """Figs. 8-10: up to four regime maps in a 2 x 2 grid with one shared legend."""
+    """Figs. 8-10: regime maps two per row (the paper's four in a 2 x 2 grid) with one shared
+    legend. ``titles``, if given, has one str per map (a short list used to end in an
+    ``IndexError``)."""
+    items = items_of(maps)
+    if items is None:
+        raise TypeError(f"maps must be a list of RegimeMap, {got(maps)}")
+    if not items:
+        raise ValueError("maps is empty: nothing to draw")
+    maps = items
+    if titles is not None:
+        tl = items_of(titles)
+        if tl is None or not all(isinstance(t, str) for t in tl):
+            raise TypeError(f"titles must be a list of str (one per map) or None, "
+                            f"{got(titles)}")
+        if len(tl) != len(maps):
+            raise ValueError(f"titles must have one entry per map ({len(maps)}), got "
+                             f"{len(tl)}: {tl!r}")
+        titles = tl
     n = len(maps)
     ncol = 2 if n > 1 else 1
     nrow = (n + ncol - 1) // ncol

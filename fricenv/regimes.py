@@ -53,7 +53,7 @@ from fractions import Fraction
 import numpy as np
 from numba import njit
 
-from .checks import check_int, check_real
+from .checks import check_finite_real, check_int, check_real, got, real_array
 from .layout import (
     N_STATS,
     ST_DURATION,
@@ -105,15 +105,30 @@ _DESCRIPTIONS = {
 }
 
 
-def rational_denominator(nu: float, q_max: int = Q_MAX, tol: float = 1e-9) -> int:
+#: Relative tolerance within which ``nu`` counts as ``p/q`` (see rational_denominator).
+RATIONAL_TOL = 1e-9
+
+
+def _check_nu(nu: object) -> float:
+    """``nu`` as a float: ``TypeError`` unless a real number, ``ValueError`` unless finite
+    and >= 0 (a frequency ratio)."""
+    x = check_finite_real("nu", nu)
+    if x < 0.0:
+        raise ValueError(f"nu must be finite and >= 0, got {nu!r}")
+    return x
+
+
+def rational_denominator(nu: float, q_max: int = Q_MAX, tol: float = RATIONAL_TOL) -> int:
     """``q`` if ``nu`` equals ``p/q`` (lowest terms, ``q <= q_max``) within ``tol``, else 0.
 
     ``tol`` is relative to ``max(1, nu)`` so that grid values such as ``0.1 * 3`` count.
     """
-    nu = check_real("nu", nu)
-    if not math.isfinite(nu) or nu < 0.0:
-        raise ValueError(f"nu must be finite and >= 0, got {nu!r}")
-    if check_int("q_max", q_max) < 1:
+    nu = _check_nu(nu)
+    q_max = check_int("q_max", q_max)
+    tol = check_finite_real("tol", tol)
+    if tol < 0.0:
+        raise ValueError(f"tol must be finite and >= 0, got {tol!r}")
+    if q_max < 1:
         return 0
     frac = Fraction(nu).limit_denominator(q_max)
     if abs(float(frac) - nu) <= tol * max(1.0, nu):
@@ -124,10 +139,14 @@ def rational_denominator(nu: float, q_max: int = Q_MAX, tol: float = 1e-9) -> in
 def exact_rational(nu: float, q: int) -> float:
     """``p/q`` nearest to ``nu`` (used so a sweep's forcing is exactly periodic); ``q <= 0``
     leaves ``nu`` as it is."""
-    nu = check_real("nu", nu)
+    nu = _check_nu(nu)
     if check_int("q", q) <= 0:
         return float(nu)
-    return round(nu * q) / q
+    try:  # a huge q: nu * q is no longer a float (OverflowError, or inf for round)
+        return round(nu * q) / q
+    except OverflowError:
+        raise ValueError(f"q is too large for nu * q to be a float: nu = {nu!r}, "
+                         f"{got(q)}") from None
 
 
 @njit(cache=True, error_model="numpy")
@@ -161,9 +180,9 @@ def strobe_period(xs: np.ndarray, vs: np.ndarray, m_max: int = M_MAX,
     the samples cover the candidate period at least twice (``n - m >= max(m, 2)``), so a
     short record cannot look periodic by accident. A non-finite sample is never periodic.
     """
-    xs = np.ascontiguousarray(xs, dtype=np.float64)
-    vs = np.ascontiguousarray(vs, dtype=np.float64)
-    if xs.shape != vs.shape or xs.ndim != 1:
+    xs = real_array(xs, "xs must be a 1-d array of real numbers")
+    vs = real_array(vs, "vs must be a 1-d array of real numbers")
+    if xs.shape != vs.shape or xs.ndim != 1:  # (a scalar is no record of samples)
         raise ValueError(
             f"xs and vs must be 1-d arrays of the same length, got shapes {xs.shape} and "
             f"{vs.shape}"
@@ -172,7 +191,39 @@ def strobe_period(xs: np.ndarray, vs: np.ndarray, m_max: int = M_MAX,
     tol = check_real("tol", tol)
     if not (math.isfinite(tol) and tol >= 0.0):
         raise ValueError(f"tol must be finite and >= 0, got {tol!r}")
-    return int(_strobe_period(xs, vs, m_max, tol))
+    # periods beyond n / 2 are never accepted: clamping keeps a huge m_max (2**70) from
+    # overflowing numba's int64 without changing any result
+    return int(_strobe_period(np.ascontiguousarray(xs), np.ascontiguousarray(vs),
+                              min(m_max, xs.size), tol))
+
+
+def _int_array(name: str, value: object) -> np.ndarray:
+    """``value`` as an int64 array: ``TypeError`` naming ``name`` unless made of integers
+    (a float 1.0 or a string '0' would otherwise compare as a code)."""
+    real_array(value, f"{name} must be an integer or an array of integers")  # TypeErrors
+    a = np.asarray(value)
+    if a.dtype.kind not in "iu":
+        raise TypeError(f"{name} must be an integer or an array of integers (int64), "
+                        f"{got(value)}")
+    return a.astype(np.int64)
+
+
+def _check_denominators(nu: np.ndarray, q: np.ndarray) -> None:
+    """``ValueError`` unless each ``q`` is 0 (not tested) or the denominator of ``nu``, as
+    :func:`rational_denominator` finds it: a ``q = 1`` at ``nu = 0.5`` would call a beat
+    "periodic". Vectorised; the exact test runs only where the fast one fails (huge
+    ``nu * q``), so a sweep's own ``q`` never costs more than a few array operations."""
+    qf = np.where(q > 0, q, 1).astype(np.float64)
+    p = np.round(nu * qf)
+    with np.errstate(invalid="ignore"):
+        ok = ((q == 0) | ((q > 0) & (np.abs(p / qf - nu) <= RATIONAL_TOL * np.maximum(1.0, nu))
+                          & (np.gcd(np.where(np.abs(p) < 2.0**62, p, 1).astype(np.int64),
+                                    q) == 1)))
+    for k in np.flatnonzero(~ok):
+        n, d = float(nu.flat[k]), int(q.flat[k])
+        if d < 0 or (d > 0 and rational_denominator(n, d) != d):
+            raise ValueError(f"q must be 0 (not tested) or the denominator of nu = p/q in "
+                             f"lowest terms, got q = {d} for nu = {n!r}")
 
 
 def classify(n_stick: np.ndarray | float, stick_time: np.ndarray | float,
@@ -182,13 +233,33 @@ def classify(n_stick: np.ndarray | float, stick_time: np.ndarray | float,
     """Regime label(s) from window statistics (broadcasting; returns int8 array or scalar).
 
     The rules are listed in the module docstring. ``q`` is the tested denominator of ``nu``
-    (0: not tested) and ``period`` the stroboscopic period found (0: none).
+    (0: not tested) and ``period`` the stroboscopic period found (0: none). Inputs are
+    checked first (``TypeError``/``ValueError`` naming the argument): ``nu`` finite and
+    >= 0, ``q`` consistent with it, integer ``q``/``period``/``status``, and, where
+    ``status`` is OK, finite non-negative counts, times and periods (a failed run's
+    statistics are not read: its label is UNRESOLVED).
     """
-    n_stick, stick_time, n_reversal, nu, q, period, status = np.broadcast_arrays(
-        *(np.asarray(a) for a in (n_stick, stick_time, n_reversal, nu, q, period, status))
-    )
-    if np.any(~np.isfinite(nu.astype(float))):
-        raise ValueError("nu must be finite")
+    names = ("n_stick", "stick_time", "n_reversal", "nu")
+    arrays = [real_array(a, f"{k} must be a real number or an array of real numbers")
+              for k, a in zip(names, (n_stick, stick_time, n_reversal, nu), strict=True)]
+    arrays += [_int_array(k, a) for k, a in (("q", q), ("period", period), ("status", status))]
+    try:
+        n_stick, stick_time, n_reversal, nu, q, period, status = np.broadcast_arrays(*arrays)
+    except ValueError:
+        shapes = ", ".join(f"{k} {a.shape}" for k, a in zip(
+            (*names, "q", "period", "status"), arrays, strict=True))
+        raise ValueError(f"the arguments must broadcast to one shape, got {shapes}") from None
+    if not np.all(np.isfinite(nu)) or np.any(nu < 0.0):
+        bad = float(nu[~(np.isfinite(nu) & (nu >= 0.0))].flat[0])
+        raise ValueError(f"nu must be finite and >= 0, got {bad!r}")
+    _check_denominators(nu, q)
+    ok = status == STATUS_OK
+    for k, a in (("n_stick", n_stick), ("stick_time", stick_time), ("n_reversal", n_reversal),
+                 ("period", period)):
+        bad = ok & ~(np.isfinite(a) & (a >= 0))
+        if np.any(bad):
+            raise ValueError(f"{k} must be finite and >= 0 where status is OK, got "
+                             f"{a[bad].flat[0].item()!r}")
     stick = (n_stick > 0) | (stick_time > 0)
     periodic = (q == 1) & (period >= 1)
     out = np.where(n_reversal > 0, Regime.WM2, Regime.WM1).astype(np.int8)
@@ -203,8 +274,8 @@ def classify_stats(stats: np.ndarray, nu: np.ndarray | float, q: np.ndarray | in
                    period: np.ndarray | int = 0,
                    status: np.ndarray | int = STATUS_OK) -> np.ndarray:
     """:func:`classify` on statistics arrays of layout ``ST_*`` (last axis ``N_STATS``)."""
-    stats = np.asarray(stats, dtype=float)
-    if stats.shape[-1] != N_STATS:
+    stats = real_array(stats, "stats must be an array of real numbers (layout ST_*)")
+    if stats.ndim < 1 or stats.shape[-1] != N_STATS:
         raise ValueError(f"stats must have last axis {N_STATS}, got shape {stats.shape}")
     return classify(stats[..., ST_N_STICK], stats[..., ST_STICK_TIME],
                     stats[..., ST_N_REVERSAL], nu, q, period, status)

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 import platform
 import shutil
 import sys
@@ -21,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .checks import check_output_dir
+from .checks import check_bool, check_int, check_output_dir, check_output_file, got, items_of
 from .layout import (
     METHOD_EXACT,
     ST_DURATION,
@@ -71,6 +72,9 @@ ETA_NAMES = {1 / 9: "1/9", 1 / 5: "1/5", 5 / 3: "5/3", 7 / 3: "7/3", 5 / 17: "5/
              3 / 5: "3/5"}
 #: nu axis: (0, 4] in steps of 4 / n_nu, so integers (periodic rows) lie on the grid.
 NU_MAX = 4.0
+
+#: The parts a run may do (``--only``), in order.
+PARTS = ("2", "3", "4-7", "8-10")
 
 #: Fig. 3 panels (lambda, nu) and the amplitudes drawn.
 AMP_PANELS = [(0.25, 1.15), (0.25, 2.5), (0.5, 1.15), (0.5, 2.5)]
@@ -296,17 +300,111 @@ def _verdict(ok: bool | None, partly: bool = False, inputs: Sequence[float] = ()
 
 
 # ------------------------------------------------------------------------------------------
-def run(out: Path, quick: bool = False, docs: Path | None = None, n_threads: int | None = None,
-        progress: bool = True, only: Sequence[str] = ("2", "3", "4-7", "8-10"),
-        resolution: int | None = None) -> Path:
-    """Write all figures and ``report.md`` into ``out``; return the report's path."""
-    from . import plotting
-    from .simulate import simulate
+#: Names of run's arguments in error messages: the Python API's own, or the CLI's options.
+API_NAMES = {k: k for k in ("out", "docs", "n_threads", "resolution", "quick", "progress",
+                            "only")}
+CLI_NAMES = dict(API_NAMES, n_threads="--threads", only="--only", progress="--no-progress",
+                 out="--out", docs="--docs", resolution="--resolution", quick="--quick")
 
-    t_start = time.perf_counter()
+
+def _resolution(quick: bool, resolution: int | None) -> Resolution:
     res = QUICK if quick else FULL
     if resolution is not None:
         res = Resolution(resolution, resolution, res.n_eta_curve, res.n_eta_sim)
+    return res
+
+
+def _map_path(out: Path, fig: int, law: str, eta: float, res: Resolution) -> Path:
+    return out / "maps" / f"fig{fig}_{law}_eta{eta:.5f}_{res.n_u0}x{res.n_nu}.npz"
+
+
+def _outputs(out: Path, only: Sequence[str], res: Resolution) -> list[Path]:
+    """Every file a run of the parts ``only`` writes into ``out``."""
+    files = [out / "report.md"]
+    if "2" in only:
+        files.append(out / "fig2_friction_laws.png")
+    if "3" in only:
+        files.append(out / "fig3_amplitude.png")
+    if "4-7" in only:
+        files += [out / f"fig{f}_time_history.png" for f in sorted({f for f, *_ in
+                                                                     TIME_HISTORIES})]
+    if "8-10" in only:
+        for fig, (law, panels) in MAP_FIGURES.items():
+            files.append(out / f"fig{fig}_regime_maps.png")
+            files += [_map_path(out, fig, law, eta, res) for eta, _ in panels]
+    return files
+
+
+def _as_path(name: str, value: object) -> Path:
+    if not isinstance(value, (str, os.PathLike)) or isinstance(os.fspath(value), bytes):
+        raise TypeError(f"{name} must be a str or os.PathLike folder, {got(value)}")
+    return Path(value)
+
+
+def check_run_args(out: object, quick: object = False, docs: object = None,
+                   n_threads: object = None, progress: object = True,
+                   only: object = PARTS, resolution: object = None,
+                   names: dict[str, str] = API_NAMES
+                   ) -> tuple[Path, bool, Path | None, int | None, bool, tuple[str, ...],
+                              int | None]:
+    """:func:`run`'s arguments checked and normalised, before any work: a run of hours must
+    not end in a traceback for a bad path found at its end (``names``: how messages call
+    each argument). ``TypeError``/``ValueError`` naming the argument.
+
+    Besides types and ranges, every file the run will write (figures, ``report.md``, the map
+    caches under ``maps``, copies in ``docs``) must not be a folder, and ``maps`` must not
+    be a file. ``docs`` may be ``out`` itself: the images are then already there.
+    """
+    out = _as_path(names["out"], out)
+    quick = check_bool(names["quick"], quick)
+    docs = None if docs is None else _as_path(names["docs"], docs)
+    progress = check_bool(names["progress"], progress)
+    if n_threads is not None:
+        try:
+            n_threads = check_n_threads(n_threads)
+        except (TypeError, ValueError) as e:
+            if names["n_threads"] == "n_threads":
+                raise
+            raise type(e)(f"{names['n_threads']}: {e}") from None
+    if resolution is not None:
+        resolution = check_int(names["resolution"], resolution)
+        if not 2 <= resolution <= MAX_RESOLUTION:
+            raise ValueError(f"{names['resolution']} must be 2 to {MAX_RESOLUTION} cells per "
+                             f"axis, got {resolution}")
+    parts = items_of(only)
+    if parts is None or not all(isinstance(k, str) for k in parts):
+        raise TypeError(f"{names['only']} must be a list of part names from {list(PARTS)}, "
+                        f"{got(only)}")
+    bad = sorted(set(parts) - set(PARTS))
+    if bad:
+        raise ValueError(f"{names['only']}: unknown parts {bad}; expected some of "
+                         f"{list(PARTS)}")
+    if not parts:
+        raise ValueError(f"{names['only']} is empty: nothing to do")
+    only = tuple(k for k in PARTS if k in parts)
+    check_output_dir(names["out"], out)
+    for f in _outputs(out, only, _resolution(quick, resolution)):
+        check_output_file(names["out"], f)
+    if docs is not None and "8-10" in only:
+        check_output_dir(names["docs"], docs)
+        for fig in MAP_FIGURES:
+            check_output_file(names["docs"], docs / f"fig{fig}_regime_maps.png")
+    return out, quick, docs, n_threads, progress, only, resolution
+
+
+def run(out: str | os.PathLike, quick: bool = False, docs: str | os.PathLike | None = None,
+        n_threads: int | None = None, progress: bool = True, only: Sequence[str] = PARTS,
+        resolution: int | None = None) -> Path:
+    """Write the figures of the parts ``only`` and ``report.md`` into ``out`` (the map images
+    also into ``docs``); return the report's path. Arguments are checked first
+    (:func:`check_run_args`), so a bad one fails before anything is computed or written."""
+    from . import plotting
+    from .simulate import simulate
+
+    out, quick, docs, n_threads, progress, only, resolution = check_run_args(
+        out, quick, docs, n_threads, progress, only, resolution)
+    t_start = time.perf_counter()
+    res = _resolution(quick, resolution)
     settings = SweepSettings()
     out.mkdir(parents=True, exist_ok=True)
     rep = Report()
@@ -451,8 +549,7 @@ def run(out: Path, quick: bool = False, docs: Path | None = None, n_threads: int
             for eta, u_range in panels_:
                 u0, nu = map_grid(u_range, res)
                 p = OscillatorParams.preset(law, eta=eta)
-                path = out / "maps" / (f"fig{fig}_{law}_eta{eta:.5f}_{res.n_u0}x{res.n_nu}"
-                                       ".npz")
+                path = _map_path(out, fig, law, eta, res)
                 try:
                     m = regime_map(p, u0, nu, settings=settings, path=path,
                                    n_threads=n_threads, progress=progress,
@@ -473,7 +570,8 @@ def run(out: Path, quick: bool = False, docs: Path | None = None, n_threads: int
             plotting.save(fig_obj, out / name)
             if docs is not None:
                 docs.mkdir(parents=True, exist_ok=True)
-                shutil.copy(out / name, docs / name)
+                if not ((docs / name).exists() and (docs / name).samefile(out / name)):
+                    shutil.copy(out / name, docs / name)  # (docs may be out itself)
         _map_observations(rep, maps)
 
     # -- timings ------------------------------------------------------------------------
@@ -728,24 +826,13 @@ def main(argv: Sequence[str] | None = None) -> int:
                     help="comma-separated parts: 2, 3, 4-7, 8-10 (default: all)")
     ap.add_argument("--no-progress", action="store_true", help="no progress bars")
     a = ap.parse_args(argv)
-    if a.threads is not None:
-        try:
-            check_n_threads(a.threads)
-        except ValueError as e:
-            ap.error(f"--threads: {e}")
-    if a.resolution is not None and not 2 <= a.resolution <= MAX_RESOLUTION:
-        ap.error(f"--resolution must be 2 to {MAX_RESOLUTION} cells per axis, got {a.resolution}")
     out = a.out or Path("out") / ("reproduce-quick" if a.quick else "reproduce")
-    try:  # before any map is computed: a late FileExistsError would leave half a report
-        check_output_dir("--out", out)
-        if a.docs is not None:
-            check_output_dir("--docs", a.docs)
-    except ValueError as e:
-        ap.error(str(e))
     only = tuple(s.strip() for s in a.only.split(","))
-    bad = set(only) - {"2", "3", "4-7", "8-10"}
-    if bad:
-        ap.error(f"unknown parts {sorted(bad)}")
+    try:  # before any map is computed: a late error would leave half a report
+        check_run_args(out, a.quick, a.docs, a.threads, not a.no_progress, only,
+                       a.resolution, names=CLI_NAMES)
+    except (TypeError, ValueError) as e:
+        ap.error(str(e))
     t0 = time.perf_counter()
     path = run(out, quick=a.quick, docs=a.docs, n_threads=a.threads,
                progress=not a.no_progress, only=only, resolution=a.resolution)

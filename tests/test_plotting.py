@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import re
 import sys
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -130,8 +132,11 @@ def test_reproduce_coarse_maps_judge_nothing_they_cannot(tmp_path) -> None:
 
     with warnings.catch_warnings():
         warnings.simplefilter("error")
+        # --docs the same folder as --out: the copy is skipped (was shutil.SameFileError
+        # after all the maps, and no report)
         assert main(["--only", "8-10", "--resolution", "2", "--out", str(tmp_path),
-                     "--no-progress"]) == 0
+                     "--docs", str(tmp_path), "--no-progress"]) == 0
+    assert (tmp_path / "fig10_regime_maps.png").exists()
     rows = [r for r in (tmp_path / "report.md").read_text().splitlines()
             if r.startswith("| Fig")]
     verdicts = [r.rsplit("|", 2)[1].strip() for r in rows]
@@ -204,3 +209,166 @@ def test_reproduce_quick_end_to_end(tmp_path) -> None:
     for k in (2, 3, 8, 9, 10):
         assert list(tmp_path.glob(f"fig{k}_*.png")), k
     assert "| verdict |" in (tmp_path / "report.md").read_text()
+
+
+# -- argument checks (review 18: D3, D4, D8, maps figure) ----------------------------------
+@pytest.mark.parametrize(
+    ("setup", "argv", "needle"),
+    [("report.md/", ["--only", "2"], "--out '{out}/report.md' is a folder"),
+     ("maps", ["--only", "8-10"], "--out '{out}/maps': '{out}/maps' exists and is not a"),
+     ("fig2_friction_laws.png/", ["--only", "2"], "fig2_friction_laws.png' is a folder"),
+     ("maps/fig8_coulomb_eta0.11111_2x2.npz/", ["--only", "8-10", "--resolution", "2"],
+      "fig8_coulomb_eta0.11111_2x2.npz' is a folder"),
+     ("docs/fig9_regime_maps.png/", ["--only", "8-10", "--docs", "{out}/docs"],
+      "--docs '{out}/docs/fig9_regime_maps.png' is a folder"),
+     (None, ["--only", "2,3x"], "--only: unknown parts ['3x']")],
+)
+def test_reproduce_cli_checks_the_files_in_its_folders(setup, argv, needle, capsys,
+                                                       tmp_path) -> None:
+    """These failed only after the work (IsADirectoryError at the end, FileExistsError after
+    the first map chunk), leaving no report."""
+    from fricenv.reproduce import main
+
+    out = tmp_path / "o"
+    if setup:
+        (out / setup).parent.mkdir(parents=True, exist_ok=True)
+        (out / setup).mkdir() if setup.endswith("/") else (out / setup).write_text("")
+    before = sorted(tmp_path.rglob("*"))
+    with pytest.raises(SystemExit) as e:
+        main([*(a.format(out=out) for a in argv), "--out", str(out), "--no-progress"])
+    assert e.value.code == 2 and needle.format(out=out) in capsys.readouterr().err
+    assert sorted(tmp_path.rglob("*")) == before
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "exc", "needle"),
+    [(dict(out=5), TypeError, "out must be a str or os.PathLike"),
+     (dict(docs=5, only=("8-10",)), TypeError, "docs must be a str or os.PathLike"),
+     (dict(n_threads=0), ValueError, "n_threads must be in [1, "),
+     (dict(n_threads=1.0), TypeError, "n_threads must be an integer"),
+     (dict(resolution=0), ValueError, "resolution must be 2 to 1000 cells per axis, got 0"),
+     (dict(resolution=2.5), TypeError, "resolution must be an integer, got 2.5"),
+     (dict(quick="no"), TypeError, "quick must be a bool"),
+     (dict(progress="no"), TypeError, "progress must be a bool"),
+     (dict(only="2,3x"), TypeError, "only must be a list of part names"),
+     (dict(only=("2", 3)), TypeError, "only must be a list of part names"),
+     (dict(only=("x",)), ValueError, "only: unknown parts ['x']"),
+     (dict(only=()), ValueError, "only is empty"),
+     (dict(out="{tmp}/afile"), ValueError, "out '{tmp}/afile': '{tmp}/afile' exists"),
+     (dict(docs="{tmp}/afile", only=("8-10",)), ValueError, "docs '{tmp}/afile'")],
+)
+def test_reproduce_run_checks_its_arguments_first(kwargs, exc, needle, tmp_path) -> None:
+    """reproduce.run validated nothing: errors came after fig2 or all the maps were written,
+    quick='no' ran as quick, only='2,3x' ran parts 2 and 3 (substring test) and only=('x',)
+    wrote an empty report. Now nothing is computed or written."""
+    from fricenv.reproduce import run
+
+    (tmp_path / "afile").write_text("")
+    args = dict(out=tmp_path / "r", only=("2",), progress=False)
+    args.update({k: v.format(tmp=tmp_path) if isinstance(v, str) and k != "only" else v
+                 for k, v in kwargs.items()})
+    with pytest.raises(exc, match=re.escape(needle.format(tmp=tmp_path))):
+        run(**args)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["afile"]
+
+
+def test_reproduce_run_takes_a_str_folder(tmp_path) -> None:
+    """run('folder') raised AttributeError: 'str' object has no attribute 'mkdir'."""
+    from fricenv.reproduce import run
+
+    path = run(str(tmp_path / "r"), only=["2"], progress=False)
+    assert path == tmp_path / "r" / "report.md" and path.exists()
+    assert (tmp_path / "r" / "fig2_friction_laws.png").exists()
+
+
+def test_save_returns_the_file_it_wrote(tmp_path) -> None:
+    """Without a suffix save returned 'x' but wrote 'x.png'; the figure stays usable."""
+    fig = plotting.friction_laws_figure()
+    out = plotting.save(fig, tmp_path / "sub" / "x")
+    assert out == tmp_path / "sub" / "x.png" and out.exists()
+    out = plotting.save(fig, str(tmp_path / "y.svg"), dpi=72.5)
+    assert out == tmp_path / "y.svg" and out.read_text().lstrip().startswith("<?xml")
+    assert plotting.save(fig, tmp_path / "z.PDF").read_bytes()[:4] == b"%PDF"
+
+
+@pytest.mark.parametrize(
+    ("fig", "path", "dpi", "exc", "needle"),
+    [("fig", "{tmp}/d", 130, ValueError, "path must name a file, got the folder"),
+     ("fig", "{tmp}/new/x.foo", 130, ValueError, "unknown image format 'foo'"),
+     ("fig", "{tmp}/new/x.png", "high", TypeError, "dpi must be a real number"),
+     ("fig", "{tmp}/new/x.png", 0, ValueError, "dpi must be > 0"),
+     ("fig", "{tmp}/new/x.png", 10**5, ValueError, "dpi must be > 0 and give at most"),
+     ("fig", "{tmp}/new/x.png", float("nan"), ValueError, "dpi must be finite"),
+     ("fig", "{tmp}/new/x.png", True, TypeError, "dpi must be a real number"),
+     (None, "{tmp}/new/x.png", 130, TypeError, "fig must be a matplotlib Figure"),
+     ("fig", 5, 130, TypeError, "path must be a str or os.PathLike"),
+     ("fig", b"x.png", 130, TypeError, "path must be a str or os.PathLike"),
+     ("fig", "{tmp}/afile/x.png", 130, ValueError, "path '{tmp}/afile': '{tmp}/afile'")],
+)
+def test_save_checks_before_making_folders(fig, path, dpi, exc, needle, tmp_path) -> None:
+    """These failed after mkdir (an empty folder left), in pathlib naming nothing, wrote
+    d.png beside a folder d, or ran out of memory (dpi = 1e5)."""
+    (tmp_path / "d").mkdir()
+    (tmp_path / "afile").write_text("")
+    fig = plotting.friction_laws_figure() if fig else fig
+    path = path.format(tmp=tmp_path) if isinstance(path, str) else path
+    with pytest.raises(exc, match=re.escape(needle.format(tmp=tmp_path))):
+        plotting.save(fig, path, dpi=dpi)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["afile", "d"]
+    assert not any((tmp_path / "d").iterdir())
+
+
+def _toy_map(u0: np.ndarray, nu: np.ndarray) -> SimpleNamespace:
+    """A map-like object: stick in a band that moves with nu, periodic at integer nu."""
+    uu, nn = np.meshgrid(u0, nu, indexing="ij")
+    labels = np.where((uu > 1 / (1 + nn)) & (uu < 4 * (1 + nn)), Regime.SSM1, Regime.WM1)
+    labels = np.where(np.isclose(nn, np.round(nn)) & (labels == Regime.WM1),
+                      Regime.PERIODIC_OSCILLATION, labels)
+    return SimpleNamespace(u0=u0, nu=nu, labels=labels.astype(np.int8))
+
+
+def _drawn(m: object) -> tuple:
+    fig = plotting.regime_maps_figure([m])
+    ax = fig.axes[0]
+    return (np.asarray(ax.collections[0].get_array()).tolist(), ax.get_xscale(),
+            [ln.get_xydata().tolist() for ln in ax.lines])
+
+
+def test_unsorted_grid_is_drawn_as_the_sorted_one() -> None:
+    """Unsorted axes were drawn with meaningless cell edges and boundary lines."""
+    u0, nu = np.geomspace(0.1, 50, 9), np.linspace(0.25, 3.0, 12)
+    rng = np.random.default_rng(0)
+    iu, jn = rng.permutation(u0.size), rng.permutation(nu.size)
+    m = _toy_map(u0, nu)
+    shuffled = SimpleNamespace(u0=u0[iu], nu=nu[jn], labels=m.labels[np.ix_(iu, jn)])
+    assert _drawn(shuffled) == _drawn(m)
+    assert _drawn(m)[1] == "log"
+    for axis in ("u0", "nu"):
+        dup = _toy_map(u0, nu)
+        setattr(dup, axis, np.sort(np.r_[getattr(dup, axis)[:-1], getattr(dup, axis)[0]]))
+        with pytest.raises(ValueError, match=f"rmap.{axis} must not repeat a value"):
+            plotting.regime_maps_figure([dup])
+    bad = _toy_map(u0, nu)
+    bad.labels = bad.labels[:, :-1]
+    with pytest.raises(ValueError, match="rmap.labels must have shape"):
+        plotting.regime_maps_figure([bad])
+
+
+def test_regime_maps_figure_checks_maps_and_titles() -> None:
+    """A short titles list gave IndexError and maps=[] a matplotlib error; five maps give
+    a 3 x 2 grid, as the docstring now says (two per row)."""
+    m = _toy_map(np.geomspace(0.1, 50, 4), np.linspace(0.5, 2.0, 4))
+    with pytest.raises(ValueError, match=re.escape("titles must have one entry per map (2)")):
+        plotting.regime_maps_figure([m, m], ["(a)"])
+    with pytest.raises(ValueError, match="titles must have one entry per map"):
+        plotting.regime_maps_figure([m], [])
+    with pytest.raises(TypeError, match="titles must be a list of str"):
+        plotting.regime_maps_figure([m, m], "ab")
+    with pytest.raises(ValueError, match="maps is empty"):
+        plotting.regime_maps_figure([])
+    with pytest.raises(TypeError, match="maps must be a list of RegimeMap"):
+        plotting.regime_maps_figure(m)
+    with pytest.raises(TypeError, match="rmap must be a RegimeMap"):
+        plotting.regime_maps_figure([5])
+    fig = plotting.regime_maps_figure([m] * 5, [f"({k})" for k in "abcde"])
+    assert len([ax for ax in fig.axes if ax.get_visible()]) == 5 and len(fig.axes) == 6

@@ -2,9 +2,13 @@
 
 from __future__ import annotations
 
+import re
+from fractions import Fraction
+
 import numpy as np
 import pytest
 
+from fricenv.checks import check_real, real_array
 from fricenv.layout import (
     N_STATS,
     ST_DURATION,
@@ -193,3 +197,110 @@ def test_classifier_on_simulated_cases() -> None:
     # Fig. 7: velocity stays below the belt speed (README, Model: amplitude ~0.68)
     assert stats[4, ST_V_MAX] < 1.0
     assert period[4] == 1 and period[5] == 1
+
+
+# -- argument checks (review 18: D6, D9, preset) -------------------------------------------
+@pytest.mark.parametrize(
+    ("kwargs", "exc", "needle"),
+    [(dict(q=1, period=1), ValueError, "q must be 0 (not tested) or the denominator"),
+     (dict(q=4), ValueError, "got q = 4 for nu = 0.5"),
+     (dict(q=-1), ValueError, "q must be 0"),
+     (dict(n_stick=np.nan), ValueError, "n_stick must be finite and >= 0"),
+     (dict(stick_time=-1.0), ValueError, "stick_time must be finite and >= 0"),
+     (dict(n_reversal=np.inf), ValueError, "n_reversal must be finite"),
+     (dict(period=-1), ValueError, "period must be finite and >= 0"),
+     (dict(nu=-3.0), ValueError, "nu must be finite and >= 0, got -3.0"),
+     (dict(nu=np.inf), ValueError, "nu must be finite"),
+     (dict(nu="0.5"), TypeError, "nu must be a real number"),
+     (dict(n_stick="1"), TypeError, "n_stick must be a real number"),
+     (dict(n_stick=None), TypeError, "n_stick must be a real number"),
+     (dict(stick_time=1j), TypeError, "stick_time must be a real number"),
+     (dict(status="0"), TypeError, "status must be an integer"),
+     (dict(period=1.0), TypeError, "period must be an integer"),
+     (dict(q=True), TypeError, "q must be an integer"),
+     (dict(n_stick=np.zeros(3), nu=np.full(4, 0.5)), ValueError, "must broadcast"),
+     ],
+)
+def test_classify_refuses_bad_inputs(kwargs, exc, needle) -> None:
+    """Each was labelled silently (q = 1 at nu = 0.5 as PERIODIC_OSCILLATION, NaN counts as
+    WM1, nu < 0 as SSM1, status '0' as UNRESOLVED) or failed in numpy naming nothing."""
+    args = dict(n_stick=0, stick_time=0.0, n_reversal=0, nu=0.5, q=0, period=0, status=0)
+    args.update(kwargs)
+    with pytest.raises(exc, match=re.escape(needle)):
+        classify(**args)
+
+
+def test_classify_reads_no_statistics_of_a_failed_run() -> None:
+    """A run that stopped may leave NaN statistics: its label is UNRESOLVED, no error."""
+    assert classify(np.nan, np.nan, np.nan, 0.5, status=STATUS_NONFINITE) == \
+        Regime.UNRESOLVED
+    # q consistent with nu, including rounding noise of a grid value and q = 0 (not tested)
+    assert classify(0, 0.0, 0, 0.1 * 3 * 10, q=1, period=1) == Regime.PERIODIC_OSCILLATION
+    assert classify(0, 0.0, 0, 0.75, q=4, period=1) == Regime.WM1
+    assert classify(0, 0.0, 0, 0.5, q=0, period=1) == Regime.WM1
+
+
+@pytest.mark.parametrize(
+    ("call", "exc", "needle"),
+    [(lambda: classify_stats(5, 0.5), ValueError, "stats must have last axis"),
+     (lambda: classify_stats(None, 0.5), TypeError, "stats must be an array of real"),
+     (lambda: classify_stats(["a"] * N_STATS, 0.5), TypeError, "stats must be an array"),
+     (lambda: strobe_period(None, None), TypeError, "xs must be a 1-d array of real"),
+     (lambda: strobe_period(5, 5), ValueError, "xs and vs must be 1-d arrays"),
+     (lambda: strobe_period("abc", "abc"), TypeError, "xs must be"),
+     (lambda: strobe_period(np.zeros(6), np.zeros(6) + 0j), TypeError, "vs must be"),
+     (lambda: exact_rational(float("nan"), 2), ValueError, "nu must be finite, got nan"),
+     (lambda: exact_rational(float("inf"), 2), ValueError, "nu must be finite, got inf"),
+     (lambda: exact_rational(-0.5, 2), ValueError, "nu must be finite and >= 0"),
+     (lambda: exact_rational(0.5, 10**400), ValueError, "q is too large"),
+     (lambda: rational_denominator(0.5, 4, "x"), TypeError, "tol must be a real number"),
+     (lambda: rational_denominator(0.5, 4, -1.0), ValueError, "tol must be finite and >= 0"),
+     ],
+)
+def test_regime_helpers_name_bad_arguments(call, exc, needle) -> None:
+    """strobe_period(None, None) returned 0 and a scalar passed; the helpers raised numpy's
+    or Python's own errors (IndexError, OverflowError, ...) naming nothing."""
+    with pytest.raises(exc, match=re.escape(needle)):
+        call()
+
+
+def test_strobe_period_with_a_huge_m_max() -> None:
+    """m_max = 2**70 overflowed numba's int64; periods beyond n / 2 are never accepted."""
+    assert strobe_period(np.ones(6), np.ones(6), m_max=2**70) == 1
+    assert strobe_period(np.ones(2), np.ones(2), m_max=2**70) == 0
+
+
+@pytest.mark.parametrize(
+    ("call", "needle"),
+    [(lambda: OscillatorParams(u0=10**400), "u0 must lie within +-1e+12"),
+     (lambda: OscillatorParams(u0=Fraction(10**400, 3)), "u0 must lie within +-1e+12"),
+     (lambda: OscillatorParams(lam=-10**5000), "lam must lie within +-1e+12"),
+     (lambda: check_real("x", 10**400), "x must lie within +-1.79769e+308 (float64)"),
+     (lambda: real_array([0.5, 10**400], "u0 must be an array of real numbers"),
+      "u0 must be an array of real numbers, each within"),
+     (lambda: strobe_period(np.ones(6), np.ones(6), tol=10**400), "tol must lie within"),
+     ],
+)
+def test_huge_python_numbers_are_value_errors_naming_the_argument(call, needle) -> None:
+    """float(10**400) raised a bare OverflowError naming nothing; the message abbreviates the
+    number (str() of an int beyond 4300 digits even raises)."""
+    with pytest.raises(ValueError, match=re.escape(needle)) as e:
+        call()
+    assert len(str(e.value)) < 250 and "e+" in str(e.value)
+
+
+def test_regime_map_refuses_a_huge_int_axis() -> None:
+    from fricenv.sweep import regime_map
+
+    with pytest.raises(ValueError, match="u0 must be an array of real numbers, each within"):
+        regime_map("coulomb", [10**400], [0.5])
+
+
+def test_preset_law_must_be_a_string() -> None:
+    """preset(5) and preset(None) raised ValueError ("unknown friction law 5")."""
+    for law in (5, None, b"coulomb"):
+        with pytest.raises(TypeError, match="law must be a friction law name"):
+            OscillatorParams.preset(law)
+    with pytest.raises(ValueError, match="law: unknown friction law 'x'"):
+        OscillatorParams.preset("x")
+    assert OscillatorParams.preset("Viscosity").b1 == 0.2
