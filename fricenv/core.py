@@ -64,6 +64,7 @@ from .layout import (
     STATUS_EVENT_CAP,
     STATUS_NONFINITE,
     STATUS_OK,
+    STATUS_TOO_STIFF,
 )
 from .params import P_B1, P_B3, P_LAM, P_U1, P_U2, P_V, P_W1, P_W2, P_XFK, P_XFS
 
@@ -1952,6 +1953,14 @@ def _run_event(P, S, t_span, out_t, stats, max_events, rtol, atol, out_x, out_v,
                 # (a floor keeps time moving if the series blows up; the state then turns
                 # non-finite and the run stops with STATUS_NONFINITE)
                 h_floor = 1e-13 * max(1.0, abs(t))
+                if h < h_floor and k_stiff * h_floor > 1.0:
+                    # A floored step longer than the stiff time scale 1 / |df/dv| is neither
+                    # accurate nor (from about 2.5) stable: its polynomial became a bogus
+                    # contact (the block then rode the belt: 69 % off in x after one unit of
+                    # tau, status OK) or an overflow (|v - V| ~ 1e7 with the cubic law, or
+                    # stiff slip continued at a large t). The run stops instead.
+                    status = STATUS_TOO_STIFF
+                    break
                 hstep = min(h if h > h_floor else h_floor, cap_slip, t_stop - t)
                 while True:  # halved until v provably has one extremum at most
                     v1, a1, j1 = _dense_v(cx, hstep)

@@ -36,6 +36,7 @@ STATUS_OK = 0
 STATUS_EVENT_CAP = 1  # more events than the cap allows: chattering / Zeno-like run
 STATUS_NONFINITE = 2  # the state became NaN or infinite
 STATUS_BUFFER_FULL = 3  # trajectory kernel: event buffer full (the wrapper grows it)
+STATUS_TOO_STIFF = 4  # slip stiffer than the smallest step the time resolution allows can follow
 
 # Event kinds in a trajectory.
 EVENT_STICK = 1  # slip -> stick

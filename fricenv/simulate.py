@@ -39,6 +39,7 @@ from .layout import (
     STATUS_EVENT_CAP,
     STATUS_NONFINITE,
     STATUS_OK,
+    STATUS_TOO_STIFF,
 )
 from .params import P_LAM, P_W1, P_W2, PARAM_LIMIT, OscillatorParams
 
@@ -145,6 +146,12 @@ def _raise_status(status: int, t: float, max_events: int, t_span: float) -> None
         )
     if status == STATUS_NONFINITE:
         raise SimulationError(f"the state became non-finite at t = {t:.6g}")
+    if status == STATUS_TOO_STIFF:
+        raise SimulationError(
+            f"slip at t = {t:.6g} is stiffer than the smallest step the time resolution allows "
+            f"(1e-13 max(1, |t|)) can follow: |v - V| far beyond the model's O(1) scale with "
+            f"the cubic law (about 5e6 at t < 1), or stiff slip continued at a large t"
+        )
     if status != STATUS_OK:
         raise SimulationError(f"kernel returned status {status} at t = {t:.6g}")
 

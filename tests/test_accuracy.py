@@ -408,6 +408,25 @@ def test_vr2_integral_over_rosenbrock_steps(rtol: float, tol: float) -> None:
     assert abs(s.vr2_integral / ref - 1.0) <= tol
 
 
+@pytest.mark.parametrize("v0", [7e6, 1e10])
+def test_slip_too_stiff_for_the_smallest_step_is_an_error(v0: float) -> None:
+    """From |v - V| ~ 1e7 with the cubic law the stiff time scale 1 / |df/dv| is below the
+    smallest step the time resolution allows (1e-13 at t < 1); the floored Taylor step then
+    made a bogus stick at t ~ 1e-13 (the block rode the belt, x 69 % off at tau = 1, status
+    OK) or an overflow. Both paths now refuse it; from 1e6 the transient is still resolved
+    (from any start this fast, the displacement to v = V differs by < 1e-5)."""
+    from fricenv import OscillatorParams, OscillatorState, SimulationError, run_stats, simulate
+
+    p = OscillatorParams.preset("stribeck")
+    with pytest.raises(SimulationError, match="stiffer than the smallest step"):
+        simulate(p, 1.0, v0=v0, dt_out=1.0)
+    with pytest.raises(SimulationError, match="stiffer than the smallest step"):
+        run_stats(p, 1.0, state=OscillatorState.start(p, 0.0, v0))
+    tr = simulate(p, 1.0, v0=1e6, dt_out=1.0)
+    s = run_stats(p, 1.0, state=OscillatorState.start(p, 0.0, 1e6))
+    assert abs(tr.x[-1] - 3.27025) < 1e-5 and abs(s.state.x - 3.27025) < 1e-5
+
+
 @pytest.mark.parametrize("u0", [2000.0, 5000.0])
 def test_stiff_stretches_on_the_stats_path(u0: float) -> None:
     """At large u0 the cubic law's slope makes slip stiff; the stats-only path then takes

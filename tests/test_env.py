@@ -1045,3 +1045,14 @@ def test_regions_tile_the_plants(n_workers):
             assert kernels._region(min(first + 1, n_workers - 1), n_workers, n) == (lo, hi)
             hits[lo:hi] += 1
         assert np.all(hits == 1)
+
+
+def test_every_kernel_status_has_its_own_message() -> None:
+    """A plant too stiff for the integrator says so (not "failed with status 4")."""
+    from fricenv.envs.stick_slip import raise_status
+    from fricenv.layout import STATUS_EVENT_CAP, STATUS_NONFINITE, STATUS_TOO_STIFF
+
+    for status, text in ((STATUS_EVENT_CAP, "chattered"), (STATUS_NONFINITE, "NaN"),
+                         (STATUS_TOO_STIFF, "too stiff")):
+        with pytest.raises(RuntimeError, match=text):
+            raise_status(status, None, " 3")

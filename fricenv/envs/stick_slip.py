@@ -49,6 +49,7 @@ from fricenv.layout import (
     S_X,
     STATUS_EVENT_CAP,
     STATUS_NONFINITE,
+    STATUS_TOO_STIFF,
 )
 from fricenv.params import (
     N_PARAMS,
@@ -219,6 +220,9 @@ def raise_status(status: int, action: Any, where: str = "") -> None:
         )
     if status == STATUS_NONFINITE:
         raise RuntimeError(f"plant{where} state became NaN or infinite; reset the environment")
+    if status == STATUS_TOO_STIFF:
+        raise RuntimeError(f"plant{where}: slip too stiff for the integrator's smallest step "
+                           "(check the parameters passed at make/reset); reset the environment")
     raise RuntimeError(f"plant{where}: integrator failed with status {status}")
 
 
