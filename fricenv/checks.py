@@ -7,6 +7,7 @@ from __future__ import annotations
 import math
 import numbers
 import operator
+import os
 import sys
 from collections.abc import Iterable, Mapping
 from pathlib import Path
@@ -179,6 +180,20 @@ def check_dict(name: str, value: Any, what: str = "a dict") -> None:
     """``TypeError`` naming ``name`` unless ``value`` is a mapping or None."""
     if value is not None and not isinstance(value, Mapping):
         raise TypeError(f"{name} must be {what} or None, {got(value)}")
+
+
+def check_path(name: str, value: Any, what: str = "") -> Path:
+    """``value`` as a Path: ``TypeError`` naming ``name`` unless a str or an ``os.PathLike``
+    of str (an int would be a file descriptor to ``open``, bytes a second spelling);
+    ``what`` ("folder", "file name") ends the type's description in the message."""
+    if isinstance(value, os.PathLike):
+        fs = os.fspath(value)
+        if isinstance(fs, str):
+            return Path(fs)
+    elif isinstance(value, str):
+        return Path(value)
+    kind = f"os.PathLike {what}" if what else "os.PathLike"
+    raise TypeError(f"{name} must be a str or {kind}, {got(value)}")
 
 
 def check_output_dir(name: str, path: Any) -> Path:

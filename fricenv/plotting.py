@@ -18,7 +18,14 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
 
-from .checks import check_finite_real, check_output_file, got, items_of, real_array
+from .checks import (
+    check_finite_real,
+    check_output_file,
+    check_path,
+    got,
+    items_of,
+    real_array,
+)
 from .params import FRICTION_LAWS, OscillatorParams
 from .regimes import Regime
 
@@ -61,9 +68,7 @@ def save(fig: Figure, path: str | os.PathLike, dpi: float = 130) -> Path:
     """
     if not isinstance(fig, Figure):
         raise TypeError(f"fig must be a matplotlib Figure, {got(fig)}")
-    if not isinstance(path, (str, os.PathLike)) or isinstance(os.fspath(path), bytes):
-        raise TypeError(f"path must be a str or os.PathLike file name, {got(path)}")
-    path = Path(path)
+    path = check_path("path", path, "file name")
     if not path.name or path.is_dir():  # (with .png appended it would be written beside)
         raise ValueError(f"path must name a file, got the folder {str(path)!r}")
     if not path.suffix:

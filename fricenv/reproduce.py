@@ -22,7 +22,15 @@ from pathlib import Path
 
 import numpy as np
 
-from .checks import check_bool, check_int, check_output_dir, check_output_file, got, items_of
+from .checks import (
+    check_bool,
+    check_int,
+    check_output_dir,
+    check_output_file,
+    check_path,
+    got,
+    items_of,
+)
 from .layout import (
     METHOD_EXACT,
     ST_DURATION,
@@ -335,12 +343,6 @@ def _outputs(out: Path, only: Sequence[str], res: Resolution) -> list[Path]:
     return files
 
 
-def _as_path(name: str, value: object) -> Path:
-    if not isinstance(value, (str, os.PathLike)) or isinstance(os.fspath(value), bytes):
-        raise TypeError(f"{name} must be a str or os.PathLike folder, {got(value)}")
-    return Path(value)
-
-
 def check_run_args(out: object, quick: object = False, docs: object = None,
                    n_threads: object = None, progress: object = True,
                    only: object = PARTS, resolution: object = None,
@@ -355,9 +357,9 @@ def check_run_args(out: object, quick: object = False, docs: object = None,
     caches under ``maps``, copies in ``docs``) must not be a folder, and ``maps`` must not
     be a file. ``docs`` may be ``out`` itself: the images are then already there.
     """
-    out = _as_path(names["out"], out)
+    out = check_path(names["out"], out, "folder")
     quick = check_bool(names["quick"], quick)
-    docs = None if docs is None else _as_path(names["docs"], docs)
+    docs = None if docs is None else check_path(names["docs"], docs, "folder")
     progress = check_bool(names["progress"], progress)
     if n_threads is not None:
         try:

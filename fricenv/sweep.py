@@ -60,6 +60,7 @@ from .checks import (
     check_finite_real,
     check_int,
     check_output_dir,
+    check_path,
     check_rtol,
     got,
     real_array,
@@ -630,7 +631,7 @@ class RegimeMap:
     def load(cls, path: str | os.PathLike) -> RegimeMap:
         """Read a map written by :meth:`save` (``ValueError`` naming the file if it is not
         one, is incomplete or inconsistent)."""
-        path = _path_arg(path)
+        path = check_path("path", path)
         try:
             z = np.load(path, allow_pickle=False)
         except (ValueError, OSError, zipfile.BadZipFile) as exc:  # not an npz archive
@@ -694,24 +695,12 @@ def _check_map_arrays(arrays: dict[str, np.ndarray], plan: CellPlan | None) -> N
                              f"{grid[0]} x {grid[1]} grid, got {a.shape} {a.dtype}")
 
 
-def _path_arg(path: object) -> Path:
-    """``path`` as a Path: ``TypeError`` naming it unless a str or ``os.PathLike`` of str
-    (an int would be a file descriptor to ``open``, bytes a second spelling)."""
-    if isinstance(path, os.PathLike):
-        fs = os.fspath(path)
-        if isinstance(fs, str):
-            return Path(fs)
-    elif isinstance(path, str):
-        return Path(path)
-    raise TypeError(f"path must be a str or os.PathLike, {got(path)}")
-
-
 def _map_path(path: object) -> Path:
     """Where a map is saved: ``path`` with ``.npz`` appended if missing. ``TypeError`` for a
     non-path, ``ValueError`` naming ``path`` for a name that is no file ('', '.', '..') or
     a file that cannot be written (a folder there, a file among its parents), so that a
     sweep fails before its first chunk rather than at the first save."""
-    p = _path_arg(path)
+    p = check_path("path", path)
     if p.name in ("", ".", ".."):
         raise ValueError(f"path must name a file, got {str(path)!r}")
     if p.suffix != ".npz":
