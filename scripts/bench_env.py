@@ -18,7 +18,10 @@ charged to every 50th step. The physics floor
 vector env can be cheaper per plant-step than that on one thread. So is the vector step's
 numba call alone, on a twin vector env in the same rounds: the rest of the step is its
 Python (action checks, copies of the results, infos, and the switch to one thread while
-workers come late).
+workers come late). The same call on one thread, and the machine's thread ceiling (how
+much faster a perfectly balanced numba loop of equal items runs on all threads than on
+one), bound what threads can give: the last line of each env shows the ratio target 2
+would reach if the vector call gained the full ceiling over its one-thread time.
 
 Usage: ``python scripts/bench_env.py [--quick] [--no-ppo] [--json out.json]``
 """
@@ -142,20 +145,58 @@ def physics_floor(env_id: str, snapshots: int) -> float:
     return total / snapshots / 256
 
 
-def _kernel_stepper(vec, n_actions: int = 512, seed: int = 0) -> Callable[[], None]:
+def _kernel_stepper(vec, n_actions: int = 512, seed: int = 0,
+                    serial: bool = False) -> Callable[[], None]:
     """A closure making only the numba call of ``vec.step`` (and its rare buffer refill):
-    the step's cost without the Python around it (checks, copies of the results, infos)."""
+    the step's cost without the Python around it (checks, copies of the results, infos).
+    With ``serial``, the one-thread kernel instead of the env's own."""
     from fricenv.envs import kernels as K
 
     actions = _actions(vec, n_actions, seed)
+    kernel = K.step_batch if serial else vec._step_kernel
 
     def step() -> None:
-        vec._step_kernel(vec._table, vec._cfg, next(actions), vec._obs_pair, vec._res,
+        kernel(vec._table, vec._cfg, next(actions), vec._obs_pair, vec._res,
                          vec._flags, vec._counters, vec._draws, vec._bounds, vec._ivars)
         if vec._ivars[K.IV_N_EMPTY]:
             vec._refill_empty()
 
     return step
+
+
+def thread_ceiling(rounds: int) -> tuple[float, int]:
+    """This machine's speedup of a perfectly balanced numba ``prange`` loop on all its
+    threads over one thread, and the thread count.
+
+    256 equal items of about 0.4 us of arithmetic each, as the vector env's plants: no
+    vector env can gain more from threads than that (a virtual machine's two vCPUs often
+    give less than 2x).
+    """
+    import numba
+    from numba import njit, prange
+
+    @njit(_nrt=False)
+    def item(x):
+        s = 0.0
+        for k in range(24):
+            s = 0.999 * s + math.sin(x + k)
+        return s
+
+    @njit(_nrt=False)
+    def serial(out):
+        for i in range(out.shape[0]):
+            out[i] = item(float(i))
+
+    @njit(parallel=True, _nrt=False)
+    def parallel(out):
+        for i in prange(out.shape[0]):
+            out[i] = item(float(i))
+
+    out = np.zeros(256)
+    samples = _rounds({"serial": (lambda: serial(out), 200),
+                       "parallel": (lambda: parallel(out), 200)}, rounds)
+    t = {k: statistics.median(v) for k, v in samples.items()}
+    return t["serial"] / t["parallel"], numba.get_num_threads()
 
 
 def _first_step_after_idle(vec, repeats: int = 15) -> float:
@@ -196,6 +237,9 @@ def bench_steps(quick: bool) -> dict:
                 "made": (_stepper(made), n_single),
                 "vector": (vector_step, n_vec),
                 "kernel": (_kernel_stepper(gym.make_vec(env_id, num_envs=256)), n_vec),
+                "kernel_serial": (
+                    _kernel_stepper(gym.make_vec(env_id, num_envs=256), serial=True), n_vec
+                ),
             },
             rounds,
         )
@@ -216,6 +260,7 @@ def bench_steps(quick: bool) -> dict:
             "vector_first_step_after_idle_us": cold * 1e6,
             "vector_step_us": t["vector"] * 1e6,
             "vector_kernel_us": t["kernel"] * 1e6,
+            "vector_kernel_serial_us": t["kernel_serial"] * 1e6,
             "vector_steps": steps["all"],
             "vector_steps_serial": steps["serial"],
             "single_over_pendulum": t["single"] / t["pendulum"],
@@ -299,7 +344,10 @@ def main() -> None:
     register_envs()
 
     steps = bench_steps(args.quick)
+    ceiling, n_threads = thread_ceiling(5 if args.quick else 15)
     print("step costs (medians of alternating rounds)")
+    print(f"  threads: {n_threads}; a balanced numba loop runs {ceiling:.2f}x faster on them "
+          "than on one (the ceiling)")
     for env_id, r in steps.items():
         print(f"  {env_id}")
         print(f"    Pendulum-v1 unwrapped step     {r['pendulum_step_us']:8.2f} us")
@@ -318,6 +366,15 @@ def main() -> None:
             f"{r['vector_steps']} steps on one thread (late workers)"
         )
         print(f"    physics alone, 1 thread        {r['physics_floor_us']:8.3f} us (floor)")
+        serial_call = r["vector_kernel_serial_us"]
+        gain = serial_call / r["vector_kernel_us"]
+        # the step's Python plus its numba call with the machine's best thread gain
+        best = (glue + serial_call / ceiling) / 256
+        print(
+            f"    numba call on 1 thread {serial_call:.0f} us: threads gain {gain:.2f}x "
+            f"(ceiling {ceiling:.2f}x); at the ceiling single / vector = "
+            f"{r['single_step_us'] / best:.1f}"
+        )
         ok1 = r["single_over_pendulum"] <= 1.0
         ok2 = r["single_over_vector_plant"] >= 20.0
         ratio1 = _shown(r["single_over_pendulum"], ok1, at_least=False)
@@ -334,7 +391,7 @@ def main() -> None:
             f"      by round: {by_round[0]:.1f} to {by_round[-1]:.1f}, median "
             f"{statistics.median(by_round):.1f}; >= 20 in {n_ok} of {len(by_round)} rounds"
         )
-    results = {"steps": steps}
+    results = {"steps": steps, "thread_ceiling": ceiling, "threads": n_threads}
     if not args.no_ppo:
         ppo = bench_ppo(args.quick)
         results["ppo"] = ppo
