@@ -405,7 +405,7 @@ def test_a_rejected_reset_loses_nothing():
     # a fresh seed refills every plant's buffer before the options fail: all is put back
     with pytest.raises(ValueError, match="lam"):
         vec.reset(seed=7, options={"lam": -1.0})
-    with pytest.raises(ValueError, match=r"reset_mask.*got \[True, False, True\] \(list\)"):
+    with pytest.raises(TypeError, match=r"reset_mask.*got \[True, False, True\] \(list\)"):
         vec.reset(seed=7, options={"reset_mask": [True, False, True]})
     with pytest.raises(gym.error.Error, match="Seed must be greater or equal to zero"):
         vec.reset(seed=[0, 1, -1])  # plants 0 and 1 are not reseeded either
@@ -729,6 +729,77 @@ def test_vector_reset_mask_and_seed_list():
     obs, _ = vec.reset(options={"reset_mask": np.array([True, False, False])})
     assert np.array_equal(obs[0], second)  # plant 0 continued its own stream
     assert np.array_equal(obs[1:], stepped[1:])  # the others kept running
+
+
+def test_vector_reset_mask_types_and_the_reset_after_a_failed_step():
+    vec = StickSlipVectorEnv(num_envs=3, autoreset_mode="Disabled")
+    vec.reset(seed=0)
+    for bad in (np.array([1, 0, 1]), [True, False, True], None):
+        with pytest.raises(TypeError, match=r"reset_mask'\] must be a numpy bool array"):
+            vec.reset(options={"reset_mask": bad})
+    with pytest.raises(ValueError, match=r"reset_mask'\] must have shape \(3,\), got shape"):
+        vec.reset(options={"reset_mask": np.ones(2, dtype=bool)})
+    mask = np.array([False, True, False])
+    vec.reset(options={"reset_mask": mask, "b3": -5.0, "v0": 3.0})  # a plant that blows up
+    with pytest.raises(RuntimeError, match="plant 1"):
+        for _ in range(50):
+            vec.step(np.zeros((3, 1)))
+    with pytest.raises(ValueError, match=r"after the failed step \(plant 1\) every plant"):
+        vec.reset(options={"reset_mask": mask})
+    vec.reset(seed=0)
+    vec.step(np.zeros((3, 1)))
+    vec.reset(options={"reset_mask": mask})  # partial resets work again
+
+
+@pytest.mark.parametrize("how", ["deepcopy", "pickle"])
+def test_vector_env_copies_continue_as_the_original(how):
+    """Copies and unpickled envs had views cut from the arrays the kernels write: their
+    steps returned the reset observation, zero rewards and episodes that never ended."""
+    import copy
+    import pickle
+
+    env = StickSlipVectorEnv(num_envs=3, scene="self_excited", max_episode_steps=4)
+    env.reset(seed=0)
+    env.step(np.full((3, 2), 0.3))
+    clone = copy.deepcopy(env) if how == "deepcopy" else pickle.loads(pickle.dumps(env))
+    actions = np.random.default_rng(1).uniform(-1, 1, (6, 3, 2))
+    truncations = rewarded = 0
+    for a in actions:
+        out, twin = env.step(a), clone.step(a)
+        for k in range(4):
+            assert np.array_equal(out[k], twin[k])
+        assert out[4].keys() == twin[4].keys()
+        truncations += int(twin[3].sum())
+        rewarded += int((twin[1] < 0.0).sum())
+    assert truncations == 3  # every plant's episode ended after its 4th step, in the copy too
+    assert rewarded == 6 * 3 - 3  # all but the autoreset steps (reward 0)
+
+
+def test_vector_max_episode_steps_can_be_changed_and_autoreset_mode_cannot():
+    from fricenv.envs.sb3 import StickSlipSB3VecEnv
+
+    venv = StickSlipSB3VecEnv(num_envs=2, max_episode_steps=100)
+    venv.set_attr("max_episode_steps", 3)
+    assert venv.get_attr("max_episode_steps") == [3, 3]
+    venv.seed(0)
+    venv.reset()
+    dones = [venv.step(np.zeros((2, 1), np.float32))[2].tolist() for _ in range(4)]
+    assert dones == [[False, False], [False, False], [True, True], [False, False]]
+    vec = StickSlipVectorEnv(num_envs=2, max_episode_steps=100)
+    for bad, err in ((0, ValueError), (2.5, TypeError), (True, TypeError)):
+        with pytest.raises(err, match="max_episode_steps"):
+            vec.max_episode_steps = bad
+    assert vec.max_episode_steps == 100
+    with pytest.raises(AttributeError):
+        vec.autoreset_mode = AutoresetMode.SAME_STEP
+    assert venv.env_is_wrapped(gym.wrappers.TimeLimit) == [True, True]
+    assert venv.env_is_wrapped(gym.wrappers.ClipAction) == [False, False]
+
+
+def test_control_dt_below_the_time_resolution_is_refused():
+    with pytest.raises(ValueError, match=r"control_dt is out of range \(at least 1e-06\)"):
+        gym.make(ENV_ID, control_dt=1e-300)
+    gym.make(ENV_ID, control_dt=1e-6).reset(seed=0)
 
 
 # -- rendering ------------------------------------------------------------------------------

@@ -60,10 +60,10 @@ class StickSlipSB3VecEnv(VecEnv):
         mv = res[K.R_MEAN_VR].tolist()
         infos = [
             {"stick_fraction": s, "effort": e, "velocity_variance": q,
-             "mean_relative_velocity": m}
+             "mean_relative_velocity": m, "TimeLimit.truncated": False}
             for s, e, q, m in zip(sf, ef, qv, mv, strict=True)
         ]
-        if dones.any():
+        if dones.any():  # ("TimeLimit.truncated" as a DummyVecEnv of gym.make'd envs sets it)
             final_obs = info["final_obs"]
             for i in np.flatnonzero(dones).tolist():
                 infos[i]["terminal_observation"] = final_obs[i]
@@ -94,4 +94,7 @@ class StickSlipSB3VecEnv(VecEnv):
     def env_is_wrapped(
         self, wrapper_class: type[gym.Wrapper], indices: VecEnvIndices = None
     ) -> list[bool]:
-        return [False for _ in self._get_indices(indices)]
+        """True for ``TimeLimit`` only: the plants have its time limit built in (as a
+        ``DummyVecEnv`` of ``gym.make``'d envs would report), and no other wrapper."""
+        wrapped = wrapper_class is gym.wrappers.TimeLimit
+        return [wrapped for _ in self._get_indices(indices)]

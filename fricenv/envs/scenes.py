@@ -67,6 +67,12 @@ TWO_PI = 2.0 * math.pi
 #: What ``reward_weights`` holds, for error messages.
 THREE_WEIGHTS = "three weights (w_stick, w_velocity, w_effort)"
 
+#: Shortest control interval. The step's mean velocity and variance are differences over it,
+#: (x_end - x_start) / dt and the mean of (v - V)^2 less the mean's square, so they keep
+#: about log10(dt / 1e-16) digits, and time itself resolves only ~1e-13 max(1, |t|): at
+#: dt = 1e-12 the variance was rounding noise of 3e-3, at 1e-300 the mean read 2e284.
+MIN_CONTROL_DT = 1e-6
+
 #: Most scan steps one control interval may need (``core.most_scan_steps``, the kernels' own
 #: bound). A step costs about 60 ns, so this is some 60 ms per ``env.step``; an over-damped
 #: plant (the step is 1 / lam) or a very fast tone beyond it would make every step take
@@ -152,14 +158,15 @@ class Scene:
                            check_int("max_episode_steps", self.max_episode_steps, 1))
         object.__setattr__(self, "random_phase", check_bool("random_phase", self.random_phase))
         checks = (
-            ("control_dt", math.isfinite(self.control_dt) and self.control_dt > 0.0),
+            ("control_dt", math.isfinite(self.control_dt) and self.control_dt >= MIN_CONTROL_DT),
             ("max_delta", 0.0 < self.max_delta <= 1.0),
             ("x_limit", self.x_limit > 0.0),
             ("v_limit", self.v_limit > 0.0),
         )
         for name, ok in checks:
             if not ok:
-                raise ValueError(f"{name} is out of range, got {getattr(self, name)!r}")
+                rule = f" (at least {MIN_CONTROL_DT:g})" if name == "control_dt" else ""
+                raise ValueError(f"{name} is out of range{rule}, got {getattr(self, name)!r}")
         rnd = {}
         for key, value in _randomization_items(self.randomization):
             if key not in RANDOMIZABLE:

@@ -368,7 +368,7 @@ class StickSlipEnv(gym.Env):
     - `incremental`: actions change the settings instead of setting them (default False; a
       bool, `TypeError` otherwise).
     - `control_dt`: control interval in time units (default pi/6, a twelfth of the natural
-      period).
+      period; at least 1e-6, below which the interval's mean and variance lose their digits).
     - `randomize`: draw the plant parameters per episode from the scene's ranges (a bool).
     - `reward_weights`: `(w_stick, w_velocity, w_effort)` or a dict with those keys.
     - `params`: overrides of the scene's nominal plant, e.g. `{"lam": 0.2}`; with `randomize`,
@@ -569,8 +569,9 @@ class StickSlipEnv(gym.Env):
         Returns ``(t, v_rel, stuck)`` at ``n_samples`` equally spaced instants ending at the
         next control instant: time, velocity relative to the belt ``v - V``, and whether
         the block is stuck there. Computed on copies of the plant with the step's own
-        kernels, so it is what ``step(action)`` will integrate, and the environment's
-        state is left untouched (for plotting a policy's motion, as the renderer does).
+        kernels, in ``n_samples`` pieces (so it matches ``step(action)`` to rounding in
+        closed form, to the tolerance with the event method), and the environment's state
+        is left untouched (for plotting a policy's motion, as the renderer does).
         """
         if self._needs_reset:
             raise gym.error.ResetNeeded("Cannot call sample_interval() before calling reset()")

@@ -150,8 +150,8 @@ class StickSlipVectorEnv(VectorEnv):
                 f"render_mode must be one of {self.metadata['render_modes']} or None, "
                 f"got {render_mode!r}"
             )
-        self.autoreset_mode = AutoresetMode(autoreset_mode)
-        self.metadata = {**type(self).metadata, "autoreset_mode": self.autoreset_mode}
+        self._autoreset_mode = AutoresetMode(autoreset_mode)
+        self.metadata = {**type(self).metadata, "autoreset_mode": self._autoreset_mode}
         self.setup = EnvSetup.build(
             scene,
             action_mode,
@@ -164,7 +164,7 @@ class StickSlipVectorEnv(VectorEnv):
         )
         self.scene = self.setup.scene
         self.num_envs = n = num_envs
-        self.max_episode_steps = (
+        max_episode_steps = (
             int(self.scene.max_episode_steps)
             if max_episode_steps is None
             else check_int("max_episode_steps", max_episode_steps, 1)
@@ -179,41 +179,22 @@ class StickSlipVectorEnv(VectorEnv):
 
         self._cfg = self.setup.cfg
         # The kernels' few batch arrays (kernels.T_* and friends); the per-plant arrays the
-        # Python side works with are views of them.
+        # Python side works with are views of them (_bind_views).
         self._table = np.zeros((n, K.N_TABLE))
-        self._P = self._table[:, K.T_P : K.T_S]
-        self._S = self._table[:, K.T_S : K.T_CTRL]
-        self._ctrl = self._table[:, K.T_CTRL : K.T_STATS]
-        self._stats = self._table[:, K.T_STATS : K.T_NEW_P]
-        # the episode being started is built in _new_P, _new_init
-        self._new_P = self._table[:, K.T_NEW_P : K.T_NEW_INIT]
-        self._new_init = self._table[:, K.T_NEW_INIT : K.T_WORK]
-        self._work = self._table[:, K.T_WORK :]  # core cache kept across intervals
-        self._work[:] = new_workspace(n, extrema=False)
         self._obs_pair = np.zeros((2, n, K.N_OBS), dtype=np.float32)
-        self._obs = self._obs_pair[K.OB_NOW]
-        self._final_obs = self._obs_pair[K.OB_FINAL]
         self._res = np.zeros((K.N_RES, n))  # a row per result (contiguous copies)
         self._flags = np.zeros((K.N_FLAGS, n), dtype=np.bool_)
-        self._terminated = self._flags[K.F_TERMINATED]
-        self._truncated = self._flags[K.F_TRUNCATED]
-        self._autoreset = self._flags[K.F_AUTORESET]
-        self._did_reset = self._flags[K.F_DID_RESET]
-        # what a step returns is copied from these views, made once (a slice costs as much)
-        self._step_out = self._res[_OUT_ROWS]
-        self._step_ends = self._flags[_END_ROWS]
         self._counters = np.zeros((K.N_COUNTERS, n), dtype=np.int64)
-        self._steps = self._counters[K.CT_STEPS]
-        self._cursor = self._counters[K.CT_CURSOR]
-        self._status = self._counters[K.CT_STATUS]
+        self._bind_views()
+        self._work[:] = new_workspace(n, extrema=False)
         # The parallel kernel's workers, one per numba thread at construction (the kernel
         # cannot read the count and stay cacheable: fewer threads set later run some workers
         # in turn, more sit idle), and after the N_IVARS slots a counter per pair of them.
         n_workers = numba.get_num_threads()
         n_pairs = (n_workers + 1) // 2
         self._ivars = np.zeros(K.N_IVARS + n_pairs * K.COUNTER_STRIDE, dtype=np.int64)
-        self._ivars[K.IV_MAX_STEPS] = self.max_episode_steps
-        self._ivars[K.IV_MODE] = _AUTORESET[self.autoreset_mode]
+        self._ivars[K.IV_MAX_STEPS] = max_episode_steps
+        self._ivars[K.IV_MODE] = _AUTORESET[self._autoreset_mode]
         self._ivars[K.IV_N_WORKERS] = n_workers
         # Threads pay off from a few dozen plants; both kernels give identical results.
         self._step_kernel = K.step_batch_parallel if n >= PARALLEL_MIN_ENVS else K.step_batch
@@ -233,6 +214,7 @@ class StickSlipVectorEnv(VectorEnv):
             raise ValueError("method='exact' needs the Coulomb law (b1 = b3 = 0)")
         self._act_shape = self.action_space.shape
         self._needs_reset = True
+        self._failed_plant: int | None = None  # the plant whose failure needs a full reset
         # The info mask when every plant reports: shared by the keys and the steps, so
         # read-only (a caller that keeps it cannot have it changed under them).
         self._all_true = np.ones(n, dtype=np.bool_)
@@ -242,6 +224,53 @@ class StickSlipVectorEnv(VectorEnv):
             from fricenv.envs.rendering import Trace  # lazy: no matplotlib unless asked
 
             self._traces = [Trace(self.dt) for _ in range(n)]
+
+    def _bind_views(self) -> None:
+        """Make the per-plant arrays the Python side reads: views of the kernels' batch
+        arrays (after a copy or unpickling too, where views come back as arrays of their
+        own and would no longer see what the kernels write)."""
+        t = self._table
+        self._P = t[:, K.T_P : K.T_S]
+        self._S = t[:, K.T_S : K.T_CTRL]
+        self._ctrl = t[:, K.T_CTRL : K.T_STATS]
+        self._stats = t[:, K.T_STATS : K.T_NEW_P]
+        # the episode being started is built in _new_P, _new_init
+        self._new_P = t[:, K.T_NEW_P : K.T_NEW_INIT]
+        self._new_init = t[:, K.T_NEW_INIT : K.T_WORK]
+        self._work = t[:, K.T_WORK :]  # core cache kept across intervals
+        self._obs = self._obs_pair[K.OB_NOW]
+        self._final_obs = self._obs_pair[K.OB_FINAL]
+        self._terminated = self._flags[K.F_TERMINATED]
+        self._truncated = self._flags[K.F_TRUNCATED]
+        self._autoreset = self._flags[K.F_AUTORESET]
+        self._did_reset = self._flags[K.F_DID_RESET]
+        # what a step returns is copied from these views, made once (a slice costs as much)
+        self._step_out = self._res[_OUT_ROWS]
+        self._step_ends = self._flags[_END_ROWS]
+        self._steps = self._counters[K.CT_STEPS]
+        self._cursor = self._counters[K.CT_CURSOR]
+        self._status = self._counters[K.CT_STATUS]
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        # copy.deepcopy and pickle restore every view as an array of its own
+        self.__dict__.update(state)
+        self._bind_views()
+
+    @property
+    def max_episode_steps(self) -> int:
+        """Steps after which an episode is truncated; may be changed between steps (an
+        episode already that long is truncated at the next step)."""
+        return int(self._ivars[K.IV_MAX_STEPS])
+
+    @max_episode_steps.setter
+    def max_episode_steps(self, value: int) -> None:
+        self._ivars[K.IV_MAX_STEPS] = check_int("max_episode_steps", value, 1)
+
+    @property
+    def autoreset_mode(self) -> AutoresetMode:
+        """How ended episodes restart; fixed at construction (the kernel's and the
+        infos' layout follow it)."""
+        return self._autoreset_mode
 
     # -- Gymnasium VectorEnv API -----------------------------------------------------------
     def reset(
@@ -256,17 +285,27 @@ class StickSlipVectorEnv(VectorEnv):
         seeds = plant_seeds(seed, n)
         check_dict("options", options)
         options = dict(options) if options else {}
-        mask = options.pop("reset_mask", None)
-        if mask is None:
+        if "reset_mask" not in options:
             mask = np.ones(n, dtype=np.bool_)
         else:
-            if not isinstance(mask, np.ndarray) or mask.dtype != np.bool_ or mask.shape != (n,):
+            mask = options.pop("reset_mask")
+            if not isinstance(mask, np.ndarray) or mask.dtype != np.bool_:
+                raise TypeError(
+                    f"options['reset_mask'] must be a numpy bool array, {got(mask)}"
+                )
+            if mask.shape != (n,):
                 raise ValueError(
-                    f"options['reset_mask'] must be a bool array of shape ({n},), {got(mask)}"
+                    f"options['reset_mask'] must have shape ({n},), got shape {mask.shape}"
                 )
             if not mask.any():
                 raise ValueError("options['reset_mask'] must select at least one plant")
             if self._needs_reset and not mask.all():
+                if self._failed_plant is not None:
+                    raise ValueError(
+                        f"after the failed step (plant {self._failed_plant}) every plant "
+                        "must be reset: that step moved the other plants too, and its "
+                        "results were never returned"
+                    )
                 raise ValueError("the first reset must reset every plant")
         idx = np.flatnonzero(mask)
         self._reset_plants(idx, [seeds[i] for i in idx.tolist()], [options] * idx.size)
@@ -313,6 +352,7 @@ class StickSlipVectorEnv(VectorEnv):
         self._terminated[mask] = False
         self._truncated[mask] = False
         self._needs_reset = False
+        self._failed_plant = None
         self._refill_empty()
         if self._traces is not None:
             for i in idx.tolist():
@@ -370,6 +410,7 @@ class StickSlipVectorEnv(VectorEnv):
                 raise_status(K.STATUS_BAD_ACTION, a[i], f" {i}")
             self._needs_reset = True
             i = int(np.flatnonzero(self._status)[0])
+            self._failed_plant = i
             raise_status(int(self._status[i]), None, f" {i}")
         if kernel is K.step_batch_parallel:
             self._watch_workers()
