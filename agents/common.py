@@ -7,6 +7,7 @@ so all of that lives here once.
 
 from __future__ import annotations
 
+import argparse
 import ast
 import math
 import pickle
@@ -565,3 +566,13 @@ def fmt_pm(mean: float, std: float, digits: int = 3) -> str:
     if not math.isfinite(mean):
         return "n/a"
     return f"{mean:.{digits}f} ± {std:.{digits}f}"
+
+
+class HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
+    """argparse's defaults in the help, except where there is nothing to show: a default
+    of None (a required option, or one whose help names its own default)."""
+
+    def _get_help_string(self, action: argparse.Action) -> str | None:
+        if action.default is None or action.required or "(default" in (action.help or ""):
+            return action.help
+        return super()._get_help_string(action)

@@ -42,6 +42,7 @@ from agents.common import (
     SEED_STRIDE,
     Controller,
     EpisodeMetrics,
+    HelpFormatter,
     TrainedController,
     eval_env_seed,
     fmt_pm,
@@ -423,7 +424,7 @@ def learning_curves(entries: list[Entry], baselines: list[Entry], path: Path) ->
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="python -m agents.evaluate", description=__doc__.split("\n\n")[0],
-        formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+        formatter_class=HelpFormatter)
     p.add_argument("--scene", nargs="+", choices=sorted(SCENE_ENV_IDS), default=None,
                    help="scene(s) to evaluate (default: those of the runs)")
     p.add_argument("--runs", nargs="*", type=Path, default=[],

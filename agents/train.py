@@ -40,6 +40,7 @@ from agents.common import (
     MAX_PLANTS,
     SCENE_ENV_IDS,
     EpisodeMetrics,
+    HelpFormatter,
     RunSpec,
     TrainedController,
     algo_class,
@@ -160,7 +161,7 @@ def _callbacks() -> tuple[type, type]:
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="python -m agents.train", description=__doc__.split("\n\n")[0],
-        formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+        formatter_class=HelpFormatter)
     p.add_argument("--algo", required=True, choices=ALGOS, help="RL algorithm")
     p.add_argument("--scene", required=True, choices=sorted(SCENE_ENV_IDS), help="scene")
     p.add_argument("--seed", type=int, default=0, help="seeds torch, the policy and the envs")

@@ -869,7 +869,7 @@ def regime_map(params: OscillatorParams | str, u0: object, nu: object, *,
     n_nu = nu.size
     if chunk_size is None:
         chunk_size = int(min(2048, max(64, todo.size // 100)))
-    show = (todo.size > 2000) if progress is None else bool(progress)
+    show = (rmap.done.size > 2000) if progress is None else bool(progress)
     bar = None
     if show:
         from tqdm.auto import tqdm
