@@ -660,6 +660,34 @@ def test_vector_env_matches_single_envs_step_for_step(mode, kw):
     assert np.array_equal(o1, o2)
 
 
+def test_vector_env_with_autoreset_disabled_matches_single_envs_and_refuses_ended_plants():
+    """Disabled autoreset: the caller resets ended plants (partially, by mask). Stepping
+    while one is still ended is refused before any plant moves (SyncVectorEnv asserts)."""
+    native, singles = _native_and_sync(3, 3, AutoresetMode.DISABLED, scene="self_excited",
+                                       randomize=True)
+    assert np.array_equal(native.reset(seed=5)[0], singles.reset(seed=5)[0])
+    rng = np.random.default_rng(1)
+    refused = 0
+    for k in range(10):
+        a = rng.uniform(-1, 1, native.action_space.shape)
+        out = native.step(a)
+        _assert_same_step(out, singles.step(a))
+        ended = out[2] | out[3]
+        if k == 0:  # plant 0 restarts early, so that the plants end at different steps
+            ended = np.array([True, False, False])
+        if ended.any():
+            if k > 0:
+                before = native.unwrapped._table.copy()
+                with pytest.raises(gym.error.ResetNeeded, match=r"plants \[\d.*autoreset"):
+                    native.step(a)
+                assert np.array_equal(native.unwrapped._table, before, equal_nan=True)  # unmoved
+                refused += 1
+            o1, _ = native.reset(options={"reset_mask": ended})
+            o2, _ = singles.reset(options={"reset_mask": ended})
+            assert np.array_equal(o1, o2)
+    assert refused >= 3
+
+
 def test_kernel_episode_matches_python_episode():
     """The vector kernel builds an episode from its uniforms exactly as EnvSetup does."""
     from fricenv.envs import kernels
@@ -733,6 +761,8 @@ def test_vector_reset_mask_and_seed_list():
 
 def test_vector_reset_mask_types_and_the_reset_after_a_failed_step():
     vec = StickSlipVectorEnv(num_envs=3, autoreset_mode="Disabled")
+    with pytest.raises(gym.error.ResetNeeded, match="before calling reset"):
+        vec.step(np.zeros((3, 1)))
     vec.reset(seed=0)
     for bad in (np.array([1, 0, 1]), [True, False, True], None):
         with pytest.raises(TypeError, match=r"reset_mask'\] must be a numpy bool array"):
@@ -744,6 +774,8 @@ def test_vector_reset_mask_types_and_the_reset_after_a_failed_step():
     with pytest.raises(RuntimeError, match="plant 1"):
         for _ in range(50):
             vec.step(np.zeros((3, 1)))
+    with pytest.raises(gym.error.ResetNeeded, match=r"last step failed \(plant 1\)"):
+        vec.step(np.zeros((3, 1)))
     with pytest.raises(ValueError, match=r"after the failed step \(plant 1\) every plant"):
         vec.reset(options={"reset_mask": mask})
     vec.reset(seed=0)

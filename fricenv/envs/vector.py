@@ -15,6 +15,7 @@ from typing import Any
 
 import numba
 import numpy as np
+from gymnasium import error as gym_error
 from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
@@ -373,7 +374,19 @@ class StickSlipVectorEnv(VectorEnv):
         self, actions: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
         if self._needs_reset:
-            raise RuntimeError("Cannot call step() before calling reset()")
+            if self._failed_plant is not None:
+                raise gym_error.ResetNeeded(
+                    f"the last step failed (plant {self._failed_plant}); reset every plant "
+                    "before stepping again"
+                )
+            raise gym_error.ResetNeeded("Cannot call step() before calling reset()")
+        if self._autoreset_mode is AutoresetMode.DISABLED and self._autoreset.any():
+            # SyncVectorEnv asserts this mid-step; here it is refused before any plant moves
+            ended = np.flatnonzero(self._autoreset).tolist()
+            raise gym_error.ResetNeeded(
+                f"plants {ended} ended their episodes and autoreset is disabled: reset them "
+                "(options={'reset_mask': mask}) before the next step"
+            )
         a = actions
         if (
             type(a) is not np.ndarray
