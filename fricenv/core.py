@@ -1310,8 +1310,10 @@ def _scan_exact(S, t_span, out_t, stats, max_events, out_x, out_v, out_mode, ev_
     lam = cx[C_LAM]
     w1 = cx[C_W1]
     w2 = cx[C_W2]
-    t0 = S[S_T]
-    t_stop = t0 + t_span
+    # Time runs from 0 inside the call (see _run_event); S[S_T] is only written at the end.
+    t_start = S[S_T]
+    t_stop = t_span
+    origin = out_t[0] if out_t is not None else 0.0
     n_int = 1
     dt_reg = t_span
     if out_t is not None:
@@ -1344,7 +1346,7 @@ def _scan_exact(S, t_span, out_t, stats, max_events, out_x, out_v, out_mode, ev_
     x = S[S_X]
     v = S[S_V]
     mode = S[S_MODE]
-    t = t0
+    t = 0.0
     n_events = 0
     status = STATUS_OK
     fresh = True  # the current phase starts on a switching surface (or at the call start)
@@ -1359,8 +1361,9 @@ def _scan_exact(S, t_span, out_t, stats, max_events, out_x, out_v, out_mode, ev_
     if mode != 0.0:
         acc = -lam * v - x - mode * cx[C_XFK] + cx[C_U1] * c1 + cx[C_U2] * c2
     for j in range(n_int):
-        ta = out_t[j] if out_t is not None else t0
-        tb = t_stop if j == n_int - 1 else (out_t[j + 1] if out_t is not None else t_stop)
+        ta = out_t[j] - origin if out_t is not None else 0.0
+        tb = t_stop if j == n_int - 1 else (out_t[j + 1] - origin if out_t is not None
+                                            else t_stop)
         length = tb - ta
         if length <= 0.0:
             continue
@@ -1447,8 +1450,8 @@ def _scan_exact(S, t_span, out_t, stats, max_events, out_x, out_v, out_mode, ev_
                         fresh = True
                         on_grid = False
                         n_events += 1
-                        status = _log_event(ev_t, ev_kind, ev_x, counts, t, kind, x, n_events,
-                                            max_events)
+                        status = _log_event(ev_t, ev_kind, ev_x, counts, t_start + t, kind, x,
+                                            n_events, max_events)
                         if status != STATUS_OK:
                             break
                         continue
@@ -1513,8 +1516,8 @@ def _scan_exact(S, t_span, out_t, stats, max_events, out_x, out_v, out_mode, ev_
                         fresh = True
                         on_grid = False
                         n_events += 1
-                        status = _log_event(ev_t, ev_kind, ev_x, counts, t, EVENT_SLIP, x, n_events,
-                                            max_events)
+                        status = _log_event(ev_t, ev_kind, ev_x, counts, t_start + t, EVENT_SLIP,
+                                            x, n_events, max_events)
                         if status != STATUS_OK:
                             break
                         continue
@@ -1539,8 +1542,8 @@ def _scan_exact(S, t_span, out_t, stats, max_events, out_x, out_v, out_mode, ev_
             out_v[j + 1] = v
             out_mode[j + 1] = mode
             counts[1] = j + 2
-    stats[ST_DURATION] += t - t0
-    _end_call(S, cx, t, x, v, mode, ph1, c1, s1, ph2, c2, s2)
+    stats[ST_DURATION] += t
+    _end_call(S, cx, t_start + t, x, v, mode, ph1, c1, s1, ph2, c2, s2)
     return status
 
 
@@ -1863,14 +1866,19 @@ def _run_event(P, S, t_span, out_t, stats, max_events, rtol, atol, out_x, out_v,
     V = cx[C_V]
     w1 = cx[C_W1]
     w2 = cx[C_W2]
-    t0 = S[S_T]
-    t_stop = t0 + t_span
+    # Time runs from 0 inside the call, and S[S_T] + t is formed only for events and the
+    # end: thresholds relative to t (the end cut, the step floor) and rounding of t then
+    # scale with the call's span, not with how long the run has been going (a call
+    # continued from t = 1e12 was off by 1e-5 in x after 50 units of tau).
+    t_start = S[S_T]
+    t_stop = t_span
+    origin = out_t[0] if out_t is not None else 0.0
     x = S[S_X]
     v = S[S_V]
     mode = S[S_MODE]
     ph1 = S[S_PHI1]
     ph2 = S[S_PHI2]
-    t = t0
+    t = 0.0
     n_events = 0
     status = STATUS_OK
     fresh = True
@@ -2003,9 +2011,9 @@ def _run_event(P, S, t_span, out_t, stats, max_events, rtol, atol, out_x, out_v,
                 else:
                     step_end = hstep
                 if out_t is not None:  # outputs inside (t, t + step_end]
-                    while j_out < n_out and out_t[j_out] <= t + step_end + 1e-13 * max(1.0,
+                    while j_out < n_out and out_t[j_out] - origin <= t + step_end + 1e-13 * max(1.0,
                                                                                      abs(t)):
-                        tau = min(max(out_t[j_out] - t, 0.0), step_end)
+                        tau = min(max(out_t[j_out] - origin - t, 0.0), step_end)
                         if tau == step_end:
                             out_x[j_out] = x1
                             out_v[j_out] = v1
@@ -2035,7 +2043,7 @@ def _run_event(P, S, t_span, out_t, stats, max_events, rtol, atol, out_x, out_v,
                     acc = _rhs_acc(cx, mode, x, v, ph1, ph2) if mode != 0.0 else 0.0
                     fresh = True
                     n_events += 1
-                    status = _log_event(ev_t, ev_kind, ev_x, counts, t, kind, x, n_events,
+                    status = _log_event(ev_t, ev_kind, ev_x, counts, t_start + t, kind, x, n_events,
                                         max_events)
                 else:
                     ce1, se1 = _sincos(w1 * hstep)
@@ -2067,9 +2075,9 @@ def _run_event(P, S, t_span, out_t, stats, max_events, rtol, atol, out_x, out_v,
             te = -1.0 if held else _stick_exit_time(cx, L, f0, fd0, fdd0, f1, fd1, fdd1)
             step_end = L if te < 0.0 else te
             if out_t is not None:
-                while j_out < n_out and out_t[j_out] <= t + step_end + 1e-13 * max(1.0,
+                while j_out < n_out and out_t[j_out] - origin <= t + step_end + 1e-13 * max(1.0,
                                                                                  abs(t)):
-                    tau = min(max(out_t[j_out] - t, 0.0), step_end)
+                    tau = min(max(out_t[j_out] - origin - t, 0.0), step_end)
                     out_x[j_out] = x + V * tau
                     out_v[j_out] = V
                     out_mode[j_out] = 0
@@ -2091,8 +2099,8 @@ def _run_event(P, S, t_span, out_t, stats, max_events, rtol, atol, out_x, out_v,
                 acc = _rhs_acc(cx, mode, x, v, ph1, ph2)
                 fresh = True
                 n_events += 1
-                status = _log_event(ev_t, ev_kind, ev_x, counts, t, EVENT_SLIP, x, n_events,
-                                    max_events)
+                status = _log_event(ev_t, ev_kind, ev_x, counts, t_start + t, EVENT_SLIP, x,
+                                    n_events, max_events)
         if not (math.isfinite(x) and math.isfinite(v)):
             status = STATUS_NONFINITE
     # any output times left at the very end (rounding of the last step)
@@ -2103,8 +2111,8 @@ def _run_event(P, S, t_span, out_t, stats, max_events, rtol, atol, out_x, out_v,
             out_mode[j_out] = mode
             j_out += 1
             counts[1] = j_out
-    stats[ST_DURATION] += t - t0
-    S[S_T] = t
+    stats[ST_DURATION] += t
+    S[S_T] = t_start + t
     S[S_X] = x
     S[S_V] = v
     S[S_MODE] = mode

@@ -286,6 +286,23 @@ def test_continuation_with_phase_carry():
     assert abs(cont.state.phase2 - (half.state.phase2 + 0.18) % (2 * math.pi)) < 1e-12
 
 
+@pytest.mark.parametrize("law", ["coulomb", "stribeck"])
+@pytest.mark.parametrize("t0", [1e6, 1e12])
+def test_a_continued_run_does_not_depend_on_the_absolute_time(law, t0):
+    """Time runs from 0 inside a call: the same run from t = t0 is bit for bit the run from
+    t = 0 (rounding of an absolute t put x off by 2e-5 after 50 units of tau at 1e12)."""
+    p = OscillatorParams.preset(law, u0=1.15, nu=0.1)
+    for method in ("exact", "event") if law == "coulomb" else ("event",):
+        start = OscillatorState.start(p, 0.3, 0.0, phase1=0.4, phase2=2.0)
+        later = OscillatorState.start(p, 0.3, 0.0, t0=t0, phase1=0.4, phase2=2.0)
+        ref = run_stats(p, 50.0, state=start, method=method)
+        run = run_stats(p, 50.0, state=later, method=method)
+        assert run.state.t == t0 + 50.0
+        assert run.state == ref.state.__class__(**{**vars(ref.state), "t": t0 + 50.0})
+        assert {**vars(run), "state": None} == {**vars(ref), "state": None}
+        assert ref.stick_time > 0.0 and ref.n_stick > 0  # the run switches
+
+
 @pytest.mark.parametrize(
     ("state", "match"),
     [
