@@ -1,5 +1,8 @@
 """fricenv: exact event-driven simulation of a two-tone forced dry-friction oscillator."""
 
+# First, before any module with compiled kernels: keys their numba cache on the whole
+# package's source (see _numba_cache).
+from . import _numba_cache  # noqa: F401
 from .params import FRICTION_LAWS, OscillatorParams
 from .regimes import Regime, classify, classify_stats, strobe_period
 from .simulate import (

@@ -10,8 +10,8 @@ Kernels that allocate nothing are compiled without numba's reference-counting ru
 (``_nrt=False``, see ``fricenv.core``): otherwise every per-plant call does atomic count
 updates on the batch arrays, which threads then fight over.
 
-Note for developers: numba's on-disk cache does not notice edits to ``fricenv.core`` or
-``fricenv.atomic``; after changing them, delete ``fricenv/envs/__pycache__/*.nb[ic]``.
+These kernels inline much of ``fricenv.core``; their numba cache is keyed on the whole
+package's source (``fricenv._numba_cache``), so editing the core recompiles them.
 """
 
 from __future__ import annotations

@@ -1,0 +1,91 @@
+"""Numba's on-disk cache, kept fresh across the package's modules.
+
+numba stamps a cached function with its own source file only, so a function that inlines
+functions or constants from another module was loaded stale after that module changed
+(numba issue #1833): edit ``core.py``, and the environments' kernels kept the old physics
+until the cache was deleted by hand. ``install`` stamps every cached function of a package
+with one digest of all the package's sources instead, so an edit anywhere in it recompiles
+what was cached from it. Cache directories stay where numba would put them.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from pathlib import Path
+
+from numba.core import caching
+
+# (numba < 0.62 names the class _CacheImpl)
+_CACHE_IMPL = getattr(caching, "CacheImpl", None) or getattr(caching, "_CacheImpl", None)
+
+
+def source_digest(package_dir: Path) -> str:
+    """SHA-256 over the package's ``.py`` files (relative paths and contents)."""
+    digest = hashlib.sha256()
+    for path in sorted(package_dir.rglob("*.py")):
+        digest.update(path.relative_to(package_dir).as_posix().encode())
+        digest.update(b"\0")
+        digest.update(path.read_bytes())
+        digest.update(b"\0")
+    return digest.hexdigest()
+
+
+def installed_for(package_dir: str | Path) -> bool:
+    """Whether ``install`` took effect for ``package_dir``."""
+    root = Path(package_dir).resolve()
+    classes = getattr(_CACHE_IMPL, "_locator_classes", ())
+    return any(getattr(cls, "package_dir", None) == root for cls in classes)
+
+
+def install(package_dir: str | Path) -> bool:
+    """Key the numba cache of every function defined under ``package_dir`` on the
+    package's source digest. Call it before those functions are decorated (their cache
+    picks its locator then). Idempotent; returns False, changing nothing, on a numba
+    without the locator list this relies on (its per-file stamps then apply)."""
+    root = Path(package_dir).resolve()
+    classes = getattr(_CACHE_IMPL, "_locator_classes", None)
+    if not isinstance(classes, list):
+        return False
+    if installed_for(root):
+        return True
+    stamp = source_digest(root)
+    numba_locators = list(classes)
+
+    class PackageLocator(caching._CacheLocator):
+        """numba's own locator for the file, with the package's digest as its stamp."""
+
+        package_dir = root
+
+        def __init__(self, inner: caching._CacheLocator) -> None:
+            self._inner = inner
+            self._py_file = getattr(inner, "_py_file", None)  # numba's warnings read it
+
+        @classmethod
+        def from_function(cls, py_func, py_file):
+            try:
+                Path(py_file).resolve().relative_to(root)
+            except (ValueError, OSError):
+                return None  # not ours: numba's own locators take it
+            for locator_class in numba_locators:
+                inner = locator_class.from_function(py_func, py_file)
+                if inner is not None:
+                    return cls(inner)
+            return None
+
+        def ensure_cache_path(self):
+            return self._inner.ensure_cache_path()
+
+        def get_cache_path(self):
+            return self._inner.get_cache_path()
+
+        def get_source_stamp(self):
+            return stamp
+
+        def get_disambiguator(self):
+            return self._inner.get_disambiguator()
+
+    classes.insert(0, PackageLocator)
+    return True
+
+
+install(Path(__file__).parent)  # on import, which fricenv/__init__.py does first
