@@ -44,8 +44,13 @@ class ActionMap:
     """Physical settings ``(u0, nu)`` -> normalised actions for one env configuration."""
 
     def __init__(self, scene: str | Scene = "self_excited", env_kwargs: dict | None = None):
-        setup = EnvSetup.build(scene, **(env_kwargs or {}))
-        self.scene = setup.scene
+        kwargs = dict(env_kwargs or {})
+        # the episode length is an argument of the vector env and of gym.make, not of the
+        # plant's setup; ``scene`` is the one the env runs, that length included
+        horizon = kwargs.pop("max_episode_steps", None)
+        setup = EnvSetup.build(scene, **kwargs)
+        self.scene = (setup.scene if horizon is None
+                      else setup.scene.replace(max_episode_steps=horizon))
         self.action_space = setup.action_space
         self.incremental = setup.incremental
         self.drives_u0 = setup.action_mode != "frequency"

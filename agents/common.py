@@ -388,7 +388,7 @@ def make_sb3_env(scene: str, n_envs: int, seed: int, env_kwargs: dict | None = N
     venv = StickSlipSB3VecEnv(num_envs=n_envs, scene=scene, **(env_kwargs or {}))
     venv.seed(seed)
     return VecMonitor(venv, filename=None if monitor_file is None else str(monitor_file),
-                      info_keywords=("stick_fraction",))
+                      info_keywords=("episode_stick_fraction",))
 
 
 # -- controllers ----------------------------------------------------------------------------
@@ -519,8 +519,11 @@ def rollout(controller: Controller, scene: str | Scene, seed: int | Sequence[int
 
     from fricenv.envs.vector import StickSlipVectorEnv
 
+    # An episode that ends early (its state left the observation box) is restarted by the
+    # next step (next-step autoreset) and masked out of the metrics from then on (``alive``),
+    # while the others run on to the horizon.
     venv = StickSlipVectorEnv(num_envs=n_episodes, scene=scene,
-                              autoreset_mode=AutoresetMode.DISABLED, **(env_kwargs or {}))
+                              autoreset_mode=AutoresetMode.NEXT_STEP, **(env_kwargs or {}))
     try:
         obs, _ = venv.reset(seed=seed if isinstance(seed, int) else [int(s) for s in seed])
         alive = np.ones(n_episodes, dtype=bool)

@@ -34,7 +34,13 @@ from typing import Any
 
 import numpy as np
 
-from agents.baselines import BASELINES, ZeroExcitation, make_baseline, search_best_constant
+from agents.baselines import (
+    BASELINES,
+    ActionMap,
+    ZeroExcitation,
+    make_baseline,
+    search_best_constant,
+)
 from agents.common import (
     MAX_PLANTS,
     SCENE_ENV_IDS,
@@ -53,7 +59,6 @@ from agents.common import (
 )
 from fricenv.checks import check_output_dir
 from fricenv.envs import kernels as K
-from fricenv.envs.scenes import SCENES
 
 LABELS = {"ppo": "PPO", "sac": "SAC"}
 OBS_SHAPE = (K.N_OBS,)  #: every scene's observation
@@ -214,8 +219,8 @@ def _summary(entry: Entry) -> dict[str, Any]:
 
 # -- writing ----------------------------------------------------------------------------------
 def markdown(scene: str, entries: list[Entry], n_seeds: int, episodes: int,
-             plots: list[str]) -> str:
-    sc = SCENES[scene]
+             plots: list[str], env_kwargs: dict | None = None) -> str:
+    sc = ActionMap(scene, env_kwargs).scene  # the scene as evaluated, not the preset
     zero = next((e for e in entries if e.key == "zero"), None)
     best = next((e for e in entries if e.key == "best_constant"), None)
     z_stick = float(zero.metrics.stick_fraction.mean()) if zero else float("nan")
@@ -226,6 +231,8 @@ def markdown(scene: str, entries: list[Entry], n_seeds: int, episodes: int,
         "",
         f"{sc.description}",
         "",
+        *([f"Environment settings changed from the scene's: `{env_kwargs}` (the values "
+           "below are those used).", ""] if env_kwargs else []),
         f"Mean ± std over n episodes of {sc.max_episode_steps} control steps "
         f"(dt = {sc.control_dt:.4f}): {n_seeds} evaluation seeds x {episodes} episodes, "
         "times the number of trained models for an agent. All controllers face the same "
@@ -268,8 +275,10 @@ def markdown(scene: str, entries: list[Entry], n_seeds: int, episodes: int,
         secs = e.info.get("train_seconds") or []
         steps = e.info.get("timesteps") or []
         if secs:
+            done = "?" if not steps else (
+                str(steps[0]) if min(steps) == max(steps) else f"{min(steps)}–{max(steps)}")
             lines.append(f"- {e.label}: training wall time {min(secs):.0f}–{max(secs):.0f} s "
-                         f"per run ({steps[0] if steps else '?'} steps, 2-core CPU).")
+                         f"per run ({done} steps, 2-core CPU).")
         paired = []
         for b in entries:
             if b.kind != "baseline" or b.key == "zero":
@@ -319,7 +328,8 @@ def time_history(controllers: list[tuple[str, Controller]], scene: str, env_kwar
     n = len(controllers)
     fig, axes = plt.subplots(n, 2, figsize=(11, 1.6 * n + 0.7), sharex="col", squeeze=False,
                              gridspec_kw={"width_ratios": [3, 1.2]})
-    top = max(SCENES[scene].u0_range[1], SCENES[scene].nu_range[1])
+    amap = ActionMap(scene, env_kwargs)
+    top = max(amap.u_range[1], amap.nu_range[1])
     for row, (label, ctrl) in enumerate(controllers):
         env = gym.make(SCENE_ENV_IDS[scene], scene=scene, **env_kwargs)
         u = env.unwrapped
@@ -518,7 +528,7 @@ def evaluate_scene(scene: str, args: argparse.Namespace,
         if learning_curves(trained_list, baselines, out / name):
             plots.append(name)
 
-    md = markdown(scene, entries, args.seeds, args.episodes, plots)
+    md = markdown(scene, entries, args.seeds, args.episodes, plots, env_kwargs)
     table = out / f"{scene}.md"
     table.write_text(md + "\n")
     result = {

@@ -176,7 +176,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--run-dir", type=Path, default=None,
                    help="exact run folder (default: <log-folder>/<algo>_<scene>_s<seed>_<time>)")
     p.add_argument("--eval-freq", type=int, default=10_000,
-                   help="evaluate every this many steps (0: only at the end)")
+                   help="evaluate every this many steps, and at the start and the end (0: "
+                        "at the start and the end only)")
     p.add_argument("--eval-episodes", type=int, default=16, help="episodes per evaluation")
     p.add_argument("--tensorboard", action="store_true",
                    help="also log to TensorBoard (<run>/tb; needs the tensorboard package)")
@@ -300,6 +301,9 @@ def train(args: argparse.Namespace, prepared: tuple | None = None) -> Path:
             env = VecNormalize(env, gamma=gamma, **spec.normalize)
         model = algo_class(args.algo)(spec.policy, env, seed=seed, device="cpu", verbose=0,
                                       **spec.algo_kwargs)
+    except KeyboardInterrupt:
+        _discard(run_dir, existed)  # nothing trained yet: nothing to keep
+        raise
     except Exception as e:
         # leave nothing behind that would block the corrected rerun or look like a run
         _discard(run_dir, existed)
@@ -336,8 +340,15 @@ def train(args: argparse.Namespace, prepared: tuple | None = None) -> Path:
                              args.eval_episodes, args.eval_freq, run_dir, status)
     bar = ProgressBar(spec.n_timesteps, status, enabled=not args.no_progress)
     t0 = time.perf_counter()
+    interrupted = False
     try:
         model.learn(spec.n_timesteps, callback=[evaluator, bar])
+    except KeyboardInterrupt:
+        # Ctrl-C, the usual way to end a long run early: keep what was trained (as
+        # rl-baselines3-zoo does); config.yml records the stop and the steps done.
+        interrupted = True
+        if bar.bar is not None:
+            bar.bar.close()
     except Exception as e:  # (as a failed setup: a half-written folder would block a rerun)
         model.logger.close()
         env.close()
@@ -351,16 +362,25 @@ def train(args: argparse.Namespace, prepared: tuple | None = None) -> Path:
     if spec.normalize is not None:
         env.save(str(run_dir / "vecnormalize.pkl"))
     env.close()
-    last = evaluator.rows[-1]
+    # (an interrupted run's last evaluation may predate its last steps: eval_log.csv has
+    # its timesteps; with a stop during the first evaluation there is none)
+    last = evaluator.rows[-1] if evaluator.rows else None
     config.update({
         "finished": datetime.now().isoformat(timespec="seconds"),
         "train_seconds": round(train_seconds, 2), "timesteps_done": int(model.num_timesteps),
-        "final_eval": {k: last[k] for k in ("return_mean", "stick_fraction", "effort")},
+        "final_eval": None if last is None else {
+            k: last[k] for k in ("return_mean", "stick_fraction", "effort")},
     })
+    if interrupted:
+        config["interrupted"] = True
     cfg_path.write_text(yaml.safe_dump(config, sort_keys=False))
     print(f"run folder: {run_dir}\ntraining wall time: {train_seconds:.1f} s "
-          f"({model.num_timesteps} steps); final eval return {last['return_mean']:.3f}, "
-          f"stick fraction {last['stick_fraction']:.4f}")
+          f"({model.num_timesteps} of {spec.n_timesteps} steps)" + (
+              "" if last is None else f"; last eval return {last['return_mean']:.3f}, "
+              f"stick fraction {last['stick_fraction']:.4f}"))
+    if interrupted:
+        raise KeyboardInterrupt(f"training interrupted after {model.num_timesteps} steps; "
+                                f"the model trained so far is saved in {run_dir}")
     return run_dir
 
 
@@ -377,6 +397,8 @@ def main(argv: list[str] | None = None) -> Path:
         parser.error(str(e))
     except TrainingError as e:  # not a usage error, but no traceback of SB3's insides
         parser.exit(1, f"{parser.prog}: error: {e}\n")
+    except KeyboardInterrupt as e:  # (the shell's status for a Ctrl-C: 128 + SIGINT)
+        parser.exit(130, f"{parser.prog}: {e or 'interrupted'}\n")
 
 
 if __name__ == "__main__":

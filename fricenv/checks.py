@@ -60,14 +60,17 @@ def is_int(value: Any) -> bool:
     )
 
 
-def check_int(name: str, value: Any, minimum: int | None = None) -> int:
+def check_int(name: str, value: Any, minimum: int | None = None,
+              maximum: int | None = None) -> int:
     """``value`` as an int: ``TypeError`` unless an integer (a float would be truncated),
-    ``ValueError`` if below ``minimum``."""
+    ``ValueError`` if below ``minimum`` or above ``maximum``."""
     if not is_int(value):
         raise TypeError(f"{name} must be an integer, {got(value)}")
     n = operator.index(value)
     if minimum is not None and n < minimum:
         raise ValueError(f"{name} must be an integer >= {minimum}, got {short_repr(value)}")
+    if maximum is not None and n > maximum:
+        raise ValueError(f"{name} must be an integer <= {maximum}, got {short_repr(value)}")
     return n
 
 

@@ -28,6 +28,7 @@ from agents.common import (  # noqa: E402
     eval_env_seed,
     load_controller,
     load_hyperparams,
+    rollout,
     split_hyperparams,
     train_env_seed,
 )
@@ -225,6 +226,34 @@ def test_failed_training_leaves_no_run_folder(made, monkeypatch, capsys, tmp_pat
     T._check_folders(T.build_parser().parse_args(argv))  # a rerun is not blocked
 
 
+def test_ctrl_c_keeps_the_model_trained_so_far(monkeypatch, capsys, tmp_path):
+    """Ctrl-C left config and logs but no model (and the folder then failed evaluation):
+    the model so far is saved, config.yml says the run was interrupted, exit status 130."""
+    from stable_baselines3 import PPO
+
+    collect = PPO.collect_rollouts
+    calls = []
+
+    def interrupted_second_rollout(self, *a, **k):
+        calls.append(1)
+        if len(calls) == 2:
+            raise KeyboardInterrupt
+        return collect(self, *a, **k)
+
+    monkeypatch.setattr(PPO, "collect_rollouts", interrupted_second_rollout)
+    run = tmp_path / "run"
+    with pytest.raises(SystemExit) as exc:
+        T.main(["--algo", "ppo", "--scene", "paper", "-n", "320", "--eval-freq", "0",
+                "--eval-episodes", "1", "--no-progress", "--run-dir", str(run),
+                "-params", "n_envs:2", "n_steps:16", "batch_size:32"])
+    assert exc.value.code == 130 and "interrupted after 32 steps" in capsys.readouterr().err
+    cfg = yaml.safe_load((run / "config.yml").read_text())
+    assert cfg["interrupted"] is True and cfg["timesteps_done"] == 32
+    assert cfg["n_timesteps"] == 320 and cfg["final_eval"]["return_mean"] < 0.0
+    ctrl, _ = load_controller(run)
+    assert ctrl.model.num_timesteps == 32
+
+
 def test_train_folder_options_must_be_folders(capsys, tmp_path):
     """A --run-dir or -f naming a file was a NotADirectoryError traceback."""
     note = tmp_path / "notes.txt"
@@ -361,6 +390,47 @@ def test_settings_are_reached_in_absolute_and_incremental_mode():
         for _ in range(steps):
             obs, r, _, _, info = env.step(zero.predict(obs)[0])
         assert obs[7] == 0.0 and info["effort"] == 0.0
+
+
+def test_rollout_scores_episodes_that_end_early_up_to_their_end():
+    """Episodes that leave the observation box end at different steps; each one's metrics
+    are those of the same episode run alone, and the others run on to the horizon."""
+    from fricenv.envs import StickSlipEnv
+    from fricenv.envs.scenes import SCENES as PRESETS
+
+    scene = PRESETS["paper"].replace(x_limit=4.0, max_episode_steps=40)
+    ctrl = B.ConstantExcitation(2.0, 0.1, scene)
+    m = rollout(ctrl, scene, 10, 6)
+    assert len(set(m.length.tolist())) > 1 and m.length.max() == 40  # some ended early
+    for j in range(6):
+        env = StickSlipEnv(scene=scene)
+        obs, _ = env.reset(seed=10 + j)
+        ret, stick, steps = 0.0, 0.0, 0
+        for _ in range(40):
+            obs, r, term, trunc, info = env.step(ctrl.predict(obs[None])[0][0])
+            ret, stick, steps = ret + r, stick + info["stick_fraction"], steps + 1
+            if term or trunc:
+                break
+        assert m.length[j] == steps
+        assert m.ret[j] == pytest.approx(ret, rel=1e-12, abs=1e-12)
+        assert m.stick_fraction[j] == pytest.approx(stick / steps, rel=1e-12, abs=1e-12)
+
+
+def test_reports_and_baselines_follow_the_runs_env_kwargs():
+    """A run trained with max_episode_steps in env_kwargs (a vector env argument) could not
+    be evaluated, and the report printed the preset's dt, weights and V, not those used."""
+    kw = {"control_dt": 1.0, "reward_weights": [1.0, 0.0, 0.0], "params": {"V": 0.5},
+          "max_episode_steps": 50}
+    sc = B.ActionMap("paper", kw).scene
+    assert (sc.control_dt, sc.reward_weights, sc.params.V, sc.max_episode_steps) == (
+        1.0, (1.0, 0.0, 0.0), 0.5, 50)
+    assert B.ConstantExcitation(2.0, 0.5, "paper", kw).predict(np.zeros((1, 9)))[0].shape == (
+        1, 1)
+    md = E.markdown("paper", [], 1, 2, [], kw)
+    for text in ("episodes of 50 control steps (dt = 1.0000)", "which is V = 0.5 ",
+                 "effort = 1, 0, 0)", "Environment settings changed"):
+        assert text in md
+    assert "Environment settings changed" not in E.markdown("paper", [], 1, 2, [])
 
 
 def test_random_baseline_is_seeded():

@@ -805,6 +805,87 @@ def test_vector_env_copies_continue_as_the_original(how):
         rewarded += int((twin[1] < 0.0).sum())
     assert truncations == 3  # every plant's episode ended after its 4th step, in the copy too
     assert rewarded == 6 * 3 - 3  # all but the autoreset steps (reward 0)
+    # a step where every plant reports shares one read-only mask; a copy's is read-only too
+    mask = clone.step(np.zeros((3, 2)))[4]["_stick_fraction"]
+    with pytest.raises(ValueError, match="read-only"):
+        mask[0] = False
+
+
+@pytest.mark.parametrize("how", ["deepcopy", "pickle"])
+def test_copies_of_envs_that_rendered_render_as_the_original(how):
+    """A figure's artists do not survive copy.deepcopy: a copy made after a frame was drawn
+    failed at its next render."""
+    import copy
+    import pickle
+
+    for env in (StickSlipEnv(render_mode="rgb_array"),
+                StickSlipVectorEnv(num_envs=2, render_mode="rgb_array")):
+        env.reset(seed=0)
+        env.render()
+        clone = copy.deepcopy(env) if how == "deepcopy" else pickle.loads(pickle.dumps(env))
+        a = np.full(env.action_space.shape, 0.5, dtype=np.float32)
+        env.step(a)
+        clone.step(a)
+        assert np.array_equal(np.asarray(env.render()), np.asarray(clone.render()))
+        env.close()
+        clone.close()
+
+
+def test_sb3_adapter_checks_indices_and_sets_shared_attributes_for_all_plants():
+    """The plants share one vector env: an attribute set for some of them would change them
+    all (it did), and an index past the plants answered as if it were one."""
+    from fricenv.envs.sb3 import StickSlipSB3VecEnv
+
+    venv = StickSlipSB3VecEnv(num_envs=3, max_episode_steps=100)
+    assert venv.get_attr("max_episode_steps", indices=[0, -1]) == [100, 100]
+    assert venv.env_method("snapshot", 0, indices=2)[0]["V"] == venv.venv.snapshot(0)["V"]
+    calls = (lambda bad: venv.get_attr("max_episode_steps", indices=bad),
+             lambda bad: venv.env_method("snapshot", 0, indices=bad),
+             lambda bad: venv.env_is_wrapped(gym.wrappers.TimeLimit, indices=bad))
+    for bad in ([3], 5, [-4]):
+        for call in calls:
+            with pytest.raises(IndexError, match=f"index {np.ravel(bad)[0]} is out of range"):
+                call(bad)
+    with pytest.raises(TypeError, match="indices must be ints"):
+        venv.get_attr("max_episode_steps", indices=[0.5])
+    for mode in (AutoresetMode.NEXT_STEP, "Disabled"):
+        with pytest.raises(ValueError, match="SB3 needs same-step autoreset"):
+            StickSlipSB3VecEnv(num_envs=1, autoreset_mode=mode)
+    assert StickSlipSB3VecEnv(num_envs=1, autoreset_mode="SameStep").num_envs == 1
+    with pytest.raises(ValueError, match="only be set for all of them"):
+        venv.set_attr("max_episode_steps", 3, indices=[0])
+    assert venv.get_attr("max_episode_steps") == [100, 100, 100]  # nothing changed
+    venv.set_attr("max_episode_steps", 7, indices=[2, 0, 1])  # all plants: allowed
+    assert venv.venv.max_episode_steps == 7
+
+
+def test_sb3_adapter_reports_each_episodes_stick_fraction_when_it_ends(tmp_path):
+    """VecMonitor logged the info's stick_fraction at an episode's end: the last interval's
+    (0 or 1 mostly), not the episode's."""
+    import csv
+
+    from stable_baselines3.common.vec_env import VecMonitor
+
+    from fricenv.envs.sb3 import StickSlipSB3VecEnv
+
+    path = tmp_path / "monitor.csv"
+    venv = VecMonitor(StickSlipSB3VecEnv(num_envs=2, max_episode_steps=7), str(path),
+                      info_keywords=("episode_stick_fraction",))
+    venv.seed(3)
+    venv.reset()
+    actions = np.random.default_rng(0).uniform(-1, 1, (30, 2, 1)).astype(np.float32)
+    running, ended = np.zeros(2), []
+    for a in actions:
+        _, _, dones, infos = venv.step(a)
+        running += [info["stick_fraction"] for info in infos]
+        for i in np.flatnonzero(dones):
+            assert infos[i]["episode_stick_fraction"] == pytest.approx(running[i] / 7, 1e-12)
+            ended.append(running[i] / 7)
+            running[i] = 0.0
+    venv.close()
+    rows = list(csv.DictReader(path.read_text().splitlines()[1:]))
+    assert len(rows) == len(ended) == 8 and len({round(x, 3) for x in ended}) > 2
+    assert [float(r["episode_stick_fraction"]) for r in rows] == pytest.approx(ended, abs=1e-6)
 
 
 def test_vector_max_episode_steps_can_be_changed_and_autoreset_mode_cannot():
@@ -818,9 +899,11 @@ def test_vector_max_episode_steps_can_be_changed_and_autoreset_mode_cannot():
     dones = [venv.step(np.zeros((2, 1), np.float32))[2].tolist() for _ in range(4)]
     assert dones == [[False, False], [False, False], [True, True], [False, False]]
     vec = StickSlipVectorEnv(num_envs=2, max_episode_steps=100)
-    for bad, err in ((0, ValueError), (2.5, TypeError), (True, TypeError)):
+    for bad, err in ((0, ValueError), (2.5, TypeError), (True, TypeError), (2**63, ValueError)):
         with pytest.raises(err, match="max_episode_steps"):
             vec.max_episode_steps = bad
+    with pytest.raises(ValueError, match="max_episode_steps must be an integer <= "):
+        StickSlipVectorEnv(num_envs=1, max_episode_steps=2**63)  # (it overflowed the counter)
     assert vec.max_episode_steps == 100
     with pytest.raises(AttributeError):
         vec.autoreset_mode = AutoresetMode.SAME_STEP

@@ -75,6 +75,7 @@ class Painter:
     BLOCK_H = 1.0
 
     def __init__(self, width: int = 640, height: int = 420):
+        self.size = (width, height)
         dpi = 100
         self.fig = Figure(figsize=(width / dpi, height / dpi), dpi=dpi)
         self.canvas = FigureCanvasAgg(self.fig)
@@ -102,6 +103,11 @@ class Painter:
         av.set_xlabel("time")
         av.set_ylabel("velocity v")
         av.tick_params(labelsize=8)
+
+    def __reduce__(self) -> tuple:
+        # A figure's artists do not survive copy.deepcopy (they keep bound methods of the
+        # original's artist lists), so a copied or unpickled painter draws on a new figure.
+        return (Painter, self.size)
 
     def draw(self, snap: dict, trace: Trace) -> np.ndarray:
         x, V, t = snap["x"], snap["V"], snap["t"]
@@ -177,6 +183,11 @@ class Renderer:
         self.buf_t, self.buf_v, self.buf_s = self.trace.buf_t, self.trace.buf_v, self.trace.buf_s
         self.painter: Painter | None = None
         self._window = None
+
+    def __getstate__(self) -> dict:
+        state = self.__dict__.copy()
+        state["_window"] = None  # a copy opens a window of its own at its first frame
+        return state
 
     def clear(self, t: float, v: float, stuck: bool) -> None:
         self.trace.clear(t, v, stuck)

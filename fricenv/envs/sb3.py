@@ -23,16 +23,28 @@ from fricenv.envs.vector import StickSlipVectorEnv, plant_seeds
 class StickSlipSB3VecEnv(VecEnv):
     """SB3 view of ``num_envs`` plants: ``StickSlipSB3VecEnv(num_envs=64, scene="paper")``.
 
-    Keyword arguments are those of ``StickSlipVectorEnv`` (``autoreset_mode`` is fixed to
+    Keyword arguments are those of ``StickSlipVectorEnv`` (``autoreset_mode`` must be
     same-step). ``seed()`` and ``set_options()`` act at the next ``reset()``, as in SB3:
-    plant i is seeded ``seed + i``. Attribute access (``get_attr``, ``env_method``) reaches
-    the vector environment, which all plants share.
+    plant i is seeded ``seed + i``. Attribute access (``get_attr``, ``set_attr``,
+    ``env_method``) reaches the vector environment, which all plants share: ``get_attr`` and
+    ``env_method`` return its one answer for each index asked, and ``set_attr`` sets a value
+    for all plants, so it refuses ``indices`` that name only some of them. An index outside
+    the plants is an ``IndexError``, as in ``DummyVecEnv``.
+
+    The info of a plant whose episode ends also holds ``episode_stick_fraction``, the
+    episode's stick-time fraction (``stick_fraction`` is the last interval's), for
+    ``VecMonitor(info_keywords=...)`` to log.
     """
 
     def __init__(self, num_envs: int = 1, **kwargs: Any):
-        kwargs["autoreset_mode"] = AutoresetMode.SAME_STEP
+        mode = kwargs.setdefault("autoreset_mode", AutoresetMode.SAME_STEP)
+        if mode not in (AutoresetMode.SAME_STEP, AutoresetMode.SAME_STEP.value):
+            raise ValueError(f"SB3 needs same-step autoreset; got autoreset_mode={mode!r}")
         self.venv = StickSlipVectorEnv(num_envs=num_envs, **kwargs)
         self._actions: np.ndarray | None = None
+        # each plant's running episode: sum of its intervals' stick fractions, and steps
+        self._stick_sum = np.zeros(self.venv.num_envs)
+        self._episode_steps = np.zeros(self.venv.num_envs, dtype=np.int64)
         super().__init__(
             self.venv.num_envs, self.venv.single_observation_space, self.venv.single_action_space
         )
@@ -45,6 +57,8 @@ class StickSlipSB3VecEnv(VecEnv):
         self._reset_seeds()
         self._reset_options()
         self.reset_infos = [{} for _ in range(n)]
+        self._stick_sum[:] = 0.0
+        self._episode_steps[:] = 0
         return self.venv._obs.copy()
 
     def step_async(self, actions: np.ndarray) -> None:
@@ -63,11 +77,17 @@ class StickSlipSB3VecEnv(VecEnv):
              "mean_relative_velocity": m, "TimeLimit.truncated": False}
             for s, e, q, m in zip(sf, ef, qv, mv, strict=True)
         ]
+        self._stick_sum += res[K.R_STICK]
+        self._episode_steps += 1
         if dones.any():  # ("TimeLimit.truncated" as a DummyVecEnv of gym.make'd envs sets it)
             final_obs = info["final_obs"]
             for i in np.flatnonzero(dones).tolist():
                 infos[i]["terminal_observation"] = final_obs[i]
                 infos[i]["TimeLimit.truncated"] = bool(truncated[i] and not terminated[i])
+                infos[i]["episode_stick_fraction"] = float(
+                    self._stick_sum[i] / self._episode_steps[i])
+            self._stick_sum[dones] = 0.0
+            self._episode_steps[dones] = 0
         return obs, rewards.astype(np.float32), dones, infos
 
     def close(self) -> None:
@@ -78,18 +98,38 @@ class StickSlipSB3VecEnv(VecEnv):
             return [None] * self.num_envs
         return list(self.venv.render())
 
+    def _plants(self, indices: VecEnvIndices) -> list[int]:
+        """The plants ``indices`` names (SB3's forms: None, an int or an iterable), each
+        checked to be one of them (a negative index counts from the end, as in a list)."""
+        plants = []
+        for i in self._get_indices(indices):
+            if isinstance(i, bool) or not isinstance(i, (int, np.integer)):
+                raise TypeError(f"indices must be ints, got {i!r}")
+            if not -self.num_envs <= i < self.num_envs:
+                raise IndexError(f"index {i} is out of range for {self.num_envs} plants")
+            plants.append(int(i) % self.num_envs)
+        return plants
+
     def get_attr(self, attr_name: str, indices: VecEnvIndices = None) -> list[Any]:
+        plants = self._plants(indices)
         value = getattr(self.venv, attr_name)
-        return [value for _ in self._get_indices(indices)]
+        return [value for _ in plants]
 
     def set_attr(self, attr_name: str, value: Any, indices: VecEnvIndices = None) -> None:
+        if set(self._plants(indices)) != set(range(self.num_envs)):
+            raise ValueError(
+                f"set_attr({attr_name!r}) with indices={indices!r}: the plants share one "
+                "vector environment, so an attribute can only be set for all of them "
+                "(indices=None)"
+            )
         setattr(self.venv, attr_name, value)
 
     def env_method(
         self, method_name: str, *method_args, indices: VecEnvIndices = None, **method_kwargs
     ) -> list[Any]:
+        plants = self._plants(indices)
         result = getattr(self.venv, method_name)(*method_args, **method_kwargs)
-        return [result for _ in self._get_indices(indices)]
+        return [result for _ in plants]
 
     def env_is_wrapped(
         self, wrapper_class: type[gym.Wrapper], indices: VecEnvIndices = None
@@ -97,4 +137,4 @@ class StickSlipSB3VecEnv(VecEnv):
         """True for ``TimeLimit`` only: the plants have its time limit built in (as a
         ``DummyVecEnv`` of ``gym.make``'d envs would report), and no other wrapper."""
         wrapped = wrapper_class is gym.wrappers.TimeLimit
-        return [wrapped for _ in self._get_indices(indices)]
+        return [wrapped for _ in self._plants(indices)]

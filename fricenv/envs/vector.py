@@ -107,6 +107,11 @@ assert 1 <= PROBE_STEPS <= LATE_STEPS
 DRAW_ROWS = 16
 
 
+
+def _check_max_steps(value: Any) -> int:
+    """An episode length the kernel's int64 step counters can hold."""
+    return check_int("max_episode_steps", value, 1, int(np.iinfo(np.int64).max))
+
 class StickSlipVectorEnv(VectorEnv):
     """``num_envs`` independent ``StickSlipEnv`` plants, stepped in one numba call.
 
@@ -165,10 +170,8 @@ class StickSlipVectorEnv(VectorEnv):
         )
         self.scene = self.setup.scene
         self.num_envs = n = num_envs
-        max_episode_steps = (
-            int(self.scene.max_episode_steps)
-            if max_episode_steps is None
-            else check_int("max_episode_steps", max_episode_steps, 1)
+        max_episode_steps = _check_max_steps(
+            self.scene.max_episode_steps if max_episode_steps is None else max_episode_steps
         )
         self.render_mode = render_mode
         self.dt = self.scene.control_dt
@@ -253,9 +256,11 @@ class StickSlipVectorEnv(VectorEnv):
         self._status = self._counters[K.CT_STATUS]
 
     def __setstate__(self, state: dict[str, Any]) -> None:
-        # copy.deepcopy and pickle restore every view as an array of its own
+        # copy.deepcopy and pickle restore every view as an array of its own, and every
+        # array writable: the infos' shared mask must stay read-only in a copy too
         self.__dict__.update(state)
         self._bind_views()
+        self._all_true.flags.writeable = False
 
     @property
     def max_episode_steps(self) -> int:
@@ -265,7 +270,7 @@ class StickSlipVectorEnv(VectorEnv):
 
     @max_episode_steps.setter
     def max_episode_steps(self, value: int) -> None:
-        self._ivars[K.IV_MAX_STEPS] = check_int("max_episode_steps", value, 1)
+        self._ivars[K.IV_MAX_STEPS] = _check_max_steps(value)
 
     @property
     def autoreset_mode(self) -> AutoresetMode:
