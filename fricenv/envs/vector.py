@@ -107,10 +107,10 @@ assert 1 <= PROBE_STEPS <= LATE_STEPS
 DRAW_ROWS = 16
 
 
-
 def _check_max_steps(value: Any) -> int:
     """An episode length the kernel's int64 step counters can hold."""
     return check_int("max_episode_steps", value, 1, int(np.iinfo(np.int64).max))
+
 
 class StickSlipVectorEnv(VectorEnv):
     """``num_envs`` independent ``StickSlipEnv`` plants, stepped in one numba call.
