@@ -658,6 +658,22 @@ def test_vector_env_matches_single_envs_step_for_step(mode, kw):
     o1, _ = native.reset()  # unseeded reset continues each plant's own stream
     o2, _ = singles.reset()
     assert np.array_equal(o1, o2)
+    assert native.np_random_seed == singles.np_random_seed == (42, 43, 44, 45)
+
+
+def test_vector_np_random_seed_reports_each_plants_seed():
+    vec = StickSlipVectorEnv(num_envs=3)
+    assert vec.np_random_seed == (None, None, None)  # no plant has a generator yet
+    first, _ = vec.reset(seed=[7, None, 9])
+    seeds = vec.np_random_seed
+    assert seeds[0] == 7 and seeds[2] == 9 and isinstance(seeds[1], int)
+    # the random seed is the one plant 1's generator was made from
+    assert np.array_equal(vec.reset(seed=list(seeds))[0], first)
+    vec.reset(options={"reset_mask": np.array([False, True, False])})
+    assert vec.np_random_seed == seeds  # an unseeded reset keeps the plant's generator
+    with pytest.raises(TypeError):
+        vec.reset(seed=[1, "2", 3])
+    assert vec.np_random_seed == seeds  # a refused reset reseeds nothing
 
 
 def test_vector_env_with_autoreset_disabled_matches_single_envs_and_refuses_ended_plants():

@@ -211,6 +211,7 @@ class StickSlipVectorEnv(VectorEnv):
         self._cursor[:] = DRAW_ROWS
         self._bounds = np.stack([self.setup.draw_lo, self.setup.draw_hi])
         self._rngs: list[np.random.Generator | None] = [None] * n
+        self._seeds: list[int | None] = [None] * n  # each generator's seed, as reported
         # Episodes started in the kernel skip EnvSetup.episode's check: it cannot fail
         # without options when b1 and b3 are drawn from [0, 0].
         b13 = self._bounds[:, [K.D_B1, K.D_B3]]
@@ -261,6 +262,13 @@ class StickSlipVectorEnv(VectorEnv):
         self.__dict__.update(state)
         self._bind_views()
         self._all_true.flags.writeable = False
+
+    @property
+    def np_random_seed(self) -> tuple[int | None, ...]:
+        """Each plant's seed, as ``SyncVectorEnv`` reports its envs' (``seed + i`` or
+        ``seed[i]``, a random one where a plant was first reset with None; None before a
+        plant's first reset)."""
+        return tuple(self._seeds)
 
     @property
     def max_episode_steps(self) -> int:
@@ -326,7 +334,7 @@ class StickSlipVectorEnv(VectorEnv):
         setup = self.setup
         P_new, init, cursor = self._new_P, self._new_init, self._cursor
         # all new generators first: a bad seed fails before any plant changes
-        fresh = {i: seeding.np_random(s)[0] for i, s in zip(idx.tolist(), seeds, strict=True)
+        fresh = {i: seeding.np_random(s) for i, s in zip(idx.tolist(), seeds, strict=True)
                  if s is not None or self._rngs[i] is None}
         # Spent buffers refilled first (a step that raised may have left some): a plant's
         # next rows are then buffered from its own generator, and all a rejected reset must
@@ -338,7 +346,7 @@ class StickSlipVectorEnv(VectorEnv):
             for i, opt in zip(idx.tolist(), options, strict=True):
                 if i in fresh:
                     saved[i] = (self._rngs[i], int(cursor[i]), self._draws[i].copy())
-                    self._rngs[i] = fresh[i]
+                    self._rngs[i] = fresh[i][0]
                     self._refill(i)  # a new stream: the old one's rows are dropped
                 else:
                     saved[i] = (self._rngs[i], int(cursor[i]), None)
@@ -354,6 +362,8 @@ class StickSlipVectorEnv(VectorEnv):
                     self._draws[i] = draws
                 cursor[i] = row
             raise
+        for i, (_, used) in fresh.items():
+            self._seeds[i] = used
         K.start_batch(self._table, self._cfg, mask, self._obs_pair, self._flags, self._counters)
         self._terminated[mask] = False
         self._truncated[mask] = False
