@@ -34,6 +34,7 @@ from agents.common import SEARCH_SEED_BASE, rollout
 from fricenv.envs import kernels as K
 from fricenv.envs.scenes import Scene
 from fricenv.envs.stick_slip import EnvSetup
+from fricenv.sweep import ALGORITHM as SWEEP_ALGORITHM
 
 BASELINES = ("zero", "random", "best_constant", "feedback")
 #: Bump when the search changes, so stale caches are recomputed.
@@ -231,7 +232,9 @@ def search_best_constant(scene: str | Scene = "self_excited", env_kwargs: dict |
     nu = (np.linspace(*amap.nu_range, n_nu) if amap.drives_nu
           else np.array([sc.params.nu]))
     key = {
-        "version": SEARCH_VERSION, "scene": sc.name, "env_kwargs": env_kwargs,
+        # the sweep's measurement version too: a cache made by other physics code is stale
+        "version": SEARCH_VERSION, "sweep_algorithm": SWEEP_ALGORITHM,
+        "scene": sc.name, "env_kwargs": env_kwargs,
         "u0": u0.tolist(), "nu": nu.tolist(), "stick_tol": stick_tol, "episodes": episodes,
         "seed": seed, "reward_weights": list(sc.reward_weights), "control_dt": sc.control_dt,
         "max_episode_steps": sc.max_episode_steps,

@@ -459,6 +459,9 @@ def test_best_constant_search_is_cached(tmp_path, monkeypatch):
     assert B.search_best_constant("self_excited", **kw) == res
     with pytest.raises(AssertionError, match="cache"):  # another search is not served stale
         B.search_best_constant("self_excited", **{**kw, "episodes": 3})
+    monkeypatch.setattr(B, "SWEEP_ALGORITHM", B.SWEEP_ALGORITHM + 1)
+    with pytest.raises(AssertionError, match="cache"):  # nor one by other physics code
+        B.search_best_constant("self_excited", **kw)
 
 
 def test_feedback_rule_fires_only_near_stick():
