@@ -642,11 +642,13 @@ class RegimeMap:
     @classmethod
     def load(cls, path: str | os.PathLike) -> RegimeMap:
         """Read a map written by :meth:`save` (``ValueError`` naming the file if it is not
-        one, is incomplete or inconsistent). ``.npz`` is appended if missing, as by
-        :meth:`save`."""
+        one, is incomplete or inconsistent; ``FileNotFoundError`` if there is none).
+        ``.npz`` is appended if missing, as by :meth:`save`."""
         path = _with_npz(check_path("path", path))
         try:
             z = np.load(path, allow_pickle=False)
+        except (FileNotFoundError, IsADirectoryError, PermissionError):
+            raise  # a path to fix, not a file to distrust
         except (ValueError, OSError, zipfile.BadZipFile) as exc:  # not an npz archive
             raise ValueError(f"{path} is not a fricenv regime map ({exc})") from None
         if not isinstance(z, np.lib.npyio.NpzFile):

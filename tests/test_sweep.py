@@ -152,6 +152,15 @@ def test_storage_roundtrip_and_metadata(tmp_path, reference: RegimeMap) -> None:
     np.savez(tmp_path / "other.npz", a=np.zeros(2))
     with pytest.raises(ValueError, match="not a fricenv regime map"):
         RegimeMap.load(tmp_path / "other.npz")
+    (tmp_path / "text.npz").write_text("no archive")
+    with pytest.raises(ValueError, match="text.npz is not a fricenv regime map"):
+        RegimeMap.load(tmp_path / "text.npz")
+    # a wrong path is the error it is, not a file called a bad map
+    with pytest.raises(FileNotFoundError, match="missing.npz"):
+        RegimeMap.load(tmp_path / "missing")
+    (tmp_path / "folder.npz").mkdir()
+    with pytest.raises(IsADirectoryError):
+        RegimeMap.load(tmp_path / "folder.npz")
 
 
 def test_other_friction_laws_run() -> None:
