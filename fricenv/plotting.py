@@ -303,12 +303,16 @@ def draw_regime_map(ax: Axes, rmap: object, boundaries: bool = True,
         ax.set_title(title, fontsize=10)
 
 
-def regime_legend_handles(include_unresolved: bool = True) -> list:
+def regime_legend_handles(include_unresolved: bool = True, boundaries: bool = True) -> list:
+    """Legend entries for a regime map: a patch per regime, then the two boundary lines
+    that ``draw_regime_map`` draws (``boundaries=False`` leaves them out, for a plot of
+    labels alone)."""
     hs = [Patch(facecolor=REGIME_COLORS[r], edgecolor="k", lw=0.4, label=REGIME_SHORT[r])
           for r in Regime if include_unresolved or r != Regime.UNRESOLVED]
-    hs.append(Line2D([], [], color="k", lw=1.2, label="1st boundary: stick begins"))
-    hs.append(Line2D([], [], color="k", lw=1.0, ls="--",
-                     label="2nd boundary: last stick (only reversals beyond)"))
+    if boundaries:
+        hs.append(Line2D([], [], color="k", lw=1.2, label="1st boundary: stick begins"))
+        hs.append(Line2D([], [], color="k", lw=1.0, ls="--",
+                         label="2nd boundary: last stick (only reversals beyond)"))
     return hs
 
 

@@ -372,3 +372,30 @@ def test_regime_maps_figure_checks_maps_and_titles() -> None:
         plotting.regime_maps_figure([5])
     fig = plotting.regime_maps_figure([m] * 5, [f"({k})" for k in "abcde"])
     assert len([ax for ax in fig.axes if ax.get_visible()]) == 5 and len(fig.axes) == 6
+
+
+def test_readme_plane_example_draws_its_map(tmp_path, monkeypatch) -> None:
+    """The README's (u0, eta) example (``cell_statistics`` + the regime colours) runs as
+    printed and finds the three regimes its plane holds."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    text = (Path(__file__).parents[1] / "README.md").read_text(encoding="utf-8")
+    section = text.split("### Other parameter planes", 1)[1]
+    code = section.split("```python\n", 1)[1].split("```", 1)[0]
+    monkeypatch.chdir(tmp_path)
+    ns: dict = {}
+    exec(compile(code, "README.md", "exec"), ns)
+    assert (tmp_path / "coulomb_u0_eta.png").stat().st_size > 5_000
+    assert set(np.unique(ns["labels"]).tolist()) == {Regime.WM1, Regime.WM2, Regime.SSM1}
+    assert ns["labels"].shape == ns["stick_fraction"].shape == (60, 60)
+    assert not np.any(ns["status"])
+    import matplotlib.pyplot as plt
+
+    plt.close(ns["fig"])
+
+
+def test_legend_handles_without_the_boundary_lines() -> None:
+    patches = plotting.regime_legend_handles(boundaries=False)
+    assert [h.get_label() for h in patches] == [plotting.REGIME_SHORT[r] for r in Regime]
+    assert len(plotting.regime_legend_handles()) == len(patches) + 2
