@@ -691,19 +691,54 @@ def _extremum(cx, kind, lo, hi, dlo, dhi, ddlo, ddhi, dddlo, dddhi):
     return 0.5 * (a + b)
 
 
+#: ``_unresolved_return``'s answer where h is resolved (the contact search goes on)
+_RESOLVED = -2.0
+
+
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+def _unresolved_return(L, h0, d0, q0, h1, tol):
+    """Contact time of a slip step that starts on the switching surface heading off it while
+    h = sd (v - V) never reads above rounding (``tol``): -1 (no contact in the step) or
+    the time h returns to 0; ``_RESOLVED`` where that does not apply.
+
+    Leaving stick with x_fs = x_fk (h' = 0, h'' > 0), or reversing just past the static
+    level (h' tiny, h'' < 0), h stays within a few ulps of 0 for a while: its computed
+    values are rounding noise. Reading a contact at the start from them ended each new
+    phase where it began, without time moving, until the event cap stopped the run as
+    "chattering"; a root search on them placed the return up to 30 % of the excursion
+    off. The derivatives are resolved: near the start h = d0 t + q0 t^2 / 2 + O(t^3), so
+    h rises and comes back (q0 < 0) at -2 d0 / q0, where the contact is taken (the state
+    there differs from the excursion's by rounding only).
+    """
+    if not (abs(h0) <= tol and (d0 > 0.0 or (d0 == 0.0 and q0 > 0.0))):
+        return _RESOLVED
+    if q0 < 0.0:
+        back = -2.0 * d0 / q0
+        if back < L:
+            return back
+        return -1.0 if h1 >= -tol else L
+    return -1.0 if h1 >= -tol else _RESOLVED
+
+
 @njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def _contact_time(cx, kind, L, h0, d0, q0, h1, d1, q1, t_ext, h_ext, q_ext):
-    """First relative time in (0, L] where h = sd (v - V) reaches 0, or -1.
+    """First relative time in (0, L] where h = sd (v - V) reaches 0, or -1 (0: at once).
 
     ``t_ext``/``h_ext`` describe the interior extremum of h (t_ext < 0: none); q0, q1 and
     q_ext are h'' at 0, L and t_ext (they place the root search's first point). A phase
     that starts on the switching surface (h0 = 0, d0 clamped to >= 0 by the caller) only
-    ends once h has been positive.
+    ends once h has been positive, or where ``_unresolved_return`` says when it never
+    rises above rounding.
     """
+    tol = GRAZE_ULPS * 2.220446049250313e-16 * max(1.0, abs(cx[C_V]))
     if t_ext >= 0.0 and d0 > 0.0:  # h rises to a maximum, then falls
         if h1 <= 0.0:
-            if h_ext <= 0.0:
-                return 0.0
+            if h_ext <= tol:
+                te = _unresolved_return(L, h0, d0, q0, h1, tol)
+                if te != _RESOLVED:
+                    return te
+                if h_ext <= 0.0:
+                    return 0.0
             return _root(cx, kind, 0.0, t_ext, L, h_ext, h1, 0.0, d1, q_ext, q1)
         return -1.0
     if t_ext >= 0.0 and d0 < 0.0:  # h falls to a minimum (grazing if it only touches 0)
@@ -713,12 +748,13 @@ def _contact_time(cx, kind, L, h0, d0, q0, h1, d1, q1, t_ext, h_ext, q_ext):
             return _root(cx, kind, 0.0, 0.0, t_ext, h0, h_ext, d0, 0.0, q0, q_ext)
         # a minimum within rounding of 0 is a touch: which side of 0 the computed value
         # lands on is an accident of the last bit
-        if h_ext <= GRAZE_ULPS * 2.220446049250313e-16 * max(1.0, abs(cx[C_V])):
+        if h_ext <= tol:
             return t_ext
         return -1.0
     if h1 <= 0.0:
         if h0 <= 0.0:
-            return 0.0
+            te = _unresolved_return(L, h0, d0, q0, h1, tol)
+            return 0.0 if te == _RESOLVED else te
         return _root(cx, kind, 0.0, 0.0, L, h0, h1, d0, d1, q0, q1)
     return -1.0
 
@@ -1463,7 +1499,9 @@ def _scan_exact(S, t_span, out_t, stats, max_events, out_x, out_v, out_mode, ev_
                     _slip_stats(cx, K_SLIP_V, stats, L, t_ext, v_ext, v, acc, j0, v1, a1, j1,
                                 x1, v_mid, V)
                     x = x1
-                    v = v1
+                    # a slip state has sd (v - V) >= 0; v1 may be a few ulps short of V
+                    # where _unresolved_return saw no contact
+                    v = v1 if sd * (v1 - V) >= 0.0 else V
                     acc = a1
                     c1, s1, c2, s2 = nc1, ns1, nc2, ns2
                     ph1 = _wrap(ph1 + w1 * L)
@@ -2046,6 +2084,8 @@ def _run_event(P, S, t_span, out_t, stats, max_events, rtol, atol, out_x, out_v,
                     status = _log_event(ev_t, ev_kind, ev_x, counts, t_start + t, kind, x, n_events,
                                         max_events)
                 else:
+                    if sd * (v1 - V) < 0.0:  # a few ulps short (see _scan_exact)
+                        v1 = V
                     ce1, se1 = _sincos(w1 * hstep)
                     ce2, se2 = _sincos(w2 * hstep)
                     c_end1, c_end2 = _end_phases(cx, cx[C_CP1], cx[C_SP1], cx[C_CP2],

@@ -105,9 +105,10 @@ from .simulate import check_scan_steps
 FORMAT = "fricenv.regime_map"
 FORMAT_VERSION = 1
 # 12: time runs from 0 in each core call, and the transient skips the extrema (stats move
-# by rounding)
+# by rounding); 13: slip excursions below v's rounding (x_fs ~ x_fk) end where their
+# derivatives say, not at their start (such cells stopped as chattering)
 #: Version of the per-cell measurement; a stored map is resumed only if it matches.
-ALGORITHM = 12
+ALGORITHM = 13
 #: A map in progress is saved at most this often (seconds): each save rewrites the whole
 #: file, and saving after every chunk made a 3 s map take 70 % longer. Its last chunks are
 #: saved when it ends or stops on an exception; a killed process loses at most this much.

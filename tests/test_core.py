@@ -253,6 +253,86 @@ def test_near_grazing_contact_is_not_missed(method, side):
     assert abs(tr.event_t[0] - math.pi / 2) < 1e-3
 
 
+@pytest.mark.parametrize("method", ["exact", "event"])
+def test_a_call_ending_just_after_a_tangential_stick_exit_keeps_slipping(method):
+    """With x_fs = x_fk the block leaves stick with h' = 0 (h = sd (v - V)), so h stays
+    below v's rounding for ~1e-8: a call ending there read a contact at the exit from
+    rounding noise and switched back and forth at one instant until the event cap
+    ("chatters"). Found by an independent SciPy reference; it gives slip, counts (1, 1, 1)."""
+    p = OscillatorParams(nu=0.7, u0=2.0, xfs=2.5)  # the paper's plant with x_fs = x_fk
+    tr = simulate(p, 4.0, dt_out=4.0, method=method)
+    assert tr.event_kind.tolist() == [EVENT_REVERSAL, EVENT_STICK, EVENT_SLIP]
+    t_exit = float(tr.event_t[2])
+    for delay in (1e-14, 1e-12, 1e-11, 1e-10, 1e-9, 1e-8, 1e-6):
+        r = run_stats(p, t_exit + delay, method=method)
+        assert r.state.mode == -1 and (r.n_stick, r.n_slip, r.n_reversals) == (1, 1, 1)
+    # ... and so does a run recording an output there, or continued in pieces cut there
+    rec = simulate(p, 4.0, dt_out=t_exit + 1e-10, method=method)
+    assert rec.event_kind.tolist() == tr.event_kind.tolist()
+    head = run_stats(p, t_exit + 1e-12, method=method)
+    rest = run_stats(p, 4.0 - head.state.t, state=head.state, method=method)
+    assert abs(rest.state.x - tr.x[-1]) < 1e-9 and rest.state.mode == tr.mode[-1]
+    # at the paper's x_fs = 4 the same window was a couple of ulps of the end time
+    q = OscillatorParams(nu=0.7, u0=2.0)
+    ref = simulate(q, 4.0, dt_out=4.0, method=method)
+    t_exit = float(ref.event_t[ref.event_kind == EVENT_SLIP][0])
+    for _ in range(6):
+        t_exit = math.nextafter(t_exit, 10.0)
+        run_stats(q, t_exit, method=method)  # no SimulationError
+
+
+@pytest.mark.parametrize("law", ["coulomb", "viscous", "stribeck"])
+def test_calls_cut_just_after_every_switch_continue_the_run(law):
+    """x_fs = x_fk, random plants: a run continued in pieces, each cut 1e-10 after a switch,
+    has the one-call run's switches and end (before the fix, 161 of 368 calls ending just
+    after a stick exit stopped as chattering in a reviewer's sample)."""
+    rng = np.random.default_rng(11)
+    method = "exact" if law == "coulomb" else "event"
+    for _ in range(3):
+        xfk = float(rng.uniform(1.0, 3.0))
+        p = OscillatorParams.preset(law, lam=float(rng.uniform(0.05, 0.6)),
+                                    eta=float(rng.uniform(0.3, 1.5)),
+                                    nu=float(rng.uniform(0.1, 1.5)), u0=float(rng.uniform(1, 4)),
+                                    xfk=xfk, xfs=xfk)
+        whole = simulate(p, 20.0, dt_out=20.0, method=method)
+        assert whole.stats.n_slip > 0  # the plant leaves stick at least once
+        cuts = [t + 1e-10 for t in whole.event_t.tolist() if t + 1e-10 < 20.0]
+        state = None
+        counts = np.zeros(3)
+        for span in np.diff([0.0, *cuts, 20.0]):
+            r = run_stats(p, float(span), state=state, method=method)
+            state = r.state
+            counts += (r.n_stick, r.n_slip, r.n_reversals)
+        assert counts.tolist() == [whole.n_stick, whole.stats.n_slip, whole.n_reversals]
+        assert state.mode == whole.mode[-1] and abs(state.x - whole.x[-1]) < 1e-8
+
+
+@pytest.mark.parametrize("method", ["exact", "event"])
+def test_reversal_just_past_the_static_level_sticks_after_its_excursion(method):
+    """Slip reaching v = V where |f| exceeds x_fs (= x_fk) by 9e-9 reverses into a slip
+    whose h' = |f| - x_fk is that small and whose h'' ~ -|f'|: it comes back after
+    tau ~ 2 (|f| - x_fk) / |f'| ~ 1.2e-8 with |f| now below x_fs, and sticks. The
+    excursion's h (~1e-17) is below v's rounding; it used to end where it began, again and
+    again, until the event cap. Neighbouring u0 must give the same sequence."""
+    base = OscillatorParams(lam=0.2, eta=0.33, nu=0.43, V=1.5, xfk=3.0, xfs=3.0)
+    for u0 in (1.744048715, 1.74404872, 1.74404874):
+        p = base.replace(u0=u0)
+        tr = simulate(p, 0.5, dt_out=0.5, method=method)
+        assert tr.event_kind.tolist()[:2] == [EVENT_REVERSAL, EVENT_STICK]
+        t_rev, t_stick = (float(t) for t in tr.event_t[:2])
+        x = float(tr.event_x[0])
+        f = float(stick_force(p, t_rev, x))
+        g_dot = -(p.amp1 * p.omega1 * math.sin(p.omega1 * t_rev)
+                  + p.amp2 * p.omega2 * math.sin(p.omega2 * t_rev))
+        f_dot = -p.V + g_dot
+        assert abs(f) > p.xfs and f * f_dot < 0.0  # past the static level, heading back
+        excursion = 2.0 * (abs(f) - p.xfk) / abs(f_dot)
+        assert 0.0 < t_stick - t_rev < 1e-7
+        assert abs((t_stick - t_rev) - excursion) < 1e-3 * excursion
+    below = simulate(base.replace(u0=1.7440487), 0.5, dt_out=0.5, method=method)
+    assert below.event_kind[0] == EVENT_STICK  # |f| <= x_fs at the contact: sticks at once
+
+
 def test_resonant_undamped_tone():
     """lam = 0 and eta = 1: x_p grows like t sin t; compare with the closed form."""
     p = OscillatorParams(lam=0.0, eta=1.0, nu=0.0, u0=0.2, u2=0.0, V=1e3, xfk=0.0, xfs=0.0)
