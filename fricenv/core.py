@@ -691,6 +691,25 @@ def _extremum(cx, kind, lo, hi, dlo, dhi, ddlo, ddhi, dddlo, dddhi):
     return 0.5 * (a + b)
 
 
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+def _start_slope(cx, fresh, h0, d0, x, v):
+    """h' at a slip step's start, for the contact search.
+
+    A phase that starts on the switching surface (``fresh``, h0 <= 0) leaves stick or
+    reverses with h' = |f| - x_fk >= x_fs - x_fk >= 0, so a negative h' there within the
+    rounding of the acceleration's terms is taken as 0. A larger negative one (a given
+    state, or an excitation retuned between calls) heads to the other side at once and is
+    kept: the contact is then at the start (it was clamped to 0 too, and a dip of h below
+    0 that came back within the step went unseen: slip on with v past V, status OK).
+    """
+    if fresh and h0 <= 0.0 and d0 < 0.0:
+        noise = GRAZE_ULPS * 2.220446049250313e-16 * (
+            abs(cx[C_LAM] * v) + abs(x) + cx[C_XFK] + abs(cx[C_U1]) + abs(cx[C_U2]))
+        if d0 >= -noise:
+            return 0.0
+    return d0
+
+
 #: ``_unresolved_return``'s answer where h is resolved (the contact search goes on)
 _RESOLVED = -2.0
 
@@ -943,9 +962,13 @@ def _stick_exit_time(cx, L, f0, fd0, fdd0, f1, fd1, fdd1):
         t_ext = _extremum(cx, K_STICK_F, 0.0, L, fd0, fd1, fdd0, fdd1, math.nan, math.nan)
         _, f_ext, _, fdd_ext = _stick_at(cx, t_ext)
     best = -1.0
+    tie = _force_tie(cx, cx[C_XA])
     for side in (1.0, -1.0):
         off = side * xfs  # the root searched is f = off; violated where side * f > xfs
-        if side * f0 > xfs:
+        # past xfs at the start: leave now, unless by rounding only with |f| falling
+        # (see _force_tie), which holds as f = off
+        held_tie = side * f0 > xfs and side * f0 - xfs <= tie and side * fd0 <= 0.0
+        if side * f0 > xfs and not held_tie:
             return 0.0
         te = -1.0
         if t_ext >= 0.0:
@@ -954,9 +977,12 @@ def _stick_exit_time(cx, L, f0, fd0, fdd0, f1, fd1, fdd1):
                     te = _root(cx, K_STICK_F, off, 0.0, t_ext, f0 - off, f_ext - off, fd0,
                                0.0, fdd0, fdd_ext)
             elif side * f1 > xfs:  # f turns back towards this side and crosses after
-                te = _root(cx, K_STICK_F, off, t_ext, L, f_ext - off, f1 - off, 0.0, fd1,
-                           fdd_ext, fdd1)
-        elif side * f1 > xfs:
+                if side * f_ext > xfs:  # (a held tie that turns before it clears xfs)
+                    te = t_ext
+                else:
+                    te = _root(cx, K_STICK_F, off, t_ext, L, f_ext - off, f1 - off, 0.0,
+                               fd1, fdd_ext, fdd1)
+        elif side * f1 > xfs and not held_tie:
             te = _root(cx, K_STICK_F, off, 0.0, L, f0 - off, f1 - off, fd0, fd1, fdd0, fdd1)
         if te >= 0.0 and (best < 0.0 or te < best):
             best = te
@@ -990,11 +1016,31 @@ def _log_event(ev_t, ev_kind, ev_x, counts, t, kind, x, n_events, max_events):
     return status
 
 
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+def _force_tie(cx, x):
+    """How far |f| may pass x_fs and still be taken as x_fs: the rounding of f's terms.
+
+    At a regime boundary a contact lands with |f| = x_fs to the last bits, where the
+    computed f falls on either side by accident. Taken as a pass, a falling |f| made a
+    reversal whose slip (h' = |f| - x_fk ~ 0 when x_fs = x_fk) came back at once to the
+    same tie, or a stick left again at once: hundreds of switches ~1e-16 apart, or the
+    event cap. A tie with |f| falling sticks, and a stick holds through it.
+    """
+    return GRAZE_ULPS * 2.220446049250313e-16 * (
+        abs(cx[C_LAM] * cx[C_V]) + abs(x) + abs(cx[C_U1]) + abs(cx[C_U2]))
+
+
 @njit(cache=True, error_model="numpy", _nrt=False)
-def _contact_outcome(cx, stats, x, c1, c2, sd):
-    """Mode after slip in direction sd reaches v = V at x: stick, or reverse."""
+def _contact_outcome(cx, stats, x, c1, s1, c2, s2, sd):
+    """Mode after slip in direction sd reaches v = V at x (tone phases c_i = cos, s_i =
+    sin): stick, or reverse."""
     f = -cx[C_LAM] * cx[C_V] - x + cx[C_U1] * c1 + cx[C_U2] * c2
-    if abs(f) <= cx[C_XFS]:
+    excess = abs(f) - cx[C_XFS]
+    if excess > 0.0 and excess <= _force_tie(cx, x):
+        fd = -cx[C_V] - cx[C_U1] * cx[C_W1] * s1 - cx[C_U2] * cx[C_W2] * s2
+        if f * fd <= 0.0:  # |f| not rising
+            excess = 0.0
+    if excess <= 0.0:
         stats[ST_N_STICK] += 1.0
         return 0.0, EVENT_STICK
     stats[ST_N_REVERSAL] += 1.0
@@ -1421,9 +1467,7 @@ def _scan_exact(S, t_span, out_t, stats, max_events, out_x, out_v, out_mode, ev_
                     _slip_start(cx, x, v, c1, s1, c2, s2, mode)
                     sd = mode
                     h0 = sd * (v - V)
-                    d0 = sd * acc
-                    if fresh and d0 < 0.0 and h0 <= 0.0:
-                        d0 = 0.0
+                    d0 = _start_slope(cx, fresh, h0, sd * acc, x, v)
                     j0 = _jerk(cx, v, acc, s1, s2)
                     r_h = math.sqrt(cx[C_DX] * cx[C_DX] + cx[C_DV] * cx[C_DV])
                     vdd = cx[C_VDD_P] + cx[C_VDD_H] * r_h  # bounds |v''| on the step
@@ -1471,7 +1515,7 @@ def _scan_exact(S, t_span, out_t, stats, max_events, out_x, out_v, out_mode, ev_
                         v_mid, xe, _, ae, je, ec1, es1, ec2, es2 = _slip_mid_and_end(cx, te)
                         _slip_stats(cx, K_SLIP_V, stats, te, t_ext, v_ext, v, acc, j0, V, ae,
                                     je, xe, v_mid, V)
-                        new_mode, kind = _contact_outcome(cx, stats, xe, ec1, ec2, sd)
+                        new_mode, kind = _contact_outcome(cx, stats, xe, ec1, es1, ec2, es2, sd)
                         ph1 = _wrap(ph1 + w1 * te)
                         ph2 = _wrap(ph2 + w2 * te)
                         t = t + te
@@ -2020,9 +2064,7 @@ def _run_event(P, S, t_span, out_t, stats, max_events, rtol, atol, out_x, out_v,
                 cx[C_XA] = x
                 cx[C_SD] = sd
                 h0 = sd * (v - V)
-                d0 = sd * a0
-                if fresh and d0 < 0.0 and h0 <= 0.0:
-                    d0 = 0.0
+                d0 = _start_slope(cx, fresh, h0, sd * a0, x, v)
                 h1 = sd * (v1 - V)
                 d1 = sd * a1
                 t_ext = -1.0
@@ -2069,8 +2111,8 @@ def _run_event(P, S, t_span, out_t, stats, max_events, rtol, atol, out_x, out_v,
                     pe1 = ph1 + w1 * te
                     pe2 = ph2 + w2 * te
                     xe = x1 if te > 0.0 else x
-                    new_mode, kind = _contact_outcome(cx, stats, xe, math.cos(pe1), math.cos(pe2),
-                                                      sd)
+                    new_mode, kind = _contact_outcome(cx, stats, xe, math.cos(pe1), math.sin(pe1),
+                                                      math.cos(pe2), math.sin(pe2), sd)
                     t = t + te
                     x = xe
                     v = V

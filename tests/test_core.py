@@ -308,6 +308,40 @@ def test_calls_cut_just_after_every_switch_continue_the_run(law):
 
 
 @pytest.mark.parametrize("method", ["exact", "event"])
+def test_a_slip_state_on_v_eq_V_heading_back_sticks_at_once(method):
+    """A state slipping backwards on v = V, continued under an excitation for which |f| <=
+    x_fs and v' > 0 (the README's retune-and-continue pattern): h = -(v - V) falls at once,
+    so the block sticks at the start. Its negative h' was clamped to 0 as if it were
+    rounding, and with u0 = 1.1 the dip came back within the first step unseen: slip on
+    with v 0.018 past V, status OK (found by a stress review)."""
+    start = OscillatorState.start(OscillatorParams(u0=0.0), x0=4.0, v0=1.0)
+    assert start.mode == -1  # |f| = 4.5 > x_fs without excitation
+    for u0 in (1.1, 1.2):  # f = -2.3, -2.1: |f| <= x_fs, slip acceleration +0.2, +0.4
+        p = OscillatorParams(u0=u0)
+        r = run_stats(p, 0.5, state=start, method=method)
+        assert r.n_stick == 1 and r.stick_time == pytest.approx(0.5) and r.state.mode == 0
+        assert r.v_max == p.V
+
+
+@pytest.mark.parametrize("method", ["exact", "event"])
+def test_a_tie_with_the_static_level_and_a_falling_force_sticks(method):
+    """x_fs = x_fk and |f| past x_fs by rounding only at v = V, with |f| falling: the block
+    sticks at once (Filippov). A reversal came back to the same tie at once, 673 times
+    (exact) or until the event cap (event); a stick left again at once."""
+    p = OscillatorParams(lam=0.04033064848173047, eta=0.8266427401431232,
+                         nu=1.8509294779270178, u0=0.01794757884038454, V=1.910110109199205,
+                         xfk=4.692795499016583, xfs=4.692795499016583)
+    x0 = -4.733936320711327  # f(0) = x_fs to the last bit; f' = -V + ... < 0
+    assert OscillatorState.start(p, x0, p.V).mode == 1  # the start reads |f| > x_fs
+    tr = simulate(p, 10.0, x0=x0, v0=p.V, method=method)
+    assert tr.event_kind.tolist() == [EVENT_STICK, EVENT_SLIP]
+    assert tr.event_t[0] < 1e-15
+    assert abs(tr.event_t[1] - 4.892408) < 1e-5  # where |f| reaches x_fs again
+    short = run_stats(p, 1e-9, state=OscillatorState.start(p, x0, p.V), method=method)
+    assert (short.n_stick, short.n_reversals, short.state.mode) == (1, 0, 0)
+
+
+@pytest.mark.parametrize("method", ["exact", "event"])
 def test_reversal_just_past_the_static_level_sticks_after_its_excursion(method):
     """Slip reaching v = V where |f| exceeds x_fs (= x_fk) by 9e-9 reverses into a slip
     whose h' = |f| - x_fk is that small and whose h'' ~ -|f'|: it comes back after
