@@ -143,6 +143,21 @@ def test_randomisation_stays_in_the_scene_ranges():
     assert env.params["lam"] == SCENES["self_excited"].params.lam
 
 
+def test_params_are_checked_against_the_ranges_only_when_randomising():
+    """params={"xfs": 2.5} makes the valid x_fs = x_fk plant; without randomize, x_fk's
+    range (2.2, 2.8) is never drawn from, so it must not refuse it (it did, with the
+    puzzling "xfs must be >= xfk = 2.8"). With randomize, the clash is named."""
+    env = gym.make(ENV_ID, params={"xfs": 2.5}).unwrapped
+    env.reset(seed=0)
+    assert env.params["xfk"] == env.params["xfs"] == 2.5
+    for _ in range(20):
+        env.step(env.action_space.sample())
+    vec = StickSlipVectorEnv(num_envs=2, scene="self_excited", params={"xfs": 2.5})
+    vec.reset(seed=0)
+    with pytest.raises(ValueError, match=r"randomization corner .*'xfk': 2\.8.*xfs must be >= xfk"):
+        gym.make(ENV_ID, params={"xfs": 2.5}, randomize=True)
+
+
 def test_scene_validation():
     sc = SCENES["paper"]
     with pytest.raises(ValueError):

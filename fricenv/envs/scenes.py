@@ -176,10 +176,13 @@ class Scene:
         object.__setattr__(self, "randomization", ordered)
         # Every corner of the randomisation box must be a valid plant, so that a sampled
         # episode never needs validating at reset time.
-        lo = {k: v[0] for k, v in rnd.items()}
-        hi = {k: v[1] for k, v in rnd.items()}
-        self.params.replace(**lo)
-        self.params.replace(**hi)
+        for corner in ({k: v[0] for k, v in rnd.items()}, {k: v[1] for k, v in rnd.items()}):
+            try:
+                self.params.replace(**corner)
+            except ValueError as e:
+                raise ValueError(f"the randomization corner {corner} makes an invalid plant "
+                                 f"with the scene's parameters ({e}): narrow the ranges or "
+                                 "change the parameters") from None
         if "xfk" in rnd or "xfs" in rnd:
             xfk_hi = rnd.get("xfk", (self.params.xfk,) * 2)[1]
             xfs_lo = rnd.get("xfs", (self.params.xfs,) * 2)[0]

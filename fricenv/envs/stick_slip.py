@@ -115,6 +115,10 @@ class EnvSetup:
             # a value given explicitly is kept for every episode, not drawn over
             changes["randomization"] = tuple(
                 (k, r) for k, r in sc.randomization if k not in params)
+        if not randomize and sc.randomization:
+            # ranges never drawn from are not checked against the plant either: with
+            # params={"xfs": 2.5}, x_fk's range (2.2, 2.8) refused a plant that is valid
+            changes["randomization"] = ()
         if action_mode is not None:
             changes["action_mode"] = action_mode
         if control_dt is not None:
