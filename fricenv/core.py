@@ -107,6 +107,8 @@ _D2_MIN = 1.0 / (CLOSED_FORM_MAX_GAIN * CLOSED_FORM_MAX_GAIN)
 _STATUS_NEAR_RESONANCE = -1
 EVENT_REL_TOL = 1e-15  # switching instants: to rounding (a few ulps of the step time)
 GRAZE_ULPS = 8.0  # a velocity extremum this many ulps of V short of V still touches it
+# ... and this much of a value's terms is its rounding (contacts, ties with x_fs)
+GRAZE_REL = GRAZE_ULPS * 2.220446049250313e-16
 # An extremum's value is insensitive to its position (error ~ f'' dt^2), so 1e-9 in time
 # already gives the value to rounding.
 EXTREMUM_REL_TOL = 1e-9
@@ -703,7 +705,7 @@ def _start_slope(cx, fresh, h0, d0, x, v):
     0 that came back within the step went unseen: slip on with v past V, status OK).
     """
     if fresh and h0 <= 0.0 and d0 < 0.0:
-        noise = GRAZE_ULPS * 2.220446049250313e-16 * (
+        noise = GRAZE_REL * (
             abs(cx[C_LAM] * v) + abs(x) + cx[C_XFK] + abs(cx[C_U1]) + abs(cx[C_U2]))
         if d0 >= -noise:
             return 0.0
@@ -749,7 +751,7 @@ def _contact_time(cx, kind, L, h0, d0, q0, h1, d1, q1, t_ext, h_ext, q_ext):
     ends once h has been positive, or where ``_unresolved_return`` says when it never
     rises above rounding.
     """
-    tol = GRAZE_ULPS * 2.220446049250313e-16 * max(1.0, abs(cx[C_V]))
+    tol = GRAZE_REL * max(1.0, abs(cx[C_V]))
     if t_ext >= 0.0 and d0 > 0.0:  # h rises to a maximum, then falls
         if h1 <= 0.0:
             if h_ext <= tol:
@@ -1026,7 +1028,7 @@ def _force_tie(cx, x):
     same tie, or a stick left again at once: hundreds of switches ~1e-16 apart, or the
     event cap. A tie with |f| falling sticks, and a stick holds through it.
     """
-    return GRAZE_ULPS * 2.220446049250313e-16 * (
+    return GRAZE_REL * (
         abs(cx[C_LAM] * cx[C_V]) + abs(x) + abs(cx[C_U1]) + abs(cx[C_U2]))
 
 
