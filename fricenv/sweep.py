@@ -106,7 +106,8 @@ FORMAT = "fricenv.regime_map"
 FORMAT_VERSION = 1
 # 12: time runs from 0 in each core call, and the transient skips the extrema (stats move
 # by rounding); 13: slip excursions below v's rounding (x_fs ~ x_fk) end where their
-# derivatives say, not at their start (such cells stopped as chattering)
+# derivatives say, not at their start, and ties |f| = x_fs with |f| falling stick (such
+# cells stopped as chattering)
 #: Version of the per-cell measurement; a stored map is resumed only if it matches.
 ALGORITHM = 13
 #: A map in progress is saved at most this often (seconds): each save rewrites the whole
