@@ -1,0 +1,102 @@
+"""Argument types the ``fricenv`` commands share: parameter assignments and grid specs.
+
+Each parser raises ``argparse.ArgumentTypeError`` with the offending text, so argparse
+prints ``error: argument --set: ...`` and exits with status 2 before any work starts.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+from pathlib import Path
+
+import numpy as np
+
+from fricenv.params import FRICTION_LAWS, PAPER_CASES, OscillatorParams
+
+#: Most points a grid spec may ask for on one axis (a typo such as 2e9 would otherwise
+#: allocate gigabytes before the sweep's own checks run).
+MAX_GRID_POINTS = 1_000_000
+
+
+def number(text: str) -> float:
+    """A finite real number, ``ArgumentTypeError`` otherwise."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"not a finite number: {text!r}")
+    return value
+
+
+def assignment(text: str) -> tuple[str, float]:
+    """``NAME=VALUE`` with a numeric value, e.g. ``u0=1.15``."""
+    name, sep, value = text.partition("=")
+    if not sep or not name.strip():
+        raise argparse.ArgumentTypeError(f"expected NAME=VALUE, got {text!r}")
+    return name.strip(), number(value)
+
+
+def grid(text: str) -> np.ndarray:
+    """A 1-d grid: ``geom:START:STOP:N``, ``lin:START:STOP:N`` or ``a,b,c``."""
+    kind, _, rest = text.partition(":")
+    if kind in ("geom", "lin"):
+        parts = rest.split(":")
+        if len(parts) != 3:
+            raise argparse.ArgumentTypeError(
+                f"expected {kind}:START:STOP:N, got {text!r}")
+        start, stop = number(parts[0]), number(parts[1])
+        try:
+            n = int(parts[2])
+        except ValueError:
+            raise argparse.ArgumentTypeError(
+                f"N must be a whole number in {text!r}, got {parts[2]!r}") from None
+        if not 1 <= n <= MAX_GRID_POINTS:
+            raise argparse.ArgumentTypeError(
+                f"N must be in [1, {MAX_GRID_POINTS}] in {text!r}, got {n}")
+        if kind == "geom":
+            if start <= 0 or stop <= 0:
+                raise argparse.ArgumentTypeError(
+                    f"a geometric grid needs START, STOP > 0, got {text!r}")
+            return np.geomspace(start, stop, n)
+        return np.linspace(start, stop, n)
+    try:
+        values = [number(v) for v in text.split(",") if v.strip()]
+    except argparse.ArgumentTypeError as e:
+        raise argparse.ArgumentTypeError(
+            f"expected geom:START:STOP:N, lin:START:STOP:N or a comma-separated list, "
+            f"got {text!r} ({e})") from None
+    if not values:
+        raise argparse.ArgumentTypeError(f"empty grid: {text!r}")
+    return np.array(values)
+
+
+def add_plant_arguments(p: argparse.ArgumentParser, cases: bool) -> None:
+    """``--law``, ``--set`` (and ``--case`` for time histories): which plant to run."""
+    src = p.add_mutually_exclusive_group()
+    src.add_argument("--law", choices=sorted(FRICTION_LAWS),
+                     help="friction law, with the paper's other defaults (default: coulomb)")
+    if cases:
+        src.add_argument("--case", choices=list(PAPER_CASES),
+                         help="one of the paper's time-history cases (Figs. 4-7)")
+    p.add_argument("--set", dest="sets", type=assignment, action="append", default=[],
+                   metavar="NAME=VALUE",
+                   help="set a parameter (lam, eta, nu, u0, V, xfk, xfs, b1, b3, u1, u2); "
+                        "repeatable")
+
+
+def plant(args: argparse.Namespace) -> OscillatorParams:
+    """The plant ``--law``/``--case`` and ``--set`` describe (``ValueError``/``TypeError``
+    from ``OscillatorParams``, naming the field, for a bad value)."""
+    base = dict(PAPER_CASES[args.case]) if getattr(args, "case", None) else {}
+    law = args.law or "coulomb"  # (the paper's cases are all Coulomb)
+    return OscillatorParams.preset(law, **{**base, **dict(args.sets)})
+
+
+def out_dir(text: str) -> Path:
+    """An output folder: an existing file there is refused up front."""
+    path = Path(text)
+    if path.exists() and not path.is_dir():
+        raise argparse.ArgumentTypeError(f"{text!r} is a file, not a folder")
+    return path

@@ -1,0 +1,17 @@
+"""``fricenv atlas``: a regime atlas over any parameter volume (needs ``fricenv[scale]``)."""
+
+from __future__ import annotations
+
+import argparse
+from collections.abc import Sequence
+
+
+def main(argv: Sequence[str] | None = None, prog: str | None = None) -> int:
+    try:
+        from fricenv.atlas import cli
+    except ImportError as e:
+        p = argparse.ArgumentParser(prog=prog)
+        p.error(f"the atlas needs the scale extra (pip install 'fricenv[scale]'): {e}")
+    p = argparse.ArgumentParser(prog=prog, description=cli.__doc__.split("\n\n")[0])
+    cli.add_arguments(p)
+    return cli.run(p.parse_args(argv))
