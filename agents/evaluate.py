@@ -27,7 +27,7 @@ from __future__ import annotations
 import argparse
 import json
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -431,9 +431,9 @@ def learning_curves(entries: list[Entry], baselines: list[Entry], path: Path) ->
 
 
 # -- CLI --------------------------------------------------------------------------------------
-def build_parser() -> argparse.ArgumentParser:
+def build_parser(prog: str | None = None) -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
-        prog="python -m agents.evaluate", description=__doc__.split("\n\n")[0],
+        prog=prog or "python -m agents.evaluate", description=__doc__.split("\n\n")[0],
         formatter_class=HelpFormatter)
     p.add_argument("--scene", nargs="+", choices=sorted(SCENE_ENV_IDS), default=None,
                    help="scene(s) to evaluate (default: those of the runs)")
@@ -544,8 +544,8 @@ def evaluate_scene(scene: str, args: argparse.Namespace,
     return table
 
 
-def main(argv: list[str] | None = None) -> list[Path]:
-    parser = build_parser()
+def main(argv: Sequence[str] | None = None, prog: str | None = None) -> list[Path]:
+    parser = build_parser(prog)
     args = parser.parse_args(argv)
     try:
         prepared = prepare(args)

@@ -28,6 +28,7 @@ import platform
 import shutil
 import sys
 import time
+from collections.abc import Sequence
 from datetime import datetime
 from pathlib import Path
 from typing import Any
@@ -50,6 +51,7 @@ from agents.common import (
     check_seed,
     load_hyperparams,
     make_sb3_env,
+    portable_path,
     rollout,
     split_hyperparams,
     train_env_seed,
@@ -158,9 +160,9 @@ def _callbacks() -> tuple[type, type]:
     return ProgressBar, PeriodicEval
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser(prog: str | None = None) -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
-        prog="python -m agents.train", description=__doc__.split("\n\n")[0],
+        prog=prog or "python -m agents.train", description=__doc__.split("\n\n")[0],
         formatter_class=HelpFormatter)
     p.add_argument("--algo", required=True, choices=ALGOS, help="RL algorithm")
     p.add_argument("--scene", required=True, choices=sorted(SCENE_ENV_IDS), help="scene")
@@ -320,7 +322,7 @@ def train(args: argparse.Namespace, prepared: tuple | None = None) -> Path:
     config = {
         "algo": args.algo, "scene": args.scene, "env_id": SCENE_ENV_IDS[args.scene],
         "seed": seed, "n_timesteps": spec.n_timesteps, "n_envs": spec.n_envs,
-        "hyperparams_file": str(hp_file), "overrides": list(args.params),
+        "hyperparams_file": portable_path(hp_file), "overrides": list(args.params),
         "hyperparams": _plain(raw), "env_kwargs": spec.env_kwargs,
         "normalize": spec.normalize, "train_env_seeds": [train_env_seed(seed),
                                                          train_env_seed(seed) + spec.n_envs - 1],
@@ -384,8 +386,8 @@ def train(args: argparse.Namespace, prepared: tuple | None = None) -> Path:
     return run_dir
 
 
-def main(argv: list[str] | None = None) -> Path:
-    parser = build_parser()
+def main(argv: Sequence[str] | None = None, prog: str | None = None) -> Path:
+    parser = build_parser(prog)
     args = parser.parse_args(argv)
     try:
         prepared = prepare(args)

@@ -825,8 +825,9 @@ def _map_observations(rep: Report, maps: dict[int, list[RegimeMap]]) -> None:
     rep.flush_table()
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(prog="fricenv-reproduce", description=__doc__.split("\n")[0])
+def main(argv: Sequence[str] | None = None, prog: str | None = None) -> int:
+    ap = argparse.ArgumentParser(prog=prog or "fricenv reproduce",
+                                 description=__doc__.split("\n")[0])
     ap.add_argument("--quick", action="store_true",
                     help=f"low resolution ({QUICK.n_u0}x{QUICK.n_nu} cells per map panel)")
     ap.add_argument("--out", type=Path, default=None,
