@@ -7,6 +7,7 @@ on headless machines.
 
 from __future__ import annotations
 
+import io
 import os
 from collections.abc import Sequence
 from pathlib import Path
@@ -90,9 +91,23 @@ def save(fig: Figure, path: str | os.PathLike, dpi: float = 130) -> Path:
     return path
 
 
+class ShowableFigure(Figure):
+    """A ``Figure`` that shows itself as an image in IPython and Jupyter.
+
+    The figures here are built without ``pyplot`` (no global state, no GUI backend), so no
+    notebook backend knows them: a cell ending in one would print ``<Figure size ...>``.
+    ``_repr_png_`` is IPython's hook for a rich display.
+    """
+
+    def _repr_png_(self) -> bytes:
+        buf = io.BytesIO()
+        self.savefig(buf, format="png", bbox_inches="tight")
+        return buf.getvalue()
+
+
 def _subplots(nrows: int, ncols: int, figsize: tuple[float, float], **kw: object
               ) -> tuple[Figure, np.ndarray]:
-    fig = Figure(figsize=figsize, layout="constrained")
+    fig = ShowableFigure(figsize=figsize, layout="constrained")
     kw.setdefault("squeeze", False)
     return fig, fig.subplots(nrows, ncols, **kw)
 
@@ -158,12 +173,54 @@ def amplitude_figure(panels: Sequence[dict]) -> Figure:
 
 
 # -- Figs. 4-7 -----------------------------------------------------------------------------
-def time_history_figure(runs: Sequence[dict], suptitle: str | None = None) -> Figure:
+def params_title(p: OscillatorParams) -> str:
+    """A short title naming a plant's law and excitation."""
+    return (f"{LAW_TITLES.get(p.law, p.law)}: η = {p.eta:.4g}, ν = {p.nu:.4g}, "
+            f"u0 = {p.u0:.4g}")
+
+
+def _run_dict(run: object) -> dict:
+    """A time-history run as a dict: a ``Trajectory`` (anything with ``t, x, v, mode`` and
+    ``params``) or a dict with those arrays, ``title`` and ``V``."""
+    if isinstance(run, dict):
+        missing = [k for k in ("t", "x", "v", "mode") if k not in run]
+        if missing:
+            raise TypeError(f"a run dict needs keys t, x, v, mode; missing {missing}")
+        return run
+    if all(hasattr(run, k) for k in ("t", "x", "v", "mode", "params")):
+        p = run.params
+        return {"t": run.t, "x": run.x, "v": run.v, "mode": run.mode, "V": p.V,
+                "title": params_title(p)}
+    raise TypeError(f"each run must be a Trajectory or a dict of arrays, {got(run)}")
+
+
+def draw_velocity(ax: Axes, t: np.ndarray, v: np.ndarray, mode: np.ndarray, V: float) -> None:
+    """v(t) with the belt speed dashed and stick intervals (``mode == 0``) shaded."""
+    ax.plot(t, v, color="C1", lw=0.9, label="velocity v")
+    ax.axhline(V, color="k", ls="--", lw=0.8, label="belt speed V")
+    stuck = np.asarray(mode) == 0
+    if stuck.any():
+        ax.fill_between(t, 0, 1, where=stuck, transform=ax.get_xaxis_transform(),
+                        color="C3", alpha=0.18, lw=0, label="stick")
+    ax.set_ylabel("velocity v")
+    ax.set_xlabel("dimensionless time τ")
+    ax.legend(fontsize=7, loc="lower right")
+    ax.grid(alpha=0.3)
+
+
+def time_history_figure(runs: Sequence[object], suptitle: str | None = None) -> Figure:
     """Figs. 4-7: displacement (top) and velocity (bottom) per run, one column each.
 
-    Each run dict has ``t, x, v, mode`` arrays, ``title`` and ``V``; stick intervals
-    (``mode == 0``) are shaded in the velocity panel and ``v = V`` is dashed.
+    Each run is a :class:`~fricenv.Trajectory`, or a dict with ``t, x, v, mode`` arrays,
+    ``title`` and ``V``; stick intervals (``mode == 0``) are shaded in the velocity panel
+    and ``v = V`` is dashed.
     """
+    items = items_of(runs)
+    if items is None:
+        raise TypeError(f"runs must be a list of Trajectory (or of dicts), {got(runs)}")
+    if not items:
+        raise ValueError("runs is empty: nothing to draw")
+    runs = [_run_dict(r) for r in items]
     n = len(runs)
     fig, axes = _subplots(2, n, figsize=(5.6 * n, 5.6), sharex="col")
     for j, run in enumerate(runs):
@@ -173,17 +230,8 @@ def time_history_figure(runs: Sequence[dict], suptitle: str | None = None) -> Fi
         ax_x.set_ylabel("displacement x")
         ax_x.set_xlabel("dimensionless time τ")
         ax_x.set_title(run.get("title", ""), fontsize=10)
-        ax_v.plot(t, v, color="C1", lw=0.9, label="velocity v")
-        ax_v.axhline(run.get("V", 1.0), color="k", ls="--", lw=0.8, label="belt speed V")
-        stuck = mode == 0
-        if stuck.any():
-            ax_v.fill_between(t, 0, 1, where=stuck, transform=ax_v.get_xaxis_transform(),
-                              color="C3", alpha=0.18, lw=0, label="stick")
-        ax_v.set_ylabel("velocity v")
-        ax_v.set_xlabel("dimensionless time τ")
-        ax_v.legend(fontsize=7, loc="lower right")
-        for ax in (ax_x, ax_v):
-            ax.grid(alpha=0.3)
+        ax_x.grid(alpha=0.3)
+        draw_velocity(ax_v, t, v, mode, run.get("V", 1.0))
     if suptitle:
         fig.suptitle(suptitle)
     return fig
@@ -351,7 +399,3 @@ def regime_maps_figure(maps: Sequence[object], titles: Sequence[str] | None = No
     if suptitle:
         fig.suptitle(suptitle)
     return fig
-
-
-def params_title(p: OscillatorParams) -> str:
-    return f"{LAW_TITLES.get(p.law, p.law)}, η = {p.eta:.4g}, λ = {p.lam:g}, V = {p.V:g}"

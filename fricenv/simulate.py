@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -42,6 +43,9 @@ from .layout import (
     STATUS_TOO_STIFF,
 )
 from .params import P_LAM, P_W1, P_W2, PARAM_LIMIT, OscillatorParams
+
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
 
 #: Default cap on switching events per unit of dimensionless time. A physical run switches a
 #: few times per forcing period; far more means chattering (a Zeno-like accumulation).
@@ -285,6 +289,27 @@ class Trajectory:
     @property
     def final_state(self) -> OscillatorState:
         return self.stats.state
+
+    def plot(self, ax: Axes | None = None, *, y: str = "v") -> Axes:
+        """Draw ``v`` (default, with the belt speed and stick intervals shaded) or ``x``
+        against time on ``ax`` and return it; without ``ax``, on a new pyplot figure, so
+        that a notebook shows it, as ``pandas`` and ``xarray`` plots do."""
+        if y not in ("v", "x"):
+            raise ValueError(f"y must be 'v' or 'x', got {y!r}")
+        from . import plotting
+
+        if ax is None:
+            import matplotlib.pyplot as plt
+
+            ax = plt.figure(figsize=(8, 3.2), layout="constrained").add_subplot()
+        if y == "v":
+            plotting.draw_velocity(ax, self.t, self.v, self.mode, self.params.V)
+        else:
+            ax.plot(self.t, self.x, color="C0", lw=0.9)
+            ax.set(xlabel="dimensionless time τ", ylabel="displacement x")
+            ax.grid(alpha=0.3)
+        ax.set_title(plotting.params_title(self.params), fontsize=10)
+        return ax
 
     def summary(self) -> dict:
         """Headline figures of the run, for printing."""

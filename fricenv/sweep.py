@@ -46,6 +46,7 @@ import zipfile
 from collections.abc import Callable, Iterable
 from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numba
 import numpy as np
@@ -101,6 +102,9 @@ from .params import (
 )
 from .regimes import Regime, _strobe_period, classify, exact_rational, rational_denominator
 from .simulate import check_scan_steps
+
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
 
 FORMAT = "fricenv.regime_map"
 FORMAT_VERSION = 1
@@ -598,6 +602,20 @@ class RegimeMap:
     def x_amplitude(self) -> np.ndarray:
         """Half the peak-to-peak displacement in the window."""
         return 0.5 * (self.stats[..., ST_X_MAX] - self.stats[..., ST_X_MIN])
+
+    def plot(self, ax: Axes | None = None, *, boundaries: bool = True,
+             title: str | None = None) -> Axes:
+        """Draw the map on ``ax`` (u0 on x, nu on y, cells coloured by regime, the stick
+        band's two boundaries) and return it; without ``ax``, on a new pyplot figure, so
+        that a notebook shows it, as ``pandas`` and ``xarray`` plots do."""
+        from . import plotting
+
+        if ax is None:
+            import matplotlib.pyplot as plt
+
+            ax = plt.figure(figsize=(6.5, 4.6), layout="constrained").add_subplot()
+        plotting.draw_regime_map(ax, self, boundaries=boundaries, title=title)
+        return ax
 
     def counts(self) -> dict[str, int]:
         """Number of computed cells per regime name."""
