@@ -27,6 +27,19 @@ from fricenv.envs.scenes import SCENES, Scene
 SCENE_ENV_IDS: dict[str, str] = {scene: env_id for env_id, scene in ENV_IDS.items()}
 ALGOS = ("ppo", "sac")
 HYPERPARAMS_DIR = Path(__file__).resolve().parent / "hyperparams"
+#: The checkout holding ``agents/``: paths a run records are relative to it when inside it.
+REPO_ROOT = HYPERPARAMS_DIR.parents[1]
+
+
+def portable_path(path: Path) -> str:
+    """``path`` as a run config records it: relative to the repository (or else to the
+    working folder) when it lies inside, so a config committed or copied to another
+    machine names no folder of the one that trained it."""
+    p = Path(path).resolve()
+    for base in (REPO_ROOT, Path.cwd().resolve()):
+        if p.is_relative_to(base):
+            return p.relative_to(base).as_posix()
+    return str(path)
 
 # -- seed layout ----------------------------------------------------------------------------
 # Plant i of a vector environment seeded s draws from seed s + i. The blocks below never

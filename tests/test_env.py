@@ -25,10 +25,12 @@ ENV_ID = "fricenv/StickSlip-v0"
 SELF_ID = "fricenv/StickSlipSelfExcited-v0"
 
 
-def _no_warnings(fn, *args, **kwargs):
+def _no_warnings(fn, *args, allow: str | None = None, **kwargs):
+    """Run ``fn``, asserting it warns nothing (but messages starting with ``allow``)."""
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         fn(*args, **kwargs)
+    caught = [w for w in caught if allow is None or not str(w.message).startswith(allow)]
     assert not caught, [str(w.message) for w in caught]
 
 
@@ -82,7 +84,9 @@ def test_gymnasium_check_env(env_id):
     from gymnasium.utils.env_checker import check_env
 
     env = gym.make(env_id, action_mode="both", randomize=True)
-    _no_warnings(check_env, env.unwrapped)  # includes the rgb_array and human render checks
+    # includes the rgb_array and human render checks; on this headless backend the human
+    # check may only say that it cannot show anything
+    _no_warnings(check_env, env.unwrapped, allow="render_mode='human' shows nothing")
 
 
 def test_sb3_check_env():

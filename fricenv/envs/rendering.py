@@ -8,6 +8,7 @@ mode additionally shows them in a pyplot window when an interactive backend is a
 from __future__ import annotations
 
 import math
+import warnings
 
 import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
@@ -183,6 +184,7 @@ class Renderer:
         self.buf_t, self.buf_v, self.buf_s = self.trace.buf_t, self.trace.buf_v, self.trace.buf_s
         self.painter: Painter | None = None
         self._window = None
+        self._warned = False  # the headless warning is given once per environment
 
     def __getstate__(self) -> dict:
         state = self.__dict__.copy()
@@ -205,12 +207,21 @@ class Renderer:
         return None
 
     def _show(self, frame: np.ndarray) -> None:
-        """Show a frame in a pyplot window; a headless backend just skips the display."""
+        """Show a frame in a pyplot window. Without an interactive backend (a headless
+        machine, or Jupyter without ``%matplotlib``) nothing can be shown: say so once,
+        rather than render to nowhere in silence."""
         import matplotlib
         from matplotlib.backends import BackendFilter, backend_registry
 
         backend = str(matplotlib.get_backend()).lower()
         if backend not in backend_registry.list_builtin(BackendFilter.INTERACTIVE):
+            if not self._warned:
+                self._warned = True
+                warnings.warn(
+                    f"render_mode='human' shows nothing: matplotlib's backend {backend!r} "
+                    "is not interactive (a headless machine, or Jupyter without "
+                    "'%matplotlib'); use render_mode='rgb_array' to get the frames",
+                    UserWarning, stacklevel=4)
             return
         import matplotlib.pyplot as plt
 

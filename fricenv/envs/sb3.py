@@ -17,6 +17,7 @@ from gymnasium.vector import AutoresetMode
 from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvIndices, VecEnvStepReturn
 
 from fricenv.envs import kernels as K
+from fricenv.envs.scenes import Scene
 from fricenv.envs.vector import StickSlipVectorEnv, plant_seeds
 
 
@@ -36,11 +37,29 @@ class StickSlipSB3VecEnv(VecEnv):
     ``VecMonitor(info_keywords=...)`` to log.
     """
 
-    def __init__(self, num_envs: int = 1, **kwargs: Any):
-        mode = kwargs.setdefault("autoreset_mode", AutoresetMode.SAME_STEP)
-        if mode not in (AutoresetMode.SAME_STEP, AutoresetMode.SAME_STEP.value):
-            raise ValueError(f"SB3 needs same-step autoreset; got autoreset_mode={mode!r}")
-        self.venv = StickSlipVectorEnv(num_envs=num_envs, **kwargs)
+    def __init__(
+        self,
+        num_envs: int = 1,
+        max_episode_steps: int | None = None,
+        render_mode: str | None = None,
+        autoreset_mode: AutoresetMode | str = AutoresetMode.SAME_STEP,
+        scene: str | Scene = "paper",
+        action_mode: str | None = None,
+        incremental: bool = False,
+        control_dt: float | None = None,
+        randomize: bool = False,
+        reward_weights: Any = None,
+        params: dict | None = None,
+        method: str = "auto",
+    ):
+        if autoreset_mode not in (AutoresetMode.SAME_STEP, AutoresetMode.SAME_STEP.value):
+            raise ValueError(
+                f"SB3 needs same-step autoreset; got autoreset_mode={autoreset_mode!r}")
+        self.venv = StickSlipVectorEnv(
+            num_envs=num_envs, max_episode_steps=max_episode_steps, render_mode=render_mode,
+            autoreset_mode=autoreset_mode, scene=scene, action_mode=action_mode,
+            incremental=incremental, control_dt=control_dt, randomize=randomize,
+            reward_weights=reward_weights, params=params, method=method)
         self._actions: np.ndarray | None = None
         # each plant's running episode: sum of its intervals' stick fractions, and steps
         self._stick_sum = np.zeros(self.venv.num_envs)

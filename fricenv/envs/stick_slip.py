@@ -386,7 +386,8 @@ class StickSlipEnv(gym.Env):
     - `render_mode`: `None`, `"rgb_array"` or `"human"`. Frames (block, belt, spring,
       excitation force, velocity over the last 20 time units) are drawn with matplotlib on an
       Agg canvas; `"human"` shows them in a pyplot window when an interactive backend is
-      available (headless, it draws off-screen only). With `None`, nothing is imported,
+      available; without one (headless, or Jupyter without `%matplotlib`) it warns once and
+      shows nothing. With `None`, nothing is imported,
       allocated or drawn.
 
     `reset` returns `info = {}`; `step` returns the info described under Rewards.
