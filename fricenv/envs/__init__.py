@@ -8,6 +8,8 @@ id                                 scene           max_episode_steps
 =================================  ==============  =================
 ``fricenv/StickSlip-v0``           ``paper``       200
 ``fricenv/StickSlipSelfExcited-v0``  ``self_excited``  400
+``fricenv/StickSlipStribeck-v0``   ``stribeck``    300
+``fricenv/StickSlipViscous-v0``    ``viscous``     300
 =================================  ==============  =================
 
 Registration imports nothing heavy: the classes (and numba) load on the first ``make``.
@@ -21,6 +23,8 @@ from typing import Any
 ENV_IDS: dict[str, str] = {
     "fricenv/StickSlip-v0": "paper",
     "fricenv/StickSlipSelfExcited-v0": "self_excited",
+    "fricenv/StickSlipStribeck-v0": "stribeck",
+    "fricenv/StickSlipViscous-v0": "viscous",
 }
 
 __all__ = [

@@ -371,6 +371,52 @@ SCENES: dict[str, Scene] = {
         v0_range=(-0.5, 0.5),
         randomization={"lam": (0.03, 0.08), **_PLANT_RANDOMIZATION},
     ),
+    "stribeck": Scene(
+        name="stribeck",
+        description=(
+            "The paper's complete law with its falling (Stribeck-like) characteristic "
+            "(b1 = 0.2, b3 = 0.16) on a slow belt (V = 0.3) and a light damper (lambda = "
+            "0.1): friction falls faster with slip speed than the damper rises, so steady "
+            "sliding is unstable and the block stick-slips with no excitation at all (about "
+            "70 % of the time stuck). Shaking at eta = 6 hard enough (from about u0 = 3.5 on "
+            "both tones with nu = 1, or nu = 0.5) leaves no stick in steady state, weaker or "
+            "detuned shaking only part of it; once quenched, the instability regrows slowly "
+            "(e-folding about 35 time units), so the excitation can rest for a while."
+        ),
+        params=OscillatorParams.preset("stribeck", lam=0.1, V=0.3, eta=6.0, u0=0.0, nu=1.0),
+        u0_range=(0.0, 6.0),
+        nu_range=(0.5, 1.5),
+        action_mode="both",
+        max_episode_steps=300,
+        reward_weights=(1.0, 0.5, 0.1),
+        x0_range=(-1.0, 1.0),
+        v0_range=(-0.5, 0.5),
+        # every corner keeps the sliding unstable: lam - b1 + 3 b3 V^2 < 0 up to lam = 0.13
+        # with V = 0.35
+        randomization={"lam": (0.07, 0.13), "V": (0.25, 0.35), "xfk": (2.2, 2.8),
+                       "xfs": (3.6, 4.4)},
+    ),
+    "viscous": Scene(
+        name="viscous",
+        description=(
+            "Coulomb friction plus the paper's viscous term (b1 = 0.2), which falls linearly "
+            "with slip speed, on a lightly damped plant (lambda = 0.1 < b1): steady sliding "
+            "is unstable and the block stick-slips unforced (about 46 % of the time stuck). "
+            "In steady state, shaking at eta = 6 with u0 of 2 to 3 leaves a few per cent, "
+            "u0 = 4.5 on both tones with nu = 1 (or nu = 0.5) none; weaker shaking leaves or "
+            "worsens it."
+        ),
+        params=OscillatorParams.preset("viscous", lam=0.1, eta=6.0, u0=0.0, nu=1.0),
+        u0_range=(0.0, 6.0),
+        nu_range=(0.5, 1.5),
+        action_mode="both",
+        max_episode_steps=300,
+        reward_weights=(1.0, 0.5, 0.1),
+        x0_range=(-1.0, 1.0),
+        v0_range=(-0.5, 0.5),
+        # lam stays below b1 = 0.2 in every corner: the sliding stays unstable
+        randomization={"lam": (0.05, 0.15), **_PLANT_RANDOMIZATION},
+    ),
 }
 
 
