@@ -51,6 +51,11 @@ class StickSlipSB3VecEnv(VecEnv):
         reward_weights: Any = None,
         params: dict | None = None,
         method: str = "auto",
+        obs_noise: Any = None,
+        obs_delay: int = 0,
+        observe: Any = None,
+        actuator_lag: float = 0.0,
+        actuator_rate: float | None = None,
     ):
         if autoreset_mode not in (AutoresetMode.SAME_STEP, AutoresetMode.SAME_STEP.value):
             raise ValueError(
@@ -59,7 +64,9 @@ class StickSlipSB3VecEnv(VecEnv):
             num_envs=num_envs, max_episode_steps=max_episode_steps, render_mode=render_mode,
             autoreset_mode=autoreset_mode, scene=scene, action_mode=action_mode,
             incremental=incremental, control_dt=control_dt, randomize=randomize,
-            reward_weights=reward_weights, params=params, method=method)
+            reward_weights=reward_weights, params=params, method=method,
+            obs_noise=obs_noise, obs_delay=obs_delay, observe=observe,
+            actuator_lag=actuator_lag, actuator_rate=actuator_rate)
         self._actions: np.ndarray | None = None
         # each plant's running episode: sum of its intervals' stick fractions, and steps
         self._stick_sum = np.zeros(self.venv.num_envs)
@@ -78,7 +85,7 @@ class StickSlipSB3VecEnv(VecEnv):
         self.reset_infos = [{} for _ in range(n)]
         self._stick_sum[:] = 0.0
         self._episode_steps[:] = 0
-        return self.venv._obs.copy()
+        return self.venv._observation()
 
     def step_async(self, actions: np.ndarray) -> None:
         self._actions = actions

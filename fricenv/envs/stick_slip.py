@@ -36,6 +36,8 @@ from fricenv.envs.scenes import (
     get_scene,
     new_episode_arrays,
 )
+from fricenv.envs.sensors import InstrumentBank, Instruments, actuate_one
+from fricenv.envs.state import PlantState, check_state, pack, unpack
 from fricenv.layout import (
     METHOD_EVENT,
     METHOD_EXACT,
@@ -65,6 +67,8 @@ from fricenv.params import (
 )
 
 _METHODS = {"auto": K.METHOD_AUTO, "exact": METHOD_EXACT, "event": METHOD_EVENT}
+#: The single environment's plant in the instruments' (n, ...) arrays.
+_PLANT = np.zeros(1, dtype=np.int64)
 _WEIGHT_KEYS = ("stick", "velocity", "effort")
 #: Action dtypes the kernels are compiled for; any other goes through ``coerce_action``.
 ACTION_DTYPES = (np.dtype(np.float32), np.dtype(np.float64))
@@ -91,6 +95,12 @@ class EnvSetup:
     observation_space: spaces.Box
     draw_lo: np.ndarray
     draw_hi: np.ndarray
+    #: sensor and actuator options (None: the exact observation, the setting applied at
+    #: once), the configuration the kernels run with (``Instruments.kernel_cfg``) and the
+    #: nine-channel observation box the sensors clip to
+    instruments: Instruments | None = None
+    kernel_cfg: np.ndarray | None = None
+    full_observation_space: spaces.Box | None = None
 
     @classmethod
     def build(
@@ -103,8 +113,15 @@ class EnvSetup:
         reward_weights: Any = None,
         params: dict | None = None,
         method: str = "auto",
+        obs_noise: Any = None,
+        obs_delay: int = 0,
+        observe: Any = None,
+        actuator_lag: float = 0.0,
+        actuator_rate: float | None = None,
     ) -> EnvSetup:
         sc = get_scene(scene)
+        instruments = Instruments.build(obs_noise, obs_delay, observe, actuator_lag,
+                                        actuator_rate)
         # bools only: a truthy string such as 'no' would switch the mode on
         incremental = check_bool("incremental", incremental)
         randomize = check_bool("randomize", randomize)
@@ -168,7 +185,12 @@ class EnvSetup:
         low = np.array(
             [-sc.x_limit, -sc.v_limit, 0.0, -1.0, -1.0, -1.0, -1.0, ulo, nlo], dtype=np.float32
         )
-        observation_space = spaces.Box(low, high, dtype=np.float32)
+        full_space = spaces.Box(low, high, dtype=np.float32)
+        observation_space = full_space
+        kernel_cfg = cfg
+        if instruments is not None:
+            observation_space = instruments.observation_space(full_space)
+            kernel_cfg = instruments.kernel_cfg(cfg)
         draw_lo, draw_hi = sc.draw_bounds(randomize)
         return cls(
             sc,
@@ -180,6 +202,9 @@ class EnvSetup:
             observation_space,
             draw_lo,
             draw_hi,
+            instruments,
+            kernel_cfg,
+            full_space,
         )
 
     def draw(self, rng: np.random.Generator) -> np.ndarray:
@@ -276,6 +301,17 @@ class StickSlipEnv(gym.Env):
     - `self_excited` (`fricenv/StickSlipSelfExcited-v0`): `lambda = 0.05`, `eta = 6`; the
       block stick-slips with no excitation at all (about 37 % of the time stuck). Some
       `(u0, nu)` quench it, others leave or worsen it; the agent drives both.
+    - `stribeck` (`fricenv/StickSlipStribeck-v0`): the paper's complete law, falling near
+      the belt speed (`b1 = 0.2`, `b3 = 0.16`), `lambda = 0.1`, `V = 0.3`, `eta = 6`:
+      steady sliding is unstable, so the block stick-slips unforced (about 70 % of the time
+      stuck); strong enough shaking quenches it, and the instability then regrows slowly.
+      The agent drives both settings, `u0` up to 6.
+    - `viscous` (`fricenv/StickSlipViscous-v0`): Coulomb plus viscosity (`b1 = 0.2`, a
+      friction falling linearly with slip speed), `lambda = 0.1`, `eta = 6`: self-excited
+      too (about 46 % stuck unforced); the agent drives both settings, `u0` up to 6.
+
+    The Stribeck and viscous scenes run the event-locating integrator (the closed form
+    needs the Coulomb law).
 
     ## Action Space
 
@@ -283,14 +319,15 @@ class StickSlipEnv(gym.Env):
     ranges (out-of-range values are clipped; NaN or inf raises `ValueError`). `action_mode`
     picks the columns:
 
-    | action_mode | Num | Action               | Min | Max | paper      | self_excited |
-    |-------------|-----|----------------------|-----|-----|------------|--------------|
-    | amplitude   | 0   | amplitude `u0`       | -1  | 1   | [0, 4]     | [0, 2]       |
-    | frequency   | 0   | frequency ratio `nu` | -1  | 1   | [0.1, 2]   | [0.5, 1.5]   |
-    | both        | 0   | amplitude `u0`       | -1  | 1   | [0, 4]     | [0, 2]       |
-    | both        | 1   | frequency ratio `nu` | -1  | 1   | [0.1, 2]   | [0.5, 1.5]   |
+    | action_mode | Num | Action               | Min | Max | paper    | self_exc.  | others     |
+    |-------------|-----|----------------------|-----|-----|----------|------------|------------|
+    | amplitude   | 0   | amplitude `u0`       | -1  | 1   | [0, 4]   | [0, 2]     | [0, 6]     |
+    | frequency   | 0   | frequency ratio `nu` | -1  | 1   | [0.1, 2] | [0.5, 1.5] | [0.5, 1.5] |
+    | both        | 0   | amplitude `u0`       | -1  | 1   | [0, 4]   | [0, 2]     | [0, 6]     |
+    | both        | 1   | frequency ratio `nu` | -1  | 1   | [0.1, 2] | [0.5, 1.5] | [0.5, 1.5] |
 
-    (The last two columns are the physical ranges the action is scaled to in the presets.)
+    (The last three columns are the physical ranges the action is scaled to in the presets:
+    paper, self_excited, and stribeck and viscous.)
 
     Absolute (default): `-1..1` maps linearly onto the range. Incremental
     (``incremental=True``): the action moves the current setting by up to `max_delta`
@@ -318,7 +355,8 @@ class StickSlipEnv(gym.Env):
 
     The phases tell the policy where the periodic plant is in its cycle; the current
     settings make incremental control observable. `x_limit = v_limit = 100` in the presets,
-    far beyond any bounded motion of the scenes' plants.
+    far beyond any bounded motion of the scenes' plants. These are exact values of the
+    plant's state; the sensor options (see Arguments) make them noisy, late or partial.
 
     ## Rewards
 
@@ -342,7 +380,7 @@ class StickSlipEnv(gym.Env):
 
     Displacement `x ~ U(x0_range)` (presets: [-1, 1]), velocity `v ~ U(v0_range)` (presets:
     [-0.5, 0.5], so the block starts slipping against the belt), tone phases `~ U[0, 2 pi)`,
-    excitation at the scene's `u0` and `nu` (paper: 2 and 0.1; self_excited: 0 and 1). With
+    excitation at the scene's `u0` and `nu` (paper: 2 and 0.1; the others: 0 and 1). With
     ``randomize=True`` the plant parameters are drawn uniformly from the scene's ranges at
     every reset. ``reset(options=...)`` overrides any of `lam, eta, V, xfk, xfs, b1, b3`,
     `x0, v0, phi1, phi2, u0, nu` for that episode (e.g. ``{"x0": 0, "v0": 0, "phi1": 0,
@@ -353,7 +391,7 @@ class StickSlipEnv(gym.Env):
 
     - Truncation: by the `TimeLimit` wrapper of `gymnasium.make` after `max_episode_steps`
       (`fricenv/StickSlip-v0`: 200 steps, about 105 time units; `fricenv/StickSlipSelfExcited-v0`:
-      400). The environment itself never truncates.
+      400; the Stribeck and viscous ids: 300). The environment itself never truncates.
     - Termination: only if `|x| > x_limit` or `|v - V| > v_limit` (a diverging plant, e.g.
       undamped and resonant through ``reset`` options); never in the presets' ranges.
     - A chattering or non-finite integration raises `RuntimeError` instead of ending silently.
@@ -365,7 +403,8 @@ class StickSlipEnv(gym.Env):
     >>> env = gym.make("fricenv/StickSlip-v0", scene="paper", action_mode="both")
     ```
 
-    - `scene`: `"paper"` (default for `StickSlip-v0`), `"self_excited"`, or a `Scene`.
+    - `scene`: `"paper"` (default for `StickSlip-v0`), `"self_excited"`, `"stribeck"`,
+      `"viscous"`, or a `Scene`.
       The horizon is the id's `max_episode_steps`: use the scene's own id (or pass
       `max_episode_steps=`) when switching scenes.
     - `action_mode`: `"amplitude"`, `"frequency"` or `"both"` (default: the scene's).
@@ -390,11 +429,39 @@ class StickSlipEnv(gym.Env):
       shows nothing. With `None`, nothing is imported,
       allocated or drawn.
 
+    Sensors and actuator (``fricenv.envs.sensors``; all off by default, and then nothing
+    changes; the vector env applies them identically, plant by plant):
+
+    - `obs_noise`: Gaussian noise added to the observation, a standard deviation for every
+      channel (a float), nine of them, or a dict such as `{"x": 0.05, "v_rel": 0.1}`
+      (channels `x, v_rel, stick, cos1, sin1, cos2, sin2, u0, nu`). Readings are clipped to
+      the observation box. The noise comes from a generator spawned from `np_random` at
+      each seeding, so seeded runs replay and the episodes' own draws are unchanged.
+    - `obs_delay`: the observation is the reading of `k` control intervals earlier (at the
+      start of an episode, its first reading).
+    - `observe`: the observed channels, e.g. `("x", "phases")` (displacement and the tones'
+      phases, without velocity, stick flag or settings; `"settings"` names `u0, nu`); the
+      observation space shrinks to them.
+    - `actuator_lag`: the applied `(u0, nu)` follows the commanded one as a first-order lag
+      of this time constant (discretised at the control interval); `actuator_rate`: it
+      moves at most this fraction of each range per control interval. The plant, the effort
+      and the observed `u0, nu` are the applied setting; the action sets the command
+      (absolute or incremental, as without an actuator).
+
+    Plant state: `get_state()` returns the plant's full state (a
+    ``fricenv.envs.state.PlantState``: `x, v`, mode, `t`, tone phases, applied and commanded
+    `u0, nu`, the episode's parameters, the sensors' delay line and noise stream);
+    `set_state(state)` restores it and returns its observation, so the same actions then
+    give the same trajectory bit for bit. ``fricenv.envs.rollout`` rolls out many action
+    sequences from one state in one numba call.
+
     `reset` returns `info = {}`; `step` returns the info described under Rewards.
 
     ## Version History
 
-    * v0: Initial release.
+    * v0: Initial release. Later additions leave every existing result unchanged: the
+      `stribeck` and `viscous` scenes, the sensor and actuator options (off by default),
+      `get_state` and `set_state`.
     """
 
     metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 12}
@@ -410,6 +477,11 @@ class StickSlipEnv(gym.Env):
         reward_weights: Any = None,
         params: dict | None = None,
         method: str = "auto",
+        obs_noise: Any = None,
+        obs_delay: int = 0,
+        observe: Any = None,
+        actuator_lag: float = 0.0,
+        actuator_rate: float | None = None,
     ):
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(
@@ -425,6 +497,11 @@ class StickSlipEnv(gym.Env):
             reward_weights,
             params,
             method,
+            obs_noise,
+            obs_delay,
+            observe,
+            actuator_lag,
+            actuator_rate,
         )
         self.scene = self.setup.scene
         self.render_mode = render_mode
@@ -432,7 +509,7 @@ class StickSlipEnv(gym.Env):
         self.observation_space = self.setup.observation_space
         self.dt = self.scene.control_dt
 
-        self._cfg = self.setup.cfg
+        self._cfg = self.setup.kernel_cfg
         self._P = np.zeros(N_PARAMS)
         self._S = np.zeros(N_STATE)
         self._ctrl = np.zeros(2)
@@ -443,6 +520,18 @@ class StickSlipEnv(gym.Env):
         self._P_new, self._init = new_episode_arrays()
         self._act_shape = self.action_space.shape
         self._needs_reset = True
+        self._steps = 0  # since the episode began (part of the plant's state)
+        self._bank: InstrumentBank | None = None  # sensors' and actuator's buffers
+        self._act: np.ndarray | None = None  # the actuator's parameters, if any
+        self._sensing = False
+        inst = self.setup.instruments
+        if inst is not None:
+            full = self.setup.full_observation_space
+            self._bank = InstrumentBank(inst, 1, full.low, full.high)
+            self._sensing = inst.sensing
+            if inst.actuating:
+                self._act = inst.actuator_params(self.setup.cfg)
+                self._zero_action = np.zeros(self._act_shape)
 
         self._renderer = None
         if render_mode is not None:
@@ -462,6 +551,8 @@ class StickSlipEnv(gym.Env):
             or not a.flags.c_contiguous
         ):
             a = coerce_action(action, self._act_shape)
+        if self._act is not None:
+            a = self._actuate(a, action)
         if self._renderer is not None:
             self._record_trace(a)
         status = K.step_single(
@@ -473,11 +564,14 @@ class StickSlipEnv(gym.Env):
                 self._needs_reset = True
             raise_status(status, action)
         res = self._res
+        self._steps += 1
+        if self._sensing:
+            self._bank.push(_PLANT, self._obs[None])
         if self.render_mode == "human":
             self.render()
         # truncated=False: the time limit is the TimeLimit wrapper's job (max_episode_steps).
         return (
-            self._obs.copy(),
+            self._observation(),
             float(res[K.R_REWARD]),
             bool(res[K.R_TERM]),
             False,
@@ -509,11 +603,16 @@ class StickSlipEnv(gym.Env):
             self._P, self._S, self._ctrl, self._cfg, self._P_new, self._init, self._obs, self._work
         )
         self._needs_reset = False
+        self._steps = 0
+        if self._bank is not None:
+            self._bank.seed_noise(0, self.np_random)
+            self._bank.cmd[0] = self._ctrl
+            self._bank.start(_PLANT, self._obs[None])
         if self._renderer is not None:
             self._renderer.clear(self._S[S_T], self._S[S_V], self._S[S_MODE] == 0.0)
             if self.render_mode == "human":
                 self.render()
-        return self._obs.copy(), {}
+        return self._observation(), {}
 
     def render(self) -> np.ndarray | None:
         if self.render_mode is None:
@@ -532,7 +631,57 @@ class StickSlipEnv(gym.Env):
         if self._renderer is not None:
             self._renderer.close()
 
+    # -- plant state ----------------------------------------------------------------------------
+    def get_state(self) -> PlantState:
+        """The plant's full state (``fricenv.envs.state.PlantState``): restoring it with
+        ``set_state`` and replaying the same actions reproduces the trajectory bit for bit."""
+        if self._needs_reset:
+            raise gym.error.ResetNeeded("Cannot call get_state() before calling reset()")
+        bank = self._bank
+        command = self._ctrl if self._act is None else bank.cmd[0]
+        return PlantState(
+            pack(self._P, self._S, self._ctrl, self._work),
+            command.copy(),
+            None if not self._sensing else bank.delay[0].copy(),
+            None if bank is None else bank.noise_state(0),
+            self._steps,
+        )
+
+    def set_state(self, state: PlantState) -> np.ndarray:
+        """Put the plant in ``state`` (from ``get_state`` of an environment made with the
+        same arguments) and return its observation; the next ``step`` continues from there.
+        The ``TimeLimit`` wrapper's step count is the wrapper's own and is not touched."""
+        bank = self._bank
+        check_state(state, None if not self._sensing else bank.delay.shape[1],
+                    bank is not None and bank.normals is not None, self.scene.u0_range,
+                    self.scene.nu_range)
+        unpack(state.plant, self._P, self._S, self._ctrl, self._work)
+        K.write_obs(self._P, self._S, self._ctrl, self._cfg, self._obs, self._work)
+        self._steps = state.episode_steps
+        if bank is not None:
+            bank.cmd[0] = state.command
+            if self._sensing:
+                bank.delay[0] = state.delay
+            bank.set_noise_state(0, state.noise)
+        self._needs_reset = False
+        if self._renderer is not None:
+            self._renderer.clear(self._S[S_T], self._S[S_V], self._S[S_MODE] == 0.0)
+        return self._observation()
+
     # -- helpers ------------------------------------------------------------------------------
+    def _observation(self) -> np.ndarray:
+        """What the agent observes now: the exact observation, or the sensors' reading."""
+        if self._sensing:
+            return self._bank.output(_PLANT)[0]
+        return self._obs.copy()
+
+    def _actuate(self, a: np.ndarray, action: Any) -> np.ndarray:
+        """Move the actuator's command and output by ``a``; the kernel then gets zeros."""
+        if not K.actions_finite(a):
+            raise_status(K.STATUS_BAD_ACTION, action)
+        actuate_one(self._ctrl, self._bank.cmd[0], self.setup.cfg, a, self._act)
+        return self._zero_action
+
     @property
     def params(self) -> dict[str, float]:
         """The current episode's plant and excitation (after randomisation and options)."""
@@ -586,14 +735,20 @@ class StickSlipEnv(gym.Env):
             raise_status(K.STATUS_BAD_ACTION, action)
         t, v = np.empty(n), np.empty(n)
         stuck = np.empty(n, dtype=np.bool_)
-        status = self._sample_into(a, t, v, stuck)
+        ctrl = self._ctrl
+        if self._act is not None:  # the setting the actuator would apply, on copies
+            ctrl = ctrl.copy()
+            actuate_one(ctrl, self._bank.cmd[0].copy(), self.setup.cfg, a, self._act)
+            a = self._zero_action
+        status = self._sample_into(a, t, v, stuck, ctrl)
         if status != 0:
             raise_status(status, action)
         return t, v - self._P[P_V], stuck
 
     def _sample_into(self, a: np.ndarray, t: np.ndarray, v: np.ndarray,
-                     stuck: np.ndarray) -> int:
-        return K.sample_interval(self._P, self._S, self._ctrl, self._cfg, a, self._stats, t, v,
+                     stuck: np.ndarray, ctrl: np.ndarray | None = None) -> int:
+        ctrl = self._ctrl if ctrl is None else ctrl
+        return K.sample_interval(self._P, self._S, ctrl, self._cfg, a, self._stats, t, v,
                                  stuck)
 
     def _record_trace(self, a: np.ndarray) -> None:

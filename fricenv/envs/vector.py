@@ -24,6 +24,8 @@ from fricenv.checks import check_dict, check_int, got, is_int, items_of
 from fricenv.core import new_workspace
 from fricenv.envs import kernels as K
 from fricenv.envs.scenes import N_DRAWS, N_INIT, Scene
+from fricenv.envs.sensors import InstrumentBank, actuate_batch
+from fricenv.envs.state import N_PLANT, PlantState, check_state, pack, unpack
 from fricenv.envs.stick_slip import ACTION_DTYPES, EnvSetup, coerce_action, raise_status
 from fricenv.layout import METHOD_EXACT, S_MODE, S_PHI1, S_PHI2, S_T, S_V, S_X
 from fricenv.params import P_U1, P_U2, P_V, P_XFK
@@ -146,6 +148,11 @@ class StickSlipVectorEnv(VectorEnv):
         reward_weights: Any = None,
         params: dict | None = None,
         method: str = "auto",
+        obs_noise: Any = None,
+        obs_delay: int = 0,
+        observe: Any = None,
+        actuator_lag: float = 0.0,
+        actuator_rate: float | None = None,
     ):
         # first: close() runs from __del__ even when a check below refuses the arguments
         self._traces = None
@@ -167,6 +174,11 @@ class StickSlipVectorEnv(VectorEnv):
             reward_weights,
             params,
             method,
+            obs_noise,
+            obs_delay,
+            observe,
+            actuator_lag,
+            actuator_rate,
         )
         self.scene = self.setup.scene
         self.num_envs = n = num_envs
@@ -181,7 +193,8 @@ class StickSlipVectorEnv(VectorEnv):
         self.single_observation_space = self.setup.observation_space
         self.observation_space = batch_space(self.single_observation_space, n)
 
-        self._cfg = self.setup.cfg
+        self._cfg = self.setup.kernel_cfg
+        self._init_instruments(n)
         # The kernels' few batch arrays (kernels.T_* and friends); the per-plant arrays the
         # Python side works with are views of them (_bind_views).
         self._table = np.zeros((n, K.N_TABLE))
@@ -229,6 +242,25 @@ class StickSlipVectorEnv(VectorEnv):
             from fricenv.envs.rendering import Trace  # lazy: no matplotlib unless asked
 
             self._traces = [Trace(self.dt) for _ in range(n)]
+
+    def _init_instruments(self, n: int) -> None:
+        """Buffers of the sensor and actuator options (``fricenv.envs.sensors``), if any."""
+        inst = self.setup.instruments
+        self._bank: InstrumentBank | None = None
+        self._act: np.ndarray | None = None
+        self._sensing = False
+        if inst is None:
+            return
+        full = self.setup.full_observation_space
+        self._bank = InstrumentBank(inst, n, full.low, full.high)
+        self._sensing = inst.sensing
+        self._all_plants = np.arange(n)
+        if inst.sensing:
+            self._final_sensed = np.zeros((n, self.setup.observation_space.shape[0]),
+                                          dtype=np.float32)
+        if inst.actuating:
+            self._act = inst.actuator_params(self.setup.cfg)
+            self._zero_actions = np.zeros((n, *self.setup.action_space.shape))
 
     def _bind_views(self) -> None:
         """Make the per-plant arrays the Python side reads: views of the kernels' batch
@@ -325,7 +357,7 @@ class StickSlipVectorEnv(VectorEnv):
         self._reset_plants(idx, [seeds[i] for i in idx.tolist()], [options] * idx.size)
         if is_int(seed):  # (after every check: a rejected reset reseeds nothing)
             super().reset(seed=int(seed))
-        return self._obs.copy(), {}
+        return self._observation(), {}
 
     def _reset_plants(self, idx: np.ndarray, seeds: list, options: list[dict]) -> None:
         """Start new episodes for plants ``idx``, validating ``options`` per plant; if one
@@ -365,6 +397,11 @@ class StickSlipVectorEnv(VectorEnv):
         for i, (_, used) in fresh.items():
             self._seeds[i] = used
         K.start_batch(self._table, self._cfg, mask, self._obs_pair, self._flags, self._counters)
+        if self._bank is not None:
+            for i in idx.tolist():
+                self._bank.seed_noise(i, self._rngs[i])
+            self._bank.cmd[idx] = self._ctrl[idx]
+            self._bank.start(idx, self._obs[idx])
         self._terminated[mask] = False
         self._truncated[mask] = False
         self._needs_reset = False
@@ -410,6 +447,8 @@ class StickSlipVectorEnv(VectorEnv):
             or not a.flags.c_contiguous
         ):
             a = coerce_action(actions, self._act_shape, "actions", batch=True)
+        if self._act is not None:
+            a = self._actuate(a)
         if self._traces is not None:
             # every action checked before any trace moves (the kernel checks them too)
             bad = K.first_bad_action(a, self._autoreset, self._ivars[K.IV_MODE])
@@ -442,6 +481,8 @@ class StickSlipVectorEnv(VectorEnv):
             raise_status(int(self._status[i]), None, f" {i}")
         if kernel is K.step_batch_parallel:
             self._watch_workers()
+        # (the sensors first: the infos below carry their readings of ended episodes)
+        obs = self._obs.copy() if self._bank is None else self._instruments_after_step()
         out = self._step_out.copy()  # callers may keep what a step returns
         if self._ivars[K.IV_N_RESET] == 0:
             # The common case: every plant reports this step's values (_info_dict's layout).
@@ -451,7 +492,96 @@ class StickSlipVectorEnv(VectorEnv):
         else:
             infos = self._after_resets()
         ends = self._step_ends.copy()
-        return self._obs.copy(), out[K.R_REWARD], ends[0], ends[1], infos
+        return obs, out[K.R_REWARD], ends[0], ends[1], infos
+
+    def _actuate(self, a: np.ndarray) -> np.ndarray:
+        """Move every stepped plant's actuator command and output by its action (checked
+        first, as the kernel would); the kernel then gets zero actions."""
+        bad = K.first_bad_action(a, self._autoreset, self._ivars[K.IV_MODE])
+        if bad >= 0:
+            raise_status(K.STATUS_BAD_ACTION, a[bad], f" {bad}")
+        # (a plant the kernel resets instead of stepping ignores its action)
+        actuate_batch(self._ctrl, self._bank.cmd, self.setup.cfg, a, self._act, self._autoreset)
+        return self._zero_actions
+
+    def _instruments_after_step(self) -> np.ndarray:
+        """After the kernel: the sensors read the plants (an ended episode's last state
+        first, then the new episode's start), restarted plants' commands are their start
+        settings; returns the observations."""
+        bank, did = self._bank, self._did_reset
+        if self._ivars[K.IV_N_RESET] == 0:
+            if self._sensing:
+                bank.push(self._all_plants, self._obs)
+        else:
+            restarted = np.flatnonzero(did)
+            stepped = np.flatnonzero(~did)
+            if self._sensing:
+                if self._autoreset_mode is AutoresetMode.SAME_STEP:
+                    bank.push(restarted, self._final_obs[restarted])
+                    self._final_sensed[restarted] = bank.output(restarted)
+                bank.push(stepped, self._obs[stepped])
+                bank.start(restarted, self._obs[restarted])
+            bank.cmd[restarted] = self._ctrl[restarted]
+        return self._observation()
+
+    def _observation(self) -> np.ndarray:
+        """What the agents observe now: the exact observations, or the sensors' readings."""
+        return self._bank.output() if self._sensing else self._obs.copy()
+
+    # -- plant state ---------------------------------------------------------------------------
+    def _plant_index(self, i: Any) -> int:
+        if self._needs_reset:
+            raise gym_error.ResetNeeded("reset the vector env before reading or setting a "
+                                        "plant's state")
+        return check_int("plant index i", i, 0, self.num_envs - 1)
+
+    def get_state(self, i: int) -> PlantState:
+        """Plant ``i``'s full state (``fricenv.envs.state.PlantState``)."""
+        i = self._plant_index(i)
+        bank = self._bank
+        command = self._ctrl[i] if self._act is None else bank.cmd[i]
+        return PlantState(
+            pack(self._P[i], self._S[i], self._ctrl[i], self._work[i]),
+            command.copy(),
+            None if not self._sensing else bank.delay[i].copy(),
+            None if bank is None else bank.noise_state(i),
+            int(self._steps[i]),
+        )
+
+    def set_state(self, i: int, state: PlantState) -> np.ndarray:
+        """Put plant ``i`` in ``state`` (from ``get_state`` of an environment made with the
+        same arguments, single or vector) and return its observation. Its episode goes on
+        from there: an ending pending for the next step is cancelled, and its step count
+        (for truncation) is the state's."""
+        i = self._plant_index(i)
+        bank = self._bank
+        check_state(state, None if not self._sensing else bank.delay.shape[1],
+                    bank is not None and bank.normals is not None, self.scene.u0_range,
+                    self.scene.nu_range)
+        unpack(state.plant, self._P[i], self._S[i], self._ctrl[i], self._work[i])
+        K.write_obs(self._P[i], self._S[i], self._ctrl[i], self._cfg, self._obs[i],
+                    self._work[i])
+        self._steps[i] = state.episode_steps
+        self._autoreset[i] = self._terminated[i] = self._truncated[i] = False
+        if bank is not None:
+            bank.cmd[i] = state.command
+            if self._sensing:
+                bank.delay[i] = state.delay
+            bank.set_noise_state(i, state.noise)
+        if self._traces is not None:
+            self._traces[i].clear(self._S[i, S_T], self._S[i, S_V], self._S[i, S_MODE] == 0)
+        return self._bank.output(np.array([i]))[0] if self._sensing else self._obs[i].copy()
+
+    def state_arrays(self) -> tuple[np.ndarray, np.ndarray]:
+        """Every plant's plant vector (n, N_PLANT) and actuator command (n, 2), copied in two
+        arrays: the fast way to plan from all plants at once (``fricenv.envs.rollout``)."""
+        if self._needs_reset:
+            raise gym_error.ResetNeeded("reset the vector env before reading plant states")
+        plants = np.empty((self.num_envs, N_PLANT))
+        for i in range(self.num_envs):
+            pack(self._P[i], self._S[i], self._ctrl[i], self._work[i], plants[i])
+        commands = (self._ctrl if self._act is None else self._bank.cmd).copy()
+        return plants, commands
 
     def _watch_workers(self) -> None:
         """After a parallel step: go serial for a stretch if workers keep coming late (see
@@ -484,8 +614,9 @@ class StickSlipVectorEnv(VectorEnv):
             infos.update(_info_dict(now, np.broadcast_to(has, now.shape).copy()))
         if self.autoreset_mode == AutoresetMode.SAME_STEP:
             final_obs = np.full(self.num_envs, None, dtype=object)
+            finals = self._final_sensed if self._sensing else self._final_obs
             for i in np.flatnonzero(done).tolist():
-                final_obs[i] = self._final_obs[i].copy()
+                final_obs[i] = finals[i].copy()
             fin = np.where(done, vals, 0.0)
             infos["final_obs"] = final_obs
             infos["_final_obs"] = done.copy()

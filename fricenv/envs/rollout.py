@@ -1,0 +1,245 @@
+"""Batch rollouts: K action sequences of H control intervals from saved plant states, in
+one numba call.
+
+This is the exact plant as a model for planning (``agents.mpc``): each sample copies a
+start plant vector (``fricenv.envs.state``) into its own row and steps it through its
+actions with the environments' own per-interval kernel (``kernels.control_interval``,
+and the actuator of ``fricenv.envs.sensors`` when the env has one), so a sample's rewards
+and stick fractions are bit for bit those the environment would return for the same
+actions from that state. Samples run on numba threads (``prange``: each writes only its
+own rows), so the result is the same for any thread count. The sensors are not modelled:
+a rollout scores the plant, as the reward does.
+
+A sample ends early if its interval fails (its status is the core's code) or its state
+leaves the observation box (the env would terminate the episode there); rewards and stick
+fractions after its last interval are 0.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numba import njit, prange
+
+from fricenv.checks import check_bool, check_int, got
+from fricenv.envs import kernels as K
+from fricenv.envs.sensors import actuate, no_actuator
+from fricenv.envs.state import N_PLANT, PL_CTRL, PL_P, PL_S, PL_WORK, PlantState
+from fricenv.layout import N_STATS, S_V, S_X
+from fricenv.params import P_V
+
+#: Most samples and intervals one rollout object is made for (its buffers are
+#: samples x horizon floats a few times over).
+MAX_SAMPLES = 1 << 20
+MAX_HORIZON = 1 << 16
+#: Status of a sample whose state left the observation box (the core's codes are > 0).
+STATUS_LEFT_BOX = -2
+
+
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+def _left_box(P, S, cfg) -> bool:
+    """The env's termination test (``kernels.write_obs``) on the state alone."""
+    return abs(S[S_X]) > cfg[K.C_X_LIM] or abs(S[S_V] - P[P_V]) > cfg[K.C_V_LIM]
+
+
+@njit(cache=True, error_model="numpy", _nrt=False)
+def _sample(k, plants, cmds, src, cfg, ucfg, act, actuated, A, table, cmd_rows, stats, res,
+            zero, rewards, stick, length, status) -> None:
+    """Roll sample ``k`` out (the body of ``_rollout``; see its parameters)."""
+    row = table[k]
+    s = src[k]
+    for j in range(row.shape[0]):
+        row[j] = plants[s, j]
+    cmd = cmd_rows[k]
+    cmd[0] = cmds[s, 0]
+    cmd[1] = cmds[s, 1]
+    P = row[PL_P:PL_S]
+    S = row[PL_S:PL_CTRL]
+    ctrl = row[PL_CTRL:PL_WORK]
+    work = row[PL_WORK:]
+    H = A.shape[1]
+    status[k] = 0
+    length[k] = H
+    for h in range(H):
+        rewards[k, h] = 0.0
+        stick[k, h] = 0.0
+    for h in range(H):
+        if actuated:
+            actuate(ctrl, cmd, ucfg, A[k, h], act)
+            code = K.control_interval(P, S, ctrl, cfg, zero, stats[k], res[k], work)
+        else:
+            code = K.control_interval(P, S, ctrl, cfg, A[k, h], stats[k], res[k], work)
+        if code != 0:
+            status[k] = code
+            length[k] = h
+            return
+        rewards[k, h] = res[k, K.R_REWARD]
+        stick[k, h] = res[k, K.R_STICK]
+        if _left_box(P, S, cfg):
+            status[k] = STATUS_LEFT_BOX
+            length[k] = h + 1
+            return
+
+
+@njit(cache=True, error_model="numpy", _nrt=False, parallel=True)
+def _rollout(plants, cmds, src, cfg, ucfg, act, actuated, A, table, cmd_rows, stats, res,
+             zero, rewards, stick, length, status) -> None:
+    """Roll every sample out, in parallel.
+
+    Parameters: ``plants`` (M, N_PLANT) start plant vectors and ``cmds`` (M, 2) their
+    actuator commands; ``src`` (K,) int64, the start row of each sample; ``cfg``, the
+    kernels' configuration (incremental when ``actuated``); ``ucfg``, the env's own
+    (maps actions to commands); ``act``, the actuator's parameters (``sensors.A_*``);
+    ``actuated``: whether actions go through the actuator; ``A`` (K, H, n_act) float64
+    actions. Scratch, one row per sample: ``table`` (K, N_PLANT), ``cmd_rows`` (K, 2),
+    ``stats`` (K, N_STATS), ``res`` (K, N_RES); ``zero`` (n_act,) zeros, the kernels'
+    action with an actuator. Outputs: ``rewards`` and ``stick`` (K, H), ``length`` and
+    ``status`` (K,) int64.
+    """
+    for k in prange(A.shape[0]):
+        _sample(k, plants, cmds, src, cfg, ucfg, act, actuated, A, table, cmd_rows, stats,
+                res, zero, rewards, stick, length, status)
+
+
+@dataclass(frozen=True)
+class RolloutResult:
+    """What a batch rollout returns (arrays over samples; see the module docstring).
+
+    ``rewards`` and ``stick_fraction`` (K, H): per interval; ``length`` (K,): intervals
+    completed; ``status`` (K,): 0, ``STATUS_LEFT_BOX`` or the core's failure code.
+    """
+
+    rewards: np.ndarray
+    stick_fraction: np.ndarray
+    length: np.ndarray
+    status: np.ndarray
+
+    @property
+    def returns(self) -> np.ndarray:
+        """Each sample's summed reward."""
+        return self.rewards.sum(axis=1)
+
+
+def _setup_of(env: Any) -> Any:
+    """The ``EnvSetup`` of an environment (single, vector, SB3 adapter, wrapped) or itself."""
+    for obj in (env, getattr(env, "unwrapped", None), getattr(env, "venv", None)):
+        setup = getattr(obj, "setup", None)
+        if setup is not None and hasattr(setup, "kernel_cfg"):
+            return setup
+    if hasattr(env, "kernel_cfg") and hasattr(env, "cfg"):
+        return env
+    raise TypeError(f"env must be a fricenv environment (or its EnvSetup), {got(env)}")
+
+
+class BatchRollout:
+    """Roll out ``n_samples`` action sequences of ``horizon`` intervals on ``env``'s plant
+    model, reusing its buffers from call to call.
+
+    ``env``: a ``StickSlipEnv`` (wrapped or not), ``StickSlipVectorEnv``, SB3 adapter or
+    their ``EnvSetup``: its configuration (control interval, ranges, reward, action mode,
+    actuator) is the model's. ``parallel``: samples on numba's threads.
+    """
+
+    def __init__(self, env: Any, n_samples: int, horizon: int, parallel: bool = True):
+        setup = _setup_of(env)
+        self.n_samples = check_int("n_samples", n_samples, 1, MAX_SAMPLES)
+        self.horizon = check_int("horizon", horizon, 1, MAX_HORIZON)
+        self.parallel = check_bool("parallel", parallel)
+        inst = setup.instruments
+        self.actuated = inst is not None and inst.actuating
+        self.cfg = setup.kernel_cfg
+        self.ucfg = setup.cfg
+        self.act = inst.actuator_params(setup.cfg) if self.actuated else no_actuator()
+        self.n_act = setup.action_space.shape[0]
+        k, h = self.n_samples, self.horizon
+        self._table = np.zeros((k, N_PLANT))
+        self._cmd = np.zeros((k, 2))
+        self._stats = np.zeros((k, N_STATS))
+        self._res = np.zeros((k, K.N_RES))
+        self._zero = np.zeros(self.n_act)
+        self._rewards = np.zeros((k, h))
+        self._stick = np.zeros((k, h))
+        self._length = np.zeros(k, dtype=np.int64)
+        self._status = np.zeros(k, dtype=np.int64)
+        self._src0 = np.zeros(k, dtype=np.int64)
+
+    def run(self, start: PlantState | tuple[np.ndarray, np.ndarray], actions: np.ndarray,
+            sources: np.ndarray | None = None) -> RolloutResult:
+        """Roll out ``actions`` (n_samples, horizon, n_act), normalised as the env's, from
+        ``start``: a ``PlantState``, or ``(plants, commands)`` arrays (M, N_PLANT) and
+        (M, 2) (``StickSlipVectorEnv.state_arrays()``) with ``sources`` (n_samples,) naming
+        each sample's start row. The result's arrays are this object's buffers, overwritten
+        by the next call (copy what you keep)."""
+        plants, cmds = self._starts(start)
+        if sources is None:
+            if plants.shape[0] != 1:
+                raise ValueError(f"{plants.shape[0]} start states need sources, one start "
+                                 "row per sample")
+            src = self._src0
+        else:
+            src = np.asarray(sources)
+            if src.shape != (self.n_samples,) or src.dtype.kind not in "iu":
+                raise ValueError(f"sources must be {self.n_samples} integers, {got(sources)}")
+            if src.size and (src.min() < 0 or src.max() >= plants.shape[0]):
+                raise ValueError(f"sources must lie in [0, {plants.shape[0]}), got values "
+                                 f"{src.min()}..{src.max()}")
+            src = np.ascontiguousarray(src, dtype=np.int64)
+        A = self._actions(actions)
+        run = _rollout if self.parallel else _rollout_serial
+        run(plants, cmds, src, self.cfg, self.ucfg, self.act, self.actuated, A, self._table,
+            self._cmd, self._stats, self._res, self._zero, self._rewards, self._stick,
+            self._length, self._status)
+        return RolloutResult(self._rewards, self._stick, self._length, self._status)
+
+    def _starts(self, start: Any) -> tuple[np.ndarray, np.ndarray]:
+        if isinstance(start, PlantState):
+            return start.plant[None, :], start.command[None, :]
+        if isinstance(start, tuple) and len(start) == 2:
+            plants, cmds = start
+            ok = (isinstance(plants, np.ndarray) and plants.ndim == 2
+                  and plants.shape[1] == N_PLANT and plants.dtype == np.float64
+                  and isinstance(cmds, np.ndarray) and cmds.shape == (plants.shape[0], 2)
+                  and cmds.dtype == np.float64)
+            if ok:
+                return plants, cmds
+        raise TypeError("start must be a PlantState or (plants, commands) float64 arrays of "
+                        f"shapes (M, {N_PLANT}) and (M, 2), {got(start)}")
+
+    def _actions(self, actions: Any) -> np.ndarray:
+        want = (self.n_samples, self.horizon, self.n_act)
+        a = np.asarray(actions)
+        if a.shape != want or a.dtype.kind != "f":
+            raise ValueError(f"actions must be a float array of shape {want}, {got(actions)}")
+        a = np.ascontiguousarray(a, dtype=np.float64)  # (float32 -> float64 is exact)
+        if not np.all(np.isfinite(a)):
+            raise ValueError("actions must be finite (no NaN or inf)")
+        return a
+
+
+@njit(cache=True, error_model="numpy", _nrt=False)
+def _rollout_serial(plants, cmds, src, cfg, ucfg, act, actuated, A, table, cmd_rows, stats,
+                    res, zero, rewards, stick, length, status) -> None:
+    """``_rollout`` on the calling thread (for callers that run plants in threads of
+    their own, and for timing one core)."""
+    for k in range(A.shape[0]):
+        _sample(k, plants, cmds, src, cfg, ucfg, act, actuated, A, table, cmd_rows, stats,
+                res, zero, rewards, stick, length, status)
+
+
+def rollout_batch(env: Any, state: PlantState, actions: np.ndarray,
+                  parallel: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """Rewards and stick fractions (K, H) of the K action sequences ``actions`` (K, H,
+    n_act) from ``state`` (``env.get_state()``) on ``env``'s plant model; ``RuntimeError``
+    if an interval fails. For repeated calls, keep a ``BatchRollout``."""
+    a = np.asarray(actions)
+    if a.ndim != 3:
+        raise ValueError(f"actions must have shape (K, H, n_act), got shape {a.shape}")
+    result = BatchRollout(env, a.shape[0], a.shape[1], parallel).run(state, a)
+    failed = np.flatnonzero(result.status > 0)
+    if failed.size:
+        raise RuntimeError(f"sample {int(failed[0])}: the plant's integration failed with "
+                           f"status {int(result.status[failed[0]])} at interval "
+                           f"{int(result.length[failed[0]])}")
+    return result.rewards.copy(), result.stick_fraction.copy()

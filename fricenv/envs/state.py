@@ -1,0 +1,235 @@
+"""A plant's full state as a public record: save it, restore it, plan from it.
+
+Model-based control (``agents.mpc``) and what-if analysis need to put a plant back where
+it was and try other actions. Everything a control interval reads lives in one float64
+vector per plant, ``plant``, laid out as the kernels' own arrays (``PL_*``): the episode's
+parameter vector (``params.P_*``, the randomised plant and the excitation it runs under),
+the state (``layout.S_*``: t, x, v, mode, tone phases), the applied setting (u0, nu) and
+the core's workspace. The workspace is part of the state, not a cache one may drop: it
+carries the closed form's transition constants and the tones' cos/sin, rotated from one
+interval to the next, so a restored plant without it would take its next step through
+freshly computed values that differ in the last bits. With it, restoring a state and
+replaying the same actions reproduces the trajectory bit for bit, and the batch rollout
+(``fricenv.envs.rollout``) starts any number of samples from the same vector without
+copying a Python object per sample.
+
+Around the plant (``fricenv.envs.sensors``): the actuator's command, the sensors' delay
+line and the noise stream's position; and the steps taken in the episode (the vector env
+truncates on it).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from fricenv.checks import got
+from fricenv.core import new_workspace
+from fricenv.envs import kernels as K
+from fricenv.envs.sensors import check_noise_state
+from fricenv.layout import N_STATE, S_MODE, S_PHI1, S_PHI2, S_T, S_V, S_X
+from fricenv.params import (
+    N_PARAMS,
+    P_B1,
+    P_B3,
+    P_LAM,
+    P_U1,
+    P_U2,
+    P_V,
+    P_W1,
+    P_W2,
+    P_XFK,
+    P_XFS,
+)
+
+TWO_PI = 2.0 * np.pi
+
+#: Length of the core's workspace (the vector kernels' table ends with it).
+N_WORK = K.N_TABLE - K.T_WORK
+# Layout of a plant vector: parameters, state, applied (u0, nu), workspace.
+PL_P = 0
+PL_S = PL_P + N_PARAMS
+PL_CTRL = PL_S + N_STATE
+PL_WORK = PL_CTRL + 2
+N_PLANT = PL_WORK + N_WORK
+
+
+@dataclass(frozen=True, eq=False)
+class PlantState:
+    """One plant's full state (see the module docstring); ``get_state()`` returns one,
+    ``set_state(state)`` restores it, in an environment made with the same arguments.
+
+    ``plant``: float64 (N_PLANT,) in the ``PL_*`` layout; ``command``: the actuator's
+    command (u0, nu) (the applied setting when there is no actuator); ``delay``: the delay
+    line of sensor readings, oldest first, float32 (k + 1, 9), or None without sensor
+    options; ``noise``: the noise stream (its generator's state and unread normals) or
+    None; ``episode_steps``: steps taken since the episode began.
+
+    Its arrays are its own (copies both ways), so a state kept stays as it was.
+    """
+
+    plant: np.ndarray
+    command: np.ndarray
+    delay: np.ndarray | None = None
+    noise: tuple[dict | None, np.ndarray] | None = None
+    episode_steps: int = 0
+
+    # -- views of the plant vector ---------------------------------------------------------
+    @property
+    def t(self) -> float:
+        return float(self.plant[PL_S + S_T])
+
+    @property
+    def x(self) -> float:
+        return float(self.plant[PL_S + S_X])
+
+    @property
+    def v(self) -> float:
+        return float(self.plant[PL_S + S_V])
+
+    @property
+    def mode(self) -> int:
+        """-1: slipping slower than the belt, 0: stuck, +1: slipping faster."""
+        return int(self.plant[PL_S + S_MODE])
+
+    @property
+    def phases(self) -> tuple[float, float]:
+        """The two tones' phases in [0, 2 pi)."""
+        return float(self.plant[PL_S + S_PHI1]), float(self.plant[PL_S + S_PHI2])
+
+    @property
+    def u0(self) -> float:
+        """The applied amplitude."""
+        return float(self.plant[PL_CTRL])
+
+    @property
+    def nu(self) -> float:
+        """The applied frequency ratio."""
+        return float(self.plant[PL_CTRL + 1])
+
+    @property
+    def params(self) -> dict[str, float]:
+        """The episode's plant (as ``StickSlipEnv.params``)."""
+        P = self.plant[PL_P:PL_S]
+        return {"lam": float(P[P_LAM]), "V": float(P[P_V]), "xfk": float(P[P_XFK]),
+                "xfs": float(P[P_XFS]), "b1": float(P[P_B1]), "b3": float(P[P_B3]),
+                "eta": float(P[P_W1]), "u0": self.u0, "nu": self.nu}
+
+    def same_as(self, other: PlantState) -> bool:
+        """True when ``other`` holds the very same bits (workspace, buffers and noise)."""
+        def same(a: Any, b: Any) -> bool:
+            if a is None or b is None:
+                return a is b
+            return a.dtype == b.dtype and a.shape == b.shape and a.tobytes() == b.tobytes()
+
+        if not (same(self.plant, other.plant) and same(self.command, other.command)
+                and same(self.delay, other.delay)
+                and self.episode_steps == other.episode_steps):
+            return False
+        if self.noise is None or other.noise is None:
+            return self.noise is other.noise
+        return self.noise[0] == other.noise[0] and same(self.noise[1], other.noise[1])
+
+
+def pack(P: np.ndarray, S: np.ndarray, ctrl: np.ndarray, work: np.ndarray,
+         out: np.ndarray | None = None) -> np.ndarray:
+    """The plant vector of these arrays (into ``out`` if given)."""
+    out = np.empty(N_PLANT) if out is None else out
+    out[PL_P:PL_S] = P
+    out[PL_S:PL_CTRL] = S
+    out[PL_CTRL:PL_WORK] = ctrl
+    out[PL_WORK:] = work
+    return out
+
+
+def unpack(plant: np.ndarray, P: np.ndarray, S: np.ndarray, ctrl: np.ndarray,
+           work: np.ndarray) -> None:
+    """Write a plant vector into the environment's arrays."""
+    P[:] = plant[PL_P:PL_S]
+    S[:] = plant[PL_S:PL_CTRL]
+    ctrl[:] = plant[PL_CTRL:PL_WORK]
+    work[:] = plant[PL_WORK:]
+
+
+def check_state(state: Any, delay_rows: int | None, noisy: bool,
+                u_range: tuple[float, float], nu_range: tuple[float, float]) -> None:
+    """``TypeError`` / ``ValueError`` naming what is wrong unless ``state`` can be restored
+    into an environment whose delay line has ``delay_rows`` rows (None: no sensors), with
+    noise or not, and these setting ranges."""
+    if not isinstance(state, PlantState):
+        raise TypeError(f"state must be a PlantState (from get_state()), {got(state)}")
+    for name, arr, shape, dtype in (("plant", state.plant, (N_PLANT,), np.float64),
+                                    ("command", state.command, (2,), np.float64)):
+        if not (isinstance(arr, np.ndarray) and arr.shape == shape and arr.dtype == dtype):
+            raise ValueError(f"state.{name} must be a {np.dtype(dtype)} array of shape "
+                             f"{shape}, {got(arr)}")
+    core = state.plant[:PL_WORK]  # (the workspace marks empty cache slots with NaN)
+    if not np.all(np.isfinite(core)) or not np.all(np.isfinite(state.command)):
+        raise ValueError("state holds NaN or infinite values outside the workspace")
+    P = state.plant[PL_P:PL_S]
+    bad = [k for k, ok in (("lam", P[P_LAM] >= 0.0), ("eta", P[P_W1] > 0.0),
+                           ("nu * eta", P[P_W2] >= 0.0), ("xfk", P[P_XFK] >= 0.0),
+                           ("xfs", P[P_XFS] >= P[P_XFK])) if not ok]
+    if bad:
+        raise ValueError(f"state holds an invalid plant ({', '.join(bad)}): {state.params}")
+    if state.mode not in (-1, 0, 1) or state.plant[PL_S + S_MODE] != state.mode:
+        raise ValueError(f"state.mode must be -1, 0 or 1, got {state.plant[PL_S + S_MODE]!r}")
+    for j, (lo, hi), name in ((0, u_range, "u0"), (1, nu_range, "nu")):
+        for arr, what in ((state.plant[PL_CTRL:PL_WORK], "applied"), (state.command, "command")):
+            if not lo <= arr[j] <= hi:
+                raise ValueError(f"state's {what} {name} = {arr[j]!r} lies outside the "
+                                 f"environment's range {(lo, hi)}")
+    if (state.delay is None) != (delay_rows is None) or (
+            state.delay is not None and state.delay.shape != (delay_rows, K.N_OBS)):
+        have = None if state.delay is None else state.delay.shape
+        want = None if delay_rows is None else (delay_rows, K.N_OBS)
+        raise ValueError(f"state's delay line has shape {have}, this environment's {want}: "
+                         "restore a state into an environment made with the same options")
+    if state.delay is not None and state.delay.dtype != np.float32:
+        raise ValueError(f"state.delay must be float32, got {state.delay.dtype}")
+    if (state.noise is None) == noisy:
+        raise ValueError("state and environment differ in observation noise: restore a state "
+                         "into an environment made with the same options")
+    if state.noise is not None:
+        check_noise_state(state.noise, "state.noise")
+    if not isinstance(state.episode_steps, int) or state.episode_steps < 0:
+        raise ValueError(f"state.episode_steps must be an int >= 0, {got(state.episode_steps)}")
+
+
+def plants_from_observations(obs: np.ndarray, params: np.ndarray, tone_gains: tuple[float, float]
+                             ) -> tuple[np.ndarray, np.ndarray]:
+    """Plant vectors and commands (n, N_PLANT), (n, 2) estimated from full observations
+    ``obs`` (n, 9) of plants with the parameter vector ``params`` (``params.P_*``).
+
+    For a controller that has only the observation: x, v - V, the stick flag (read as
+    stuck above 0.5; a stuck plant has v = V exactly), the tones' phases from their cos and
+    sin, and the settings. The time is set to 0 (the plant is autonomous given the phases)
+    and the workspace is empty, so a plan made from it starts from the observation's
+    float32 precision, not the plant's exact state.
+    """
+    obs = np.asarray(obs, dtype=np.float64)
+    n = obs.shape[0]
+    plants = np.empty((n, N_PLANT))
+    plants[:, PL_P:PL_S] = params
+    V = params[P_V]
+    g1, g2 = tone_gains
+    u0, nu = obs[:, K.O_U0], obs[:, K.O_NU]
+    plants[:, PL_P + P_U1] = g1 * u0
+    plants[:, PL_P + P_U2] = g2 * u0
+    plants[:, PL_P + P_W2] = nu * params[P_W1]
+    S = plants[:, PL_S:PL_CTRL]
+    S[:, S_T] = 0.0
+    S[:, S_X] = obs[:, K.O_X]
+    stuck = obs[:, K.O_STICK] > 0.5
+    S[:, S_V] = np.where(stuck, V, obs[:, K.O_VR] + V)
+    S[:, S_PHI1] = np.arctan2(obs[:, K.O_SIN1], obs[:, K.O_COS1]) % TWO_PI
+    S[:, S_PHI2] = np.arctan2(obs[:, K.O_SIN2], obs[:, K.O_COS2]) % TWO_PI
+    for i in range(n):
+        S[i, S_MODE] = K.initial_mode(plants[i, PL_P:PL_S], S[i, S_X], S[i, S_V],
+                                      S[i, S_PHI1], S[i, S_PHI2])
+    plants[:, PL_CTRL] = u0
+    plants[:, PL_CTRL + 1] = nu
+    plants[:, PL_WORK:] = new_workspace(n, extrema=False)
+    return plants, plants[:, PL_CTRL:PL_WORK].copy()
