@@ -537,8 +537,12 @@ def rollout(controller: Controller, scene: str | Scene, seed: int | Sequence[int
     # while the others run on to the horizon.
     venv = StickSlipVectorEnv(num_envs=n_episodes, scene=scene,
                               autoreset_mode=AutoresetMode.NEXT_STEP, **(env_kwargs or {}))
+    # a model-based controller (agents.mpc) reads the plants' exact states while it runs
+    bind = getattr(controller, "bind", None)
     try:
         obs, _ = venv.reset(seed=seed if isinstance(seed, int) else [int(s) for s in seed])
+        if callable(bind):
+            bind(venv)
         alive = np.ones(n_episodes, dtype=bool)
         n = np.zeros(n_episodes)
         ret = np.zeros(n_episodes)
@@ -564,6 +568,8 @@ def rollout(controller: Controller, scene: str | Scene, seed: int | Sequence[int
             if not alive.any():
                 break
     finally:
+        if callable(bind):
+            bind(None)
         venv.close()
     m1 = vr1 / n
     m2 = vr2 / n

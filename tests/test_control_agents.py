@@ -1,0 +1,88 @@
+"""The exact-model MPC baseline and the state estimate it plans from without a binding."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import fricenv  # noqa: F401  (registers the environments)
+from agents.common import rollout
+from agents.mpc import MPPIController
+from fricenv.envs.state import PL_CTRL, PL_S, PL_WORK, plants_from_observations
+from fricenv.envs.stick_slip import StickSlipEnv
+from fricenv.envs.vector import StickSlipVectorEnv
+from fricenv.layout import S_MODE, S_PHI1, S_PHI2, S_T, S_V, S_X
+
+SMALL = {"horizon": 4, "samples": 16}
+
+
+def test_mpc_predict_shapes_and_determinism():
+    env = gym.make("fricenv/StickSlipStribeck-v0")
+    obs, _ = env.reset(seed=0)
+    a1 = [MPPIController("stribeck", seed=3, **SMALL).predict(obs)[0] for _ in range(2)]
+    assert a1[0].shape == (2,) and a1[0].dtype == np.float32
+    assert np.array_equal(a1[0], a1[1]) and env.action_space.contains(a1[0])
+    ctrl = MPPIController("paper", **SMALL)  # frequency only: one action
+    batch = np.stack([gym.make("fricenv/StickSlip-v0").reset(seed=s)[0] for s in range(3)])
+    act, state = ctrl.predict(batch, episode_start=np.ones(3, bool))
+    assert act.shape == (3, 1) and state is None and np.all(np.abs(act) <= 1.0)
+    for bad, err in (({"horizon": 0}, ValueError), ({"samples": 1}, ValueError),
+                     ({"noise_std": 0.0}, ValueError), ({"temperature": "hot"}, TypeError)):
+        with pytest.raises(err):
+            MPPIController("paper", **bad)
+
+
+def test_mpc_bound_to_the_plants_beats_no_control():
+    """With the exact states (bound by ``rollout``) a short MPC already cuts the stick."""
+    scene = gym.make("fricenv/StickSlipViscous-v0").unwrapped.scene.replace(max_episode_steps=40)
+    zero = rollout(_Zero(), scene, 100, 2)
+    mpc = rollout(MPPIController(scene, horizon=6, samples=32), scene, 100, 2)
+    assert mpc.ret.mean() > zero.ret.mean() + 5.0
+    assert mpc.stick_fraction.mean() < 0.5 * zero.stick_fraction.mean()
+
+
+class _Zero:
+    def predict(self, obs, state=None, episode_start=None, deterministic=True):
+        a = np.zeros((obs.shape[0], 2), np.float32)
+        a[:, 0] = -1.0  # u0 = 0
+        return a, state
+
+
+def test_mpc_needs_the_state_under_partial_observation():
+    kw = {"observe": ("x", "phases")}
+    env = StickSlipEnv(scene="self_excited", **kw)
+    obs, _ = env.reset(seed=0)
+    ctrl = MPPIController("self_excited", kw, **SMALL)
+    with pytest.raises(ValueError, match="bind it to the environment"):
+        ctrl.predict(obs)
+    ctrl.bind(env)
+    assert ctrl.predict(obs)[0].shape == (2,)
+    with pytest.raises(TypeError):
+        ctrl.bind(object())
+
+
+def test_mpc_models_the_actuator_and_runs_on_noisy_observations():
+    kw = {"actuator_rate": 0.1, "obs_noise": 0.02}
+    vec = StickSlipVectorEnv(num_envs=2, scene="self_excited", **kw)
+    obs, _ = vec.reset(seed=0)
+    ctrl = MPPIController("self_excited", kw, **SMALL)
+    assert ctrl._roll is None and ctrl.describe()["state"] == "from observation"
+    for _ in range(3):
+        obs = vec.step(ctrl.predict(obs)[0])[0]
+    assert ctrl._roll.actuated
+
+
+def test_state_estimate_from_a_full_observation():
+    env = StickSlipEnv(scene="paper")
+    env.reset(seed=1)
+    for _ in range(7):
+        obs = env.step(np.array([0.3], np.float32))[0]
+    true = env.get_state()
+    plants, cmds = plants_from_observations(obs[None], true.plant[:PL_S], (1.0, 1.0))
+    S, T = plants[0, PL_S:PL_CTRL], true.plant[PL_S:PL_CTRL]
+    assert S[S_T] == 0.0 and S[S_MODE] == T[S_MODE]
+    for k in (S_X, S_V, S_PHI1, S_PHI2):
+        assert S[k] == pytest.approx(T[k], abs=1e-5)
+    assert np.array_equal(cmds[0], plants[0, PL_CTRL:PL_WORK])
+    assert np.isnan(plants[0, PL_WORK:]).sum() >= plants.shape[1] - PL_WORK - 2  # empty caches
