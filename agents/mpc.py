@@ -61,7 +61,9 @@ class MPPIController:
     """MPPI on the exact plant (see the module docstring), with SB3's ``predict``.
 
     ``scene`` and ``env_kwargs`` make the model, as they make the environment it controls
-    (``max_episode_steps`` is ignored). ``seed`` seeds the perturbations.
+    (``max_episode_steps`` is ignored). ``seed`` seeds the perturbations. With
+    ``exact_state=False`` it ignores ``bind`` and always plans from the observation (the
+    benchmark's MPC under sensor noise).
     """
 
     label = "MPC (MPPI, exact model)"
@@ -70,7 +72,7 @@ class MPPIController:
                  horizon: int = DEFAULT_HORIZON, samples: int = DEFAULT_SAMPLES,
                  iterations: int = DEFAULT_ITERATIONS, noise_std: float = DEFAULT_NOISE_STD,
                  temperature: float = DEFAULT_TEMPERATURE, seed: int | None = 0,
-                 parallel: bool = True):
+                 parallel: bool = True, exact_state: bool = True):
         kwargs = dict(env_kwargs or {})
         kwargs.pop("max_episode_steps", None)
         self.setup = EnvSetup.build(scene, **kwargs)
@@ -85,6 +87,9 @@ class MPPIController:
             raise ValueError(f"noise_std and temperature must be > 0, got {noise_std!r} and "
                              f"{temperature!r}")
         self.parallel = check_bool("parallel", parallel)
+        self.exact_state = check_bool("exact_state", exact_state)
+        if not self.exact_state:
+            self.label = "MPC (MPPI, state from the observation)"
         self.rng = np.random.default_rng(seed)
         self.n_act = self.action_space.shape[0]
         self._env: Any = None
@@ -108,7 +113,7 @@ class MPPIController:
         if env is not None and not (hasattr(env, "state_arrays")
                                     or hasattr(getattr(env, "unwrapped", None), "get_state")):
             raise TypeError(f"env must be a fricenv environment, {got(env)}")
-        self._env = env
+        self._env = env if self.exact_state else None
 
     def _states(self, obs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         env = self._env

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import json
+
 import gymnasium as gym
 import numpy as np
 import pytest
@@ -86,3 +88,48 @@ def test_state_estimate_from_a_full_observation():
         assert S[k] == pytest.approx(T[k], abs=1e-5)
     assert np.array_equal(cmds[0], plants[0, PL_CTRL:PL_WORK])
     assert np.isnan(plants[0, PL_WORK:]).sum() >= plants.shape[1] - PL_WORK - 2  # empty caches
+
+
+def test_held_out_boxes_lie_beyond_the_training_ranges():
+    from agents.benchmark import HELD_OUT, held_out_scene
+    from fricenv.envs.scenes import SCENES
+
+    for scene in ("paper", "self_excited", "stribeck", "viscous"):
+        train = SCENES[scene].ranges
+        below = held_out_scene(scene, "below").ranges
+        above = held_out_scene(scene, "above").ranges
+        for key, (lo, hi) in train.items():
+            if key in HELD_OUT:
+                assert 0.0 <= below[key][0] < below[key][1] < lo
+                assert hi < above[key][0] < above[key][1]
+            else:
+                assert below[key] == above[key] == (lo, hi)
+
+
+def test_benchmark_writes_its_tables_with_a_tiny_randomised_run(tmp_path):
+    """The whole benchmark on one scene, with a few-step PPO trained with randomize=True
+    standing in for the real runs (the numbers mean nothing; the layout is checked)."""
+    from agents import benchmark as BM
+    from agents import train as T
+
+    runs = tmp_path / "runs"
+    T.main(["--algo", "ppo", "--scene", "self_excited", "-n", "64", "--seed", "1",
+            "--run-dir", str(runs / "ppo_rand_self_excited_s1"), "--eval-freq", "0",
+            "--eval-episodes", "1", "--no-progress", "-params", "n_envs:2", "n_steps:32",
+            "batch_size:32", "n_epochs:1", "env_kwargs:{randomize: true}"])
+    out = tmp_path / "out"
+    table = BM.main(["--runs", str(runs), "--out", str(out), "--scenes", "self_excited",
+                     "--seeds", "1", "--episodes", "2", "--grid", "2",
+                     "--search-episodes", "2", "--max-steps", "30"])
+    text = table.read_text()
+    for needle in ("### Return", "### Stick-time fraction", "MPC (MPPI, exact model)",
+                   "held out below", "noise + delay", "PPO, randomised training",
+                   "control_generalisation.png"):
+        assert needle in text, needle
+    res = json.loads((out / "control_benchmark.json").read_text())
+    assert set(res["scenes"]["self_excited"]) == {"zero", "random", "best_constant",
+                                                  "feedback", "mpc"}
+    gen = res["generalisation"]["self_excited"]
+    assert set(gen) == {"in range", "held out below", "held out above", "noise + delay"}
+    assert gen["noise + delay"]["mpc"]["label"].endswith("state from the observation)")
+    assert (out / "control_benchmark.png").exists()
