@@ -86,6 +86,8 @@ def sweep(scenes: list[str], episodes: int) -> list[dict[str, Any]]:
             row = {"scene": scene, "varied": varied, **settings,
                    "return_mean": float(m.ret.mean()), "return_std": float(m.ret.std(ddof=1)),
                    "stick_fraction": float(m.stick_fraction.mean()),
+                   "intervals_per_decision": (settings["samples"] * settings["horizon"]
+                                              * settings["iterations"]),
                    "decision_ms": 1e3 * decision_seconds(scene, settings),
                    "run_seconds": time.perf_counter() - t0}
             rows.append(row)
@@ -95,29 +97,35 @@ def sweep(scenes: list[str], episodes: int) -> list[dict[str, Any]]:
     return rows
 
 
-def markdown(rows: list[dict[str, Any]], episodes: int) -> str:
+def markdown(rows: list[dict[str, Any]], episodes: int, centre: dict[str, Any]) -> str:
     lines = [
-        "# MPC settings: return against decision time",
+        "# MPC settings: return against compute",
         "",
         f"MPPI bound to the exact plant states; {episodes} tuning episodes per scene and "
         "setting (plant seeds from `agents.mpc.TUNE_SEED_BASE`, none of them an evaluation "
-        "episode). One setting is varied at a time, the others at the defaults "
-        + ", ".join(f"{k} = {v}" for k, v in DEFAULTS.items())
-        + ". Decision time: one decision for one plant (median of "
+        "episode). One setting is varied at a time, the others at "
+        + ", ".join(f"{k} = {v}" for k, v in centre.items())
+        + ". Compute: plant-intervals rolled out per decision (samples x horizon x "
+        "iterations), and the measured time of one decision for one plant (median of "
         f"{DECISION_ROUNDS} rounds of {DECISIONS_PER_ROUND}, numba's threads on, on the "
-        "2-core machine shared with other work).",
+        "2-core machine shared with other work and with trainings running: compare the "
+        "times with each other, and see scripts/bench_control.py for a decision timed "
+        "side by side with the environments).",
         "",
         "| scene | varied | horizon | samples | iterations | temperature | noise_std | "
-        "return | stick-time fraction | ms per decision |",
-        "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|",
+        "return | stick-time fraction | intervals per decision | ms per decision |",
+        "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
     ]
     for r in rows:
         lines.append(
-            f"| {r['scene']} | {r['varied']} | {r['horizon']} | {r['samples']} | "
+            f"| {r['scene']} | {r['varied'].replace('default', 'centre')} | {r['horizon']} | "
+            f"{r['samples']} | "
             f"{r['iterations']} | {r['temperature']:g} | {r['noise_std']:g} | "
             f"{r['return_mean']:.2f} ± {r['return_std']:.2f} | {r['stick_fraction']:.4f} | "
-            f"{r['decision_ms']:.2f} |")
-    lines += ["", "![mpc_sweep.png](mpc_sweep.png)", ""]
+            f"{r['intervals_per_decision']} | {r['decision_ms']:.2f} |")
+    lines += ["", "The MPC's defaults (`agents.mpc`): "
+              + ", ".join(f"{k} = {v}" for k, v in DEFAULTS.items()) + ".", "",
+              "![mpc_sweep.png](mpc_sweep.png)", ""]
     return "\n".join(lines)
 
 
@@ -133,13 +141,15 @@ def plot(rows: list[dict[str, Any]], path: Path) -> None:
         for c, key in enumerate(GRID):
             pts = [r for r in rows if r["scene"] == scene and r["varied"] in (key, "default")]
             pts.sort(key=lambda r: r[key])
-            ax.plot([r["decision_ms"] for r in pts], [r["return_mean"] for r in pts], "o-",
-                    color=f"C{c}", label=key, ms=3, lw=1)
+            ax.plot([r["intervals_per_decision"] for r in pts],
+                    [-r["return_mean"] for r in pts], "o-", color=f"C{c}", label=key, ms=3,
+                    lw=1)
         d = next(r for r in rows if r["scene"] == scene and r["varied"] == "default")
-        ax.plot(d["decision_ms"], d["return_mean"], "k*", ms=10, label="defaults")
+        ax.plot(d["intervals_per_decision"], -d["return_mean"], "k*", ms=10, label="centre")
         ax.set_xscale("log")
-        ax.set_xlabel("ms per decision (one plant)")
-        ax.set_ylabel("episode return")
+        ax.set_yscale("log")  # (returns are negative: their size, lower is better)
+        ax.set_xlabel("plant-intervals per decision (one plant)")
+        ax.set_ylabel("episode cost = -return")
         ax.set_title(scene, fontsize=10)
     axes[0][0].legend(fontsize=7)
     fig.tight_layout()
@@ -152,15 +162,24 @@ def main() -> None:
     p.add_argument("--scenes", nargs="+", default=["stribeck", "self_excited"])
     p.add_argument("--episodes", type=int, default=8)
     p.add_argument("--out", type=Path, default=Path("docs/results"))
+    p.add_argument("--replot", type=Path, default=None,
+                   help="write the table and figure from this mpc_sweep.json, running nothing")
     args = p.parse_args()
     if args.episodes < 2:
         p.error("--episodes must be >= 2")
-    rows = sweep(args.scenes, args.episodes)
+    centre = dict(DEFAULTS)
+    if args.replot is not None:
+        saved = json.loads(args.replot.read_text())
+        rows, args.episodes, centre = saved["rows"], saved["episodes"], saved["defaults"]
+        for r in rows:
+            r["intervals_per_decision"] = r["samples"] * r["horizon"] * r["iterations"]
+    else:
+        rows = sweep(args.scenes, args.episodes)
     args.out.mkdir(parents=True, exist_ok=True)
     (args.out / "mpc_sweep.json").write_text(json.dumps(
-        {"defaults": DEFAULTS, "grid": GRID, "episodes": args.episodes,
+        {"defaults": centre, "grid": GRID, "episodes": args.episodes,
          "seed_base": TUNE_SEED_BASE, "rows": rows}, indent=1))
-    (args.out / "mpc_sweep.md").write_text(markdown(rows, args.episodes))
+    (args.out / "mpc_sweep.md").write_text(markdown(rows, args.episodes, centre))
     plot(rows, args.out / "mpc_sweep.png")
     print(f"wrote {args.out / 'mpc_sweep.md'}")
 

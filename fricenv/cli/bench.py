@@ -1,4 +1,4 @@
-"""``fricenv bench solvers|sweep|env``: the benchmark scripts of a source checkout.
+"""``fricenv bench solvers|sweep|env|control``: the benchmark scripts of a source checkout.
 
 The benchmarks compare fricenv with an independent SciPy solution that lives with the
 tests, so they run from a clone of the repository (``scripts/bench_*.py``), not from an
@@ -19,6 +19,7 @@ BENCHMARKS = {
     "solvers": "accuracy and cost of every method against RK4 and SciPy",
     "sweep": "regime-map cells against an event-driven SciPy loop; full panels",
     "env": "environment step cost against Pendulum-v1; vector env; PPO's share",
+    "control": "Stribeck and viscous steps against Pendulum-v1; MPC decision time",
 }
 
 
