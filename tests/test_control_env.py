@@ -208,6 +208,33 @@ def test_vector_env_matches_single_envs_with_every_option_on(mode):
     assert np.array_equal(native.reset()[0], singles.reset()[0])
 
 
+def test_both_checkers_pass_with_every_option_on():
+    from gymnasium.utils.env_checker import check_env
+    from stable_baselines3.common.env_checker import check_env as sb3_check_env
+
+    env = gym.make(NEW_IDS["stribeck"], randomize=True, **ALL_OPTIONS)
+    _no_warnings(check_env, env.unwrapped)
+    _no_warnings(sb3_check_env, gym.make(NEW_IDS["viscous"], **ALL_OPTIONS), warn=True)
+
+
+def test_vector_env_with_options_and_disabled_autoreset_matches_single_envs():
+    kw = {"scene": "paper", **ALL_OPTIONS}
+    native = StickSlipVectorEnv(num_envs=2, max_episode_steps=3,
+                                autoreset_mode=AutoresetMode.DISABLED, **kw)
+    singles = [gym.wrappers.TimeLimit(StickSlipEnv(**kw), 3) for _ in range(2)]
+    assert np.array_equal(native.reset(seed=3)[0],
+                          np.stack([e.reset(seed=3 + i)[0] for i, e in enumerate(singles)]))
+    for a in _actions(native, 9):
+        o, _, term, trunc, _ = native.step(a)
+        ref = [e.step(a[i]) for i, e in enumerate(singles)]
+        assert np.array_equal(o, np.stack([r[0] for r in ref]))
+        ended = term | trunc
+        if ended.any():
+            o, _ = native.reset(options={"reset_mask": ended})
+            for i in np.flatnonzero(ended):
+                assert np.array_equal(o[i], singles[i].reset()[0])
+
+
 def test_bad_sensor_and_actuator_options_are_named():
     for kw, err, match in (
         ({"obs_noise": -0.1}, ValueError, "obs_noise"),
