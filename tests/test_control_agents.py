@@ -133,3 +133,20 @@ def test_benchmark_writes_its_tables_with_a_tiny_randomised_run(tmp_path):
     assert set(gen) == {"in range", "held out below", "held out above", "noise + delay"}
     assert gen["noise + delay"]["mpc"]["label"].endswith("state from the observation)")
     assert (out / "control_benchmark.png").exists()
+
+
+@pytest.mark.parametrize("scene", ["paper", "self_excited", "stribeck", "viscous"])
+def test_pretrained_policy_of_every_scene_loads_and_cuts_the_stick(scene):
+    from pathlib import Path
+
+    from agents.baselines import ZeroExcitation
+    from agents.common import eval_env_seed, load_controller
+    from fricenv.envs.scenes import SCENES
+
+    path = Path(__file__).resolve().parents[1] / "agents" / "pretrained" / f"ppo_{scene}.zip"
+    ctrl, cfg = load_controller(path)
+    assert cfg["scene"] == scene and ctrl.vecnormalize is not None
+    short = SCENES[scene].replace(max_episode_steps=60)
+    ppo = rollout(ctrl, short, eval_env_seed(0), 2)
+    zero = rollout(ZeroExcitation(short), short, eval_env_seed(0), 2)
+    assert ppo.stick_fraction.mean() < 0.5 * zero.stick_fraction.mean()
