@@ -167,6 +167,8 @@ def _cell(e: Entry | None, field: str, digits: int) -> str:
 
 
 def _label(results: dict[str, dict[str, Entry]], key: str) -> str:
+    if key == "zero":  # (the paper scene's actions drive nu only: its u0 stays 2)
+        return "zero excitation (paper: no control, u0 = 2 and nu = 0.1 held)"
     for entries in results.values():
         if key in entries:
             lab = entries[key].label
@@ -208,17 +210,23 @@ def gap_lines(results: dict[str, dict[str, Entry]]) -> list[str]:
             continue
         m, p = float(mpc.metrics.ret.mean()), float(ppo.metrics.ret.mean())
         gap = (m - p) / abs(m)
-        secs = ppo.info.get("train_seconds") or [float("nan")]
         s_ret = f"{sac.metrics.ret.mean():.2f}" if sac else "—"
-        s_secs = (f"{min(sac.info['train_seconds']):.0f}–{max(sac.info['train_seconds']):.0f} s"
-                  if sac and sac.info.get("train_seconds") else "—")
         lines.append(f"| `{scene}` | {m:.2f} | {p:.2f} | {100 * gap:+.1f} % | "
-                     f"{'yes' if gap <= GAP_TARGET else 'no'} | "
-                     f"{min(secs):.0f}–{max(secs):.0f} s | {s_ret} | {s_secs} |")
+                     f"{'yes' if gap <= GAP_TARGET else 'no'} | {_seconds(ppo)} | {s_ret} | "
+                     f"{_seconds(sac)} |")
     lines += ["", "Gap = (MPC return − PPO return) / |MPC return|: negative when PPO does "
               "better. Training times: wall time of one run on the shared 2-core machine, "
               "one torch thread.", ""]
     return lines
+
+
+def _seconds(entry: Entry | None) -> str:
+    """A trained group's range of training wall times per run."""
+    secs = [] if entry is None else entry.info.get("train_seconds") or []
+    if not secs:
+        return "—"
+    lo, hi = min(secs), max(secs)
+    return f"{lo:.0f} s" if round(lo) == round(hi) else f"{lo:.0f}–{hi:.0f} s"
 
 
 def generalisation_lines(gen: dict[str, dict[str, dict[str, Entry]]]) -> list[str]:
@@ -250,24 +258,37 @@ def _boxes(scene: str) -> str:
                      f"{hi[k][1]:.3g}]" for k in HELD_OUT)
 
 
+SHORT = {"zero": "zero", "random": "random", "best_constant": "best constant",
+         "feedback": "feedback rule", "mpc": "MPC", "ppo": "PPO", "sac": "SAC"}
+
+
 def plot_returns(results: dict[str, dict[str, Entry]], path: Path) -> None:
+    """Each scene's episode cost (-return) per controller, on a log axis: the learned and
+    model-based controllers lie one to two orders of magnitude below the baselines."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     scenes = list(results)
-    fig, axes = plt.subplots(1, len(scenes), figsize=(3.6 * len(scenes), 3.4), squeeze=False)
+    fig, axes = plt.subplots(1, len(scenes), figsize=(3.4 * len(scenes), 3.2), squeeze=False,
+                             sharey=True)
+    keys = [k for k in ROW_ORDER if any(k in r for r in results.values())]
     for ax, scene in zip(axes[0], scenes, strict=True):
-        keys = [k for k in ROW_ORDER if k in results[scene]]
-        means = [results[scene][k].metrics.ret.mean() for k in keys]
-        sds = [results[scene][k].metrics.ret.std(ddof=1) for k in keys]
-        ax.barh(range(len(keys)), means, xerr=sds, color=[f"C{i}" for i in range(len(keys))])
-        ax.set_yticks(range(len(keys)), [_label(results, k).split(" (")[0][:22] for k in keys],
-                      fontsize=7)
-        ax.invert_yaxis()
+        for y, key in enumerate(keys):
+            e = results[scene].get(key)
+            if e is None:
+                continue
+            cost = -e.metrics.ret
+            mean, sd = float(cost.mean()), float(cost.std(ddof=1))
+            lo = min(sd, 0.9 * mean)  # (a log axis has no room below zero)
+            ax.errorbar(mean, y, xerr=[[lo], [sd]], fmt="o", color=f"C{y}", ms=5, capsize=2)
+        ax.set_xscale("log")
+        ax.set_yticks(range(len(keys)), [SHORT.get(k, k) for k in keys], fontsize=8)
+        ax.grid(axis="x", alpha=0.3)
         ax.set_title(scene, fontsize=10)
-        ax.set_xlabel("episode return (higher is better)", fontsize=8)
+        ax.set_xlabel("episode cost = -return (lower is better)", fontsize=8)
+    axes[0][0].invert_yaxis()  # (shared: once for all) the table's order, top down
     fig.tight_layout()
     fig.savefig(path, dpi=90)
     plt.close(fig)
