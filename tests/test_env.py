@@ -963,7 +963,7 @@ def test_starts_far_out_are_bounded_like_parameters():
         with pytest.raises(ValueError, match=rf"reset option '{key}' must lie within"):
             env.reset(seed=0, options={key: -1e200})
     with pytest.raises(ValueError, match=r"x0 must lie within"):
-        fricenv.simulate(fricenv.OscillatorParams(), 1.0, x0=1e13)
+        fricenv.OscillatorState.start(fricenv.OscillatorParams(), 1e13)
     env.reset(seed=0, options={"x0": 1e12, "v0": -1e12})
     reward, terminated = env.step(env.action_space.sample())[1:3]
     assert -1.6 <= reward <= 0.0 and terminated  # far outside the observation box
