@@ -21,6 +21,7 @@ from .store import (
     done_chunks,
     open_atlas,
     open_for_resume,
+    remove_partial_writes,
     to_dataset,
 )
 
@@ -79,6 +80,7 @@ def atlas(base: OscillatorParams | str, axes: Mapping[str, object],
         if store.exists():
             group, stored_chunks = open_for_resume(store, spec, chunks is not None)
             spec = replace(spec, chunks=stored_chunks)
+            remove_partial_writes(store)
             done = done_chunks(store, len(spec.shape))
             todo = [i for i in np.ndindex(*spec.chunk_grid) if i not in done]
         else:

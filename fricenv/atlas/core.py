@@ -219,7 +219,8 @@ def _check_friction_levels(axes: dict[str, np.ndarray], base: OscillatorParams) 
     if xfs.min() < xfk.max():
         field = "xfs" if "xfs" in axes else "xfk"
         value = float(xfs.min() if field == "xfs" else xfk.max())
-        raise ValueError(f"axes[{field!r}]: {field} = {value!r} gives xfs = "
+        gives = "" if field == "xfs" else f"{field} = {value!r} gives "
+        raise ValueError(f"axes[{field!r}]: {gives}xfs = "
                          f"{float(xfs.min())!r} < xfk = {float(xfk.max())!r} at a grid "
                          "point (every combination of the axes is a cell); the static "
                          "friction level must be >= the kinetic one")
@@ -331,9 +332,8 @@ def chunk_slices(spec: AtlasSpec, index: Sequence[int]) -> tuple[slice, ...]:
 
 def chunk_tasks(spec: AtlasSpec, indices: Sequence[tuple[int, ...]] | None = None
                 ) -> list[ChunkTask]:
-    """Tasks for the chunks ``indices`` (default: all), costliest first: each cell's
-    simulated time (transient plus windows) is a fair proxy of its cost, and starting the
-    long chunks first keeps one from finishing alone at the end."""
+    """Tasks for the chunks ``indices`` (default: all), costliest first (so that a long
+    chunk does not finish alone at the end while the other threads idle)."""
     if indices is None:
         indices = list(itertools.product(*(range(n) for n in spec.chunk_grid)))
     tasks = []
@@ -348,18 +348,25 @@ def chunk_tasks(spec: AtlasSpec, indices: Sequence[tuple[int, ...]] | None = Non
 
 
 def _span_costs(spec: AtlasSpec, tasks: list[ChunkTask]) -> list[float]:
-    """Sum over a chunk's cells of transient + windows, from the plan of each (eta, lam,
-    b1, nu), without building rows."""
+    """Estimated cost of each chunk, without building rows: the sum over its cells of
+    the radians the fastest tone turns through in the transient and windows (the kernels
+    step at most half a radian of it; simulated time alone ranked the chunks backwards,
+    small eta having long spans but few events per unit time), weighted by ``1 +
+    log(1 + u0)``: stronger forcing means faster, stiffer slip and more events (on a
+    Stribeck panel the chunks of largest u0 cost about 8 times those of the smallest)."""
     nu = spec.axes.get("nu", np.array([spec.base.nu]))
     spans = {}
     for fixed, p in _plan_groups(spec.axes, spec.base):
         plan = plan_cells(p, nu, spec.settings)
         span = plan.t_transient + plan.t_segment * plan.n_segment * np.maximum(plan.tries, 1)
-        spans[tuple(fixed.values())] = span
+        spans[tuple(fixed.values())] = span * p.eta * np.maximum(1.0, plan.nu_exact)
     costs = []
     names = [k for k in _PLAN_FIELDS if k in spec.axes]
     for t in tasks:
-        n_other = math.prod(g.size for k, g in t.grids.items() if k not in names + ["nu"])
+        n_other = math.prod(g.size for k, g in t.grids.items()
+                            if k not in names + ["nu", "u0"])
+        u0 = t.grids.get("u0", np.array([spec.base.u0]))
+        n_other *= float(np.sum(1.0 + np.log1p(u0)))
         jn = t.slices[list(spec.axes).index("nu")] if "nu" in spec.axes else slice(None)
         total = 0.0
         for values in itertools.product(*(t.grids[k] for k in names)):

@@ -138,7 +138,7 @@ def create_store(path: Path, spec: AtlasSpec) -> None:
             a[...] = grid
         qdims, q, _ = _q(spec)
         a = group.create_array("q", shape=np.shape(q), dtype="int16", dimension_names=qdims,
-                               chunks=np.shape(q) or None, attributes=_Q_ATTRS)
+                               chunks=np.shape(q), attributes=_Q_ATTRS)
         a[...] = q
         for name, (dtype, fill) in VARIABLES.items():
             group.create_array(name, shape=spec.shape, dtype=dtype, chunks=spec.chunks,
@@ -215,7 +215,7 @@ def open_for_resume(path: Path, spec: AtlasSpec, chunks_given: bool
 
 def done_chunks(path: Path, ndim: int) -> set[tuple[int, ...]]:
     """Indices of the chunks whose label is stored (complete chunks), from the file names
-    (no chunk is read); leftovers of writes cut off by a kill are removed."""
+    (no chunk is read; safe while a run writes)."""
     root = path / "label" / _CHUNK_DIR
     done = set()
     if not root.is_dir():
@@ -223,11 +223,16 @@ def done_chunks(path: Path, ndim: int) -> set[tuple[int, ...]]:
     for dirpath, _, files in os.walk(root):
         rel = Path(dirpath).relative_to(root).parts
         for f in files:
-            if f.endswith(".partial"):
-                (Path(dirpath) / f).unlink(missing_ok=True)
-            elif re.fullmatch(r"\d+", f) and len(rel) + 1 == ndim:
+            if re.fullmatch(r"\d+", f) and len(rel) + 1 == ndim:
                 done.add(tuple(int(p) for p in rel) + (int(f),))
     return done
+
+
+def remove_partial_writes(path: Path) -> None:
+    """Delete the temporary files of chunk writes that a kill cut off. Only for the run
+    that resumes the store: a running writer's own temporary files would go too."""
+    for f in path.rglob("*.partial"):
+        f.unlink(missing_ok=True)
 
 
 class ZarrSink:
