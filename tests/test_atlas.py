@@ -280,6 +280,18 @@ def test_regime_map_npz_converts(tmp_path):
     xr.testing.assert_identical(ds, m.to_xarray())
     xr.testing.assert_identical(ds, _run("coulomb", {"u0": U0[:3], "nu": NU[:2]}))
 
+    def stop(rmap, n):
+        raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):  # a map cut off after its first chunk
+        regime_map("coulomb", U0, NU, progress=False, path=tmp_path / "p.npz",
+                   chunk_size=5, callback=stop)
+    part = fricenv.open_atlas(tmp_path / "p")
+    done = part.label.values != -1
+    assert done.sum() == 5
+    assert np.all(part.status.values[~done] == -1) and np.all(part.status.values[done] >= 0)
+    assert np.isnan(part.v_max.values[~done]).all()
+
 
 def test_one_axis_store_without_nu_round_trips(tmp_path):
     axes = {"u0": U0[:5]}  # nu fixed by the base: q is a scalar coordinate

@@ -21,8 +21,8 @@ from .api import atlas
 from .core import AXIS_FIELDS
 from .store import open_atlas, regime_map_dataset
 
-__all__ = ["AXIS_FIELDS", "atlas", "open_atlas", "plot_slice", "regime_map_dataset",
-           "stick_boundaries", "onset_surface_figure"]
+__all__ = ["AXIS_FIELDS", "atlas", "onset_surface_figure", "open_atlas", "plot_slice",
+           "regime_map_dataset", "slice_figure", "stick_boundaries"]
 
 _VIEWS = ("plot_slice", "stick_boundaries", "onset_surface_figure", "slice_figure")
 
