@@ -18,7 +18,7 @@ from __future__ import annotations
 import itertools
 import math
 from collections.abc import Iterator, Mapping, Sequence
-from dataclasses import asdict, dataclass, replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -52,7 +52,6 @@ from ..params import (
 from ..regimes import classify
 from ..simulate import check_scan_steps
 from ..sweep import (
-    ALGORITHM,
     NOT_COMPUTED,
     SweepSettings,
     _check_rows,
@@ -133,11 +132,6 @@ class AtlasSpec:
         for name in self.axes:
             d[name] = None
         return d
-
-    def identity(self) -> dict:
-        """What a stored atlas must match to be resumed (the grids are compared apart)."""
-        return {"algorithm": ALGORITHM, "base": self.base_key(),
-                "settings": asdict(self.settings), "axes": list(self.axes)}
 
 
 @dataclass(frozen=True)
