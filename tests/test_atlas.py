@@ -83,6 +83,17 @@ def test_distributed_equals_local_bit_for_bit(client, law):
                                           ref.to_xarray()[v].values, err_msg=v)
 
 
+def _warm_count(dask_worker) -> int:
+    plugin = dask_worker.plugins.get(distributed.PLUGIN_NAME)
+    return getattr(plugin, "setups", -1)
+
+
+def test_workers_warm_their_kernels_once(client):
+    _run("coulomb", {"u0": U0[:2]}, client=client)
+    _run("coulomb", {"u0": U0[:2]}, client=client)
+    assert set(client.run(_warm_count).values()) == {1}
+
+
 def test_other_axes_equal_cell_statistics():
     base = OscillatorParams.preset("viscous", u0=1.5, nu=0.5)
     axes = {"lam": np.array([0.3, 0.5]), "xfk": np.array([1.5, 2.5]),

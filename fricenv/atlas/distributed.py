@@ -52,9 +52,11 @@ class WarmKernels(WorkerPlugin):
     """Warms each worker's numba kernels once, when it starts or joins."""
 
     name = PLUGIN_NAME
+    setups = 0  # (per worker process: how often it warmed, for tests)
 
     def setup(self, worker: object) -> None:
         warm_kernels()
+        self.setups += 1
 
 
 def _worker_threads() -> int:
@@ -72,6 +74,21 @@ def run_chunk(task: ChunkTask) -> tuple[tuple[int, ...], dict[str, np.ndarray]]:
     return compute_chunk(task, _worker_threads())
 
 
+def _has_plugin(dask_scheduler: object) -> bool:
+    return PLUGIN_NAME in getattr(dask_scheduler, "worker_plugins", {})
+
+
+def ensure_warm_workers(client: Client) -> None:
+    """Register :class:`WarmKernels` unless the scheduler has it: each worker then warms
+    its kernels once, when it starts or joins, not again at every atlas."""
+    try:
+        registered = client.run_on_scheduler(_has_plugin)
+    except Exception:  # (a scheduler that cannot run functions: register, to be sure)
+        registered = False
+    if not registered:
+        client.register_plugin(WarmKernels(), name=PLUGIN_NAME)
+
+
 def total_threads(client: Client) -> int:
     return max(1, sum(client.nthreads().values()))
 
@@ -83,7 +100,7 @@ def run_distributed(client: Client, tasks: Sequence[ChunkTask],
     ``IN_FLIGHT_PER_THREAD`` tasks per worker thread are submitted at once; a result is
     released once yielded. ``stats``, if given, gets ``max_in_flight``: the most futures
     held at once (a check that the client's memory is bounded)."""
-    client.register_plugin(WarmKernels(), name=PLUGIN_NAME)
+    ensure_warm_workers(client)
     window = IN_FLIGHT_PER_THREAD * total_threads(client) + 1
     run_id = uuid.uuid4().hex
     todo = iter(tasks)
