@@ -95,7 +95,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from . import atlas  # (the package: dask, zarr and xarray load here, not on --help)
+    from .api import atlas  # (zarr and xarray load here, not with the parser)
 
     try:
         axes = dict(parse_axis(a) for a in args.axis)
