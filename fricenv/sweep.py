@@ -621,6 +621,13 @@ class RegimeMap:
         """Number of computed cells per regime name."""
         return {r.name: int(np.sum(self.labels == r)) for r in Regime}
 
+    def to_xarray(self) -> object:
+        """This map as an ``xarray.Dataset`` over ``(u0, nu)``, laid out as an atlas
+        (:func:`fricenv.atlas`); needs the ``scale`` extra."""
+        from .atlas.store import regime_map_dataset
+
+        return regime_map_dataset(self)
+
     # -- storage -----------------------------------------------------------------------
     def metadata(self) -> dict:
         return {
