@@ -44,7 +44,7 @@ def test_cli_writes_and_resumes(tmp_path, capsys):
     assert cli_main(argv) == 0
     ds = fricenv.open_atlas(out)
     assert dict(ds.sizes) == {"u0": 4, "nu": 3, "eta": 2}
-    assert cli_main(argv[:-2] + ["--set", "window_min=50"]) == 2
+    assert cli_main(argv[:-2] + ["--setting", "window_min=50"]) == 2
     assert "setting window_min = 100.0, not 50.0" in capsys.readouterr().err
     name, grid = parse_axis("u0=geom:0.1:1000:5")
     assert name == "u0" and np.allclose(grid, [0.1, 1, 10, 100, 1000])
