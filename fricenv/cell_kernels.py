@@ -6,10 +6,11 @@ The validating, allocating wrapper is :func:`fricenv.cells.run_cells`.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit, prange
+from numba import prange
 
 from . import core
 from .atomic import fetch_add
+from .jit import kernel
 from .layout import (
     N_STATE,
     N_STATS,
@@ -21,12 +22,12 @@ from .layout import (
 from .regimes import _strobe_period
 
 
-@njit(cache=True, error_model="numpy")
+@kernel(allocates=True)
 def _event_cap(t_span: float, rate: float) -> int:
     return int(min(rate * t_span + 1000.0, 2.0e9))
 
 
-@njit(cache=True, error_model="numpy")
+@kernel(allocates=True)
 def _run_cell(P: np.ndarray, x0: float, v0: float, t_trans: float, t_seg: float,
               n_seg: int, tries: int, method: int, rtol: float, atol: float, rate: float,
               m_max: int, tol: float, stats: np.ndarray) -> tuple[int, int]:
@@ -70,7 +71,7 @@ def _run_cell(P: np.ndarray, x0: float, v0: float, t_trans: float, t_seg: float,
     return status, period
 
 
-@njit(cache=True, error_model="numpy")
+@kernel(allocates=True)
 def _converging(xs: np.ndarray, vs: np.ndarray, m_max: int) -> bool:
     """True if, for some candidate period m, the strobe mismatch |z_k - z_{k-m}| shrinks by
     half or more from the first to the second half of the window: an orbit still
@@ -93,7 +94,7 @@ def _converging(xs: np.ndarray, vs: np.ndarray, m_max: int) -> bool:
     return False
 
 
-@njit(parallel=True, cache=True, error_model="numpy")
+@kernel(parallel=True, allocates=True)
 def _cells_kernel(P_cells: np.ndarray, t_trans: np.ndarray, t_seg: np.ndarray,
                   n_seg: np.ndarray, tries: np.ndarray, x0: float, v0: float, method: int,
                   rtol: float, atol: float, rate: float, m_max: int, tol: float,

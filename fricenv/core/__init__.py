@@ -25,7 +25,8 @@ derivative. A step is halved until it provably holds at most one extremum (curva
 bounds: ``_one_extremum_at_most``, ``_v_one_extremum``, ``_sign_kept``); that is how
 grazing contacts, where ``v`` touches ``V`` tangentially, are caught.
 
-Public kernels (all ``@njit(cache=True)``, allocation-free in their step loops):
+Public kernels (all compiled by :func:`fricenv.jit.kernel`, allocation-free in their step
+loops):
 ``reset_stats``, ``initial_state``, ``advance`` (stats only) and the recording runners used
 by :mod:`fricenv.simulate`. Array layouts are in :mod:`fricenv.layout` and
 :mod:`fricenv.params`.

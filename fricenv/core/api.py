@@ -1,7 +1,6 @@
 """Entry kernels: the stats-only ``advance`` and the recording ``record``."""
 
-from numba import njit
-
+from ..jit import kernel
 from ..layout import METHOD_EXACT
 from .constants import _STATUS_NEAR_RESONANCE
 from .event import _run_event
@@ -9,7 +8,7 @@ from .exact import _run_exact
 from .workspace import fresh_workspace
 
 
-@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+@kernel(inline=True)
 def advance_ws(P, S, t_span, stats, method, rtol, atol, max_events, work):
     """``advance`` with a caller-owned workspace (see ``new_workspace``).
 
@@ -25,7 +24,7 @@ def advance_ws(P, S, t_span, stats, method, rtol, atol, max_events, work):
     return _run_event(P, S, t_span, None, stats, max_events, rtol, atol, None, None, None,
                       None, None, None, None, work)
 
-@njit(cache=True, error_model="numpy")
+@kernel(allocates=True)
 def advance(P, S, t_span, stats, method, rtol, atol, max_events):
     """Advance the state ``S`` in place by ``t_span``, accumulating ``stats``; no trajectory.
 
@@ -38,7 +37,7 @@ def advance(P, S, t_span, stats, method, rtol, atol, max_events):
     """
     return advance_ws(P, S, t_span, stats, method, rtol, atol, max_events, fresh_workspace())
 
-@njit(cache=True, error_model="numpy")
+@kernel(allocates=True)
 def record(P, S, out_t, stats, method, rtol, atol, max_events, out_x, out_v, out_mode, ev_t,
            ev_kind, ev_x, counts):
     """Like ``advance`` over [out_t[0], out_t[-1]], recording the state at ``out_t`` and the

@@ -6,8 +6,8 @@ matrix (any damping) applied to the distance from the particular response to the
 
 import math
 
-from numba import njit
-
+from ..jit import kernel
+from .constants import HOMOG_SERIES_MAX
 from .trig import _sincos
 from .workspace import (
     C_B1,
@@ -40,7 +40,7 @@ from .workspace import (
 
 # Closed form of a Coulomb slip step
 # ----------------------------------------------------------------------------------------
-@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+@kernel(inline=True)
 def _homog(tau, lam, p2):
     """Transition matrix of x'' + lam x' + x = 0 over tau, for every damping.
 
@@ -50,7 +50,7 @@ def _homog(tau, lam, p2):
     formed directly so nothing overflows.
     """
     z = p2 * tau * tau
-    if abs(z) < 1e-2:
+    if abs(z) < HOMOG_SERIES_MAX:
         c = 1.0 - z / 2.0 * (1.0 - z / 12.0 * (1.0 - z / 30.0 * (1.0 - z / 56.0 * (
             1.0 - z / 90.0 * (1.0 - z / 132.0)))))
         s = tau * (1.0 - z / 6.0 * (1.0 - z / 20.0 * (1.0 - z / 42.0 * (1.0 - z / 72.0 * (
@@ -72,7 +72,7 @@ def _homog(tau, lam, p2):
         es = 0.5 * (slow - fast) / q
     return ec + 0.5 * lam * es, es, -es, ec - 0.5 * lam * es
 
-@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+@kernel(inline=True)
 def _particular(cx, tau, c1, s1, c2, s2, sd):
     """Particular solution (x_p, v_p) at relative time tau, tone phases (c_i, s_i) there."""
     xp = -sd * cx[C_XFK]
@@ -93,7 +93,7 @@ def _particular(cx, tau, c1, s1, c2, s2, sd):
             vp += cx[C_W2] * (cx[C_KS2] * c2 - cx[C_KC2] * s2)
     return xp, vp
 
-@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+@kernel(inline=True)
 def _slip_start(cx, x, v, c1, s1, c2, s2, sd):
     """Start a closed-form slip step at (x, v) with tone phases (c_i, s_i)."""
     cx[C_XA] = x
@@ -107,7 +107,7 @@ def _slip_start(cx, x, v, c1, s1, c2, s2, sd):
     cx[C_DX] = x - xp
     cx[C_DV] = v - vp
 
-@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+@kernel(inline=True)
 def _rotate(cx, cr1, sr1, cr2, sr2):
     """Tone phases at the step start advanced by the rotations (cr_i, sr_i)."""
     c1 = cx[C_C1A] * cr1 - cx[C_S1A] * sr1
@@ -116,14 +116,14 @@ def _rotate(cx, cr1, sr1, cr2, sr2):
     s2 = cx[C_S2A] * cr2 + cx[C_C2A] * sr2
     return c1, s1, c2, s2
 
-@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+@kernel(inline=True)
 def _rotate_by(cx, tau):
     """Tone phases at the step start advanced by tau (both tones)."""
     cr1, sr1 = _sincos(cx[C_W1] * tau)
     cr2, sr2 = _sincos(cx[C_W2] * tau)
     return _rotate(cx, cr1, sr1, cr2, sr2)
 
-@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+@kernel(inline=True)
 def _forcing(cx, c1, s1, c2, s2):
     """g, g' and g'' for tone phases (c_i, s_i)."""
     u1 = cx[C_U1]
@@ -135,7 +135,7 @@ def _forcing(cx, c1, s1, c2, s2):
     gdd = -u1 * w1 * w1 * c1 - u2 * w2 * w2 * c2
     return g, gd, gdd
 
-@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+@kernel(inline=True)
 def _slip_with(cx, tau, h11, h12, h21, h22, c1, s1, c2, s2):
     """Closed-form slip state at relative time tau: x, v, acceleration and jerk."""
     sd = cx[C_SD]
@@ -147,12 +147,12 @@ def _slip_with(cx, tau, h11, h12, h21, h22, c1, s1, c2, s2):
     jerk = -cx[C_LAM] * acc - v + gd
     return x, v, acc, jerk
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@kernel
 def _slip_at(cx, tau):
     x, v, acc, jerk, _, _, _, _ = _slip_and_phases_at(cx, tau)
     return x, v, acc, jerk
 
-@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+@kernel(inline=True)
 def _slip_and_phases_at(cx, tau):
     """``_slip_at`` plus the tones' cos/sin there (a switch needs both)."""
     h11, h12, h21, h22 = _homog(tau, cx[C_LAM], cx[C_P2])
@@ -160,7 +160,7 @@ def _slip_and_phases_at(cx, tau):
     x, v, acc, jerk = _slip_with(cx, tau, h11, h12, h21, h22, c1, s1, c2, s2)
     return x, v, acc, jerk, c1, s1, c2, s2
 
-@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+@kernel(inline=True)
 def _slip_mid_and_end(cx, tau):
     """v at tau / 2 and the state and tones' cos/sin at tau, from one evaluation at tau / 2:
     the transition over tau is its square and the rotations are doubled (a few ulps), so
@@ -177,7 +177,7 @@ def _slip_mid_and_end(cx, tau):
                                  m21 * m11 + m22 * m21, m21 * m12 + m22 * m22, c1, s1, c2, s2)
     return v_mid, x, v, acc, jerk, c1, s1, c2, s2
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@kernel
 def _stick_at(cx, tau):
     """Stick state at relative time tau: x and f, f', f''."""
     c1, s1, c2, s2 = _rotate_by(cx, tau)
@@ -185,7 +185,7 @@ def _stick_at(cx, tau):
     g, gd, gdd = _forcing(cx, c1, s1, c2, s2)
     return x, -cx[C_LAM] * cx[C_V] - x + g, -cx[C_V] + gd, gdd
 
-@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+@kernel(inline=True)
 def _jerk(cx, v, a, s1, s2):
     """v'' in slip from v, v' and the tones' sines (the friction law's slope included)."""
     vr = v - cx[C_V]

@@ -39,21 +39,8 @@ GRAZE_REL = GRAZE_ULPS * 2.220446049250313e-16
 # already gives the value to rounding.
 EXTREMUM_REL_TOL = 1e-9
 
-# ----------------------------------------------------------------------------------------
-# A whole call in one closed-form step (stats-only callers that read no extrema)
-# ----------------------------------------------------------------------------------------
-# In slip, v is a damped oscillation plus two sinusoids, so over a call [0, T]:
-# * sd (v - V) is bounded below by the sum of each part's own lowest value: a tone's over
-#   the arc its phase sweeps (minus its amplitude if the arc passes its trough, else its
-#   lower end value), the damped part's from its ends and a bound on its curvature. When
-#   that sum stays above 0 there is no contact in the whole call, and one closed-form
-#   step covers it however many scan steps the tones' speed would otherwise take.
-# * the (v - V)^2 integral is exact: with each part written Re(a_k e^(z_k t)), a product of
-#   two parts integrates to T E((z_k + z_l) T) terms, E(s) = (e^s - 1) / s, whose values
-#   depend only on (lam, w1, w2, T) and are cached.
-# In stick, f = -lam V - x0 - V t + g(t) is bounded against +-xfs the same way.
-# Whatever is not proven goes to the scan. The damped part must oscillate (p^2 >= I_P2_MIN,
-# so 1 / p stays tame) and no tone may be resonant.
+# A whole call in one closed-form step (see ``whole_interval``): the damped part must
+# oscillate (p^2 >= I_P2_MIN, so 1 / p stays tame).
 I_P2_MIN = 0.01
 I_MARGIN = 1e-12  # clearance the proofs demand, relative to the size of the terms
 
@@ -62,3 +49,39 @@ I_MARGIN = 1e-12  # clearance the proofs demand, relative to the size of the ter
 STIFF_HK = 2.5
 # Most Taylor steps between Rosenbrock retries in a stiff stretch where they keep failing
 ROS_BACKOFF_MAX = 64.0
+
+# Time resolution of a call, relative to max(1, |t|) (t runs from 0 in each call): a call
+# whose remaining span is below it ends, a Taylor step is never shorter than it, and an
+# output instant this close past a step's end belongs to that step.
+TIME_REL_TOL = 1e-13
+# Output instants and interval lengths that differ by less than this fraction are the same.
+GRID_REL_TOL = 1e-12
+# A step count whose quotient is within this of a whole number is that number (ceil of a
+# quotient such as 10 / 0.1 must not round 100.00000000000001 up to 101).
+COUNT_SLACK = 1e-9
+# Keeps a tolerance positive where everything it scales with is 0 (a bracket at t = 0, a
+# tolerance of 0): the smallest normal double's neighbourhood, far below any real scale.
+TINY = 1e-300
+# A Taylor step's error target never falls below this share of the state's size: doubles
+# resolve nothing finer, and a smaller target would shrink the step to nothing.
+TAYLOR_EPS_FLOOR = 1e-16
+# Length of the "last Taylor step" before the first one is taken (only the stiffness test
+# reads it, against the scan cap).
+TAYLOR_FIRST_STEP = 0.05
+# The event method carries the tones' cos/sin from step to step by rotation; after this
+# many steps they are recomputed from the phase angles, so rounding cannot accumulate.
+PHASE_RESYNC_STEPS = 64
+# The displacement extremum search is skipped when |v| max * step cannot reach past the
+# recorded extrema; this factor covers the rounding of that bound.
+REACH_SLACK = 1.0000001
+# Below these, a series replaces the direct formula: p^2 tau^2 in the homogeneous transition
+# (avoids dividing by p), |s|^2 in E(s) = (e^s - 1) / s (avoids cancellation in e^s - 1).
+HOMOG_SERIES_MAX = 1e-2
+E1_SERIES_MAX_R2 = 1e-4
+# Rosenbrock step-size control: the next step is h * min(ROS_GROW_MAX, max(ROS_SHRINK_MIN,
+# ROS_SAFETY * err^(-1/8))), err floored at ROS_ERR_FLOOR (an exact step grows, not
+# divides by 0).
+ROS_GROW_MAX = 4.0
+ROS_SHRINK_MIN = 0.2
+ROS_SAFETY = 0.9
+ROS_ERR_FLOOR = 1e-30

@@ -1,14 +1,13 @@
 """Contacts of slip with v = V, and what follows them (stick or reversal)."""
 
-from numba import njit
-
+from ..jit import kernel
 from ..layout import EVENT_REVERSAL, EVENT_STICK, ST_N_REVERSAL, ST_N_SLIP, ST_N_STICK
 from .constants import GRAZE_REL
 from .roots import _root
 from .workspace import C_LAM, C_U1, C_U2, C_V, C_W1, C_W2, C_XFK, C_XFS
 
 
-@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+@kernel(inline=True)
 def _start_slope(cx, fresh, h0, d0, x, v):
     """h' at a slip step's start, for the contact search.
 
@@ -29,7 +28,7 @@ def _start_slope(cx, fresh, h0, d0, x, v):
 #: ``_unresolved_return``'s answer where h is resolved (the contact search goes on)
 _RESOLVED = -2.0
 
-@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+@kernel(inline=True)
 def _unresolved_return(L, h0, d0, q0, h1, tol):
     """Contact time of a slip step that starts on the switching surface heading off it while
     h = sd (v - V) never reads above rounding (``tol``): -1 (no contact in the step) or
@@ -53,7 +52,7 @@ def _unresolved_return(L, h0, d0, q0, h1, tol):
         return -1.0 if h1 >= -tol else L
     return -1.0 if h1 >= -tol else _RESOLVED
 
-@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+@kernel(inline=True)
 def _contact_time(cx, kind, L, h0, d0, q0, h1, d1, q1, t_ext, h_ext, q_ext):
     """First relative time in (0, L] where h = sd (v - V) reaches 0, or -1 (0: at once).
 
@@ -91,7 +90,7 @@ def _contact_time(cx, kind, L, h0, d0, q0, h1, d1, q1, t_ext, h_ext, q_ext):
         return _root(cx, kind, 0.0, 0.0, L, h0, h1, d0, d1, q0, q1)
     return -1.0
 
-@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+@kernel(inline=True)
 def _force_tie(cx, x):
     """How far |f| may pass x_fs and still be taken as x_fs: the rounding of f's terms.
 
@@ -104,7 +103,7 @@ def _force_tie(cx, x):
     return GRAZE_REL * (
         abs(cx[C_LAM] * cx[C_V]) + abs(x) + abs(cx[C_U1]) + abs(cx[C_U2]))
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@kernel
 def _contact_outcome(cx, stats, x, c1, s1, c2, s2, sd):
     """Mode after slip in direction sd reaches v = V at x (tone phases c_i = cos, s_i =
     sin): stick, or reverse."""
@@ -120,7 +119,7 @@ def _contact_outcome(cx, stats, x, c1, s1, c2, s2, sd):
     stats[ST_N_REVERSAL] += 1.0
     return (1.0 if f > 0.0 else -1.0), EVENT_REVERSAL
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@kernel
 def _stick_outcome(cx, stats, x, c1, c2):
     f = -cx[C_LAM] * cx[C_V] - x + cx[C_U1] * c1 + cx[C_U2] * c2
     stats[ST_N_SLIP] += 1.0

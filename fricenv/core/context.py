@@ -2,8 +2,7 @@
 
 import math
 
-from numba import njit
-
+from ..jit import kernel
 from ..params import P_B1, P_B3, P_LAM, P_U1, P_U2, P_V, P_W1, P_W2, P_XFK, P_XFS
 from .constants import _D2_MIN, DELTA_MAX, DELTA_WIDE, PHASE_PER_STEP, PHASE_PER_STEP_WIDE
 from .workspace import (
@@ -28,20 +27,27 @@ from .workspace import (
     C_XFK,
     C_XFS,
     N_T,
+    T_GDD,
+    T_GDDD,
     T_NEAR_RES,
+    T_U,
+    T_VDD_P,
+    T_VDDD_P,
+    T_W,
     W_I_AMP1,
     W_T_KEY,
+    W_T_KEY2,
 )
 
 
-@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+@kernel(inline=True)
 def _tone_d2(w, lam):
     """1 - w^2, lam w and d2 = |1 - w^2 + i lam w|^2, the tone's response denominator."""
     re = 1.0 - w * w
     im = lam * w
     return re, im, re * re + im * im
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@kernel
 def closed_form_conditioned(P) -> bool:
     """False when a tone of P is too close to resonance for the closed form (see
     CLOSED_FORM_MAX_GAIN): the exact method then runs the event method."""
@@ -51,7 +57,7 @@ def closed_form_conditioned(P) -> bool:
             return False
     return True
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@kernel
 def _setup_context(P, cx):
     """Constants of the run: particular-solution coefficients of each tone.
 
@@ -81,7 +87,7 @@ def _setup_context(P, cx):
         u = P[P_U1 + i]
         w = P[P_W1 + i]
         key = W_T_KEY + i * N_T
-        if same_lam and cx[key] == u and cx[key + 1] == w:
+        if same_lam and cx[key + T_U] == u and cx[key + T_W] == w:
             continue
         re, im, d2 = _tone_d2(w, lam)
         res = 1.0 if (u != 0.0 and d2 == 0.0) else 0.0  # lam = 0 and w = 1: resonance
@@ -97,24 +103,23 @@ def _setup_context(P, cx):
         if res != 0.0:
             # x_p = u tau sin(phi) / 2 (w = 1, tau from the step start, steps <= 1 long):
             # |v_p''| <= |u| (3 + tau) / 2, |v_p'''| <= |u| (4 + tau) / 2
-            cx[key + 2] = 2.0 * abs(u)
-            cx[key + 3] = 2.5 * abs(u)
+            cx[key + T_VDD_P] = 2.0 * abs(u)
+            cx[key + T_VDDD_P] = 2.5 * abs(u)
         else:
             amp = math.sqrt(kc * kc + ks * ks)
-            cx[key + 2] = amp * w * w * abs(w)
-            cx[key + 3] = amp * w * w * w * w
+            cx[key + T_VDD_P] = amp * w * w * abs(w)
+            cx[key + T_VDDD_P] = amp * w * w * w * w
             cx[W_I_AMP1 + i] = amp * abs(w)
-        cx[key + 4] = abs(u) * w * w
-        cx[key + 5] = abs(u) * w * w * abs(w)
-        cx[key] = u
-        cx[key + 1] = w
-    b2 = W_T_KEY + N_T
-    cx[C_VDD_P] = cx[W_T_KEY + 2] + cx[b2 + 2]
-    cx[C_VDDD_P] = cx[W_T_KEY + 3] + cx[b2 + 3]
-    cx[C_GDD] = cx[W_T_KEY + 4] + cx[b2 + 4]
-    cx[C_GDDD] = cx[W_T_KEY + 5] + cx[b2 + 5]
+        cx[key + T_GDD] = abs(u) * w * w
+        cx[key + T_GDDD] = abs(u) * w * w * abs(w)
+        cx[key + T_U] = u
+        cx[key + T_W] = w
+    cx[C_VDD_P] = cx[W_T_KEY + T_VDD_P] + cx[W_T_KEY2 + T_VDD_P]
+    cx[C_VDDD_P] = cx[W_T_KEY + T_VDDD_P] + cx[W_T_KEY2 + T_VDDD_P]
+    cx[C_GDD] = cx[W_T_KEY + T_GDD] + cx[W_T_KEY2 + T_GDD]
+    cx[C_GDDD] = cx[W_T_KEY + T_GDDD] + cx[W_T_KEY2 + T_GDDD]
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@kernel
 def _scan_cap(P, wide):
     """Longest scan step: short against the fastest active tone and the damping rate."""
     base = DELTA_WIDE if wide else DELTA_MAX
@@ -138,7 +143,7 @@ def _scan_cap(P, wide):
             cap = base / rate
     return cap
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@kernel
 def most_scan_steps(P_rows, spans):
     """The most scan steps any row needs to cover its span, and that row: the floor of a
     run's cost, known before it starts."""

@@ -2,8 +2,7 @@
 
 import math
 
-from numba import njit
-
+from ..jit import kernel
 from ..layout import (
     EVENT_SLIP,
     S_MODE,
@@ -21,7 +20,18 @@ from ..layout import (
     STATUS_TOO_STIFF,
 )
 from .closed_form import _stick_at
-from .constants import MIN_SPLIT, ROS_BACKOFF_MAX, STIFF_HK
+from .constants import (
+    MIN_SPLIT,
+    PHASE_RESYNC_STEPS,
+    ROS_BACKOFF_MAX,
+    ROS_ERR_FLOOR,
+    ROS_GROW_MAX,
+    ROS_SAFETY,
+    ROS_SHRINK_MIN,
+    STIFF_HK,
+    TAYLOR_FIRST_STEP,
+    TIME_REL_TOL,
+)
 from .contacts import _contact_outcome, _contact_time, _start_slope, _stick_outcome
 from .context import _scan_cap, _setup_context
 from .proofs import _extremum_matters, _sign_kept, _stick_held, _v_one_extremum
@@ -61,7 +71,7 @@ from .workspace import (
 )
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@kernel
 def _run_event(P, S, t_span, out_t, stats, max_events, rtol, atol, out_x, out_v, out_mode,
                ev_t, ev_kind, ev_x, counts, cx):
     """Advance S by t_span: Taylor-series steps in slip, exact stick; see ``advance``."""
@@ -90,7 +100,7 @@ def _run_event(P, S, t_span, out_t, stats, max_events, rtol, atol, out_x, out_v,
     n_events = 0
     status = STATUS_OK
     fresh = True
-    h = min(cap, 0.05)  # the last Taylor step's natural length (for the stiffness test)
+    h = min(cap, TAYLOR_FIRST_STEP)  # the last Taylor step's natural length (stiffness test)
     h_ros = -1.0  # Rosenbrock step size while in a stiff stretch (-1: not in one)
     ros_backoff = 1.0  # Taylor steps to take before trying Rosenbrock again ...
     ros_skip = 0.0  # ... and those taken so far
@@ -108,12 +118,12 @@ def _run_event(P, S, t_span, out_t, stats, max_events, rtol, atol, out_x, out_v,
     _note_x(stats, x)
     acc = _rhs_acc(cx, mode, x, v, ph1, ph2) if mode != 0.0 else 0.0
     while t < t_stop and status == STATUS_OK:
-        if t_stop - t <= 1e-13 * max(1.0, abs(t_stop)):
+        if t_stop - t <= TIME_REL_TOL * max(1.0, abs(t_stop)):
             t = t_stop
             break
         if mode != 0.0:
             # ---------------- one slip step ----------------
-            if phases_stale or n_carried >= 64:
+            if phases_stale or n_carried >= PHASE_RESYNC_STEPS:
                 _set_phases(cx, ph1, ph2)  # resync the carried cos/sin with the angles
                 phases_stale = False
                 n_carried = 0
@@ -145,7 +155,8 @@ def _run_event(P, S, t_span, out_t, stats, max_events, rtol, atol, out_x, out_v,
                     sx = atol + rtol * max(abs(x), abs(xr))
                     sv = atol + rtol * max(abs(v), abs(vr1))
                     err_r = 0.5 * ((ex / sx) ** 2 + (ev / sv) ** 2)
-                    h_ros = hr * min(4.0, max(0.2, 0.9 * (err_r + 1e-30) ** -0.125))
+                    h_ros = hr * min(ROS_GROW_MAX, max(ROS_SHRINK_MIN, ROS_SAFETY * (
+                        err_r + ROS_ERR_FLOOR) ** -0.125))
                     if err_r <= 1.0:
                         ros_taken = (sd * (vr1 - V) > 0.0 and acc * ar > 0.0 and v * vr1 > 0.0
                                      and sd * vr0 > 0.0)
@@ -168,7 +179,7 @@ def _run_event(P, S, t_span, out_t, stats, max_events, rtol, atol, out_x, out_v,
                 j0 = 2.0 * cx[C_TV + 2]
                 # (a floor keeps time moving if the series blows up; the state then turns
                 # non-finite and the run stops with STATUS_NONFINITE)
-                h_floor = 1e-13 * max(1.0, abs(t))
+                h_floor = TIME_REL_TOL * max(1.0, abs(t))
                 if h < h_floor and k_stiff * h_floor > 1.0:
                     # A floored step longer than the stiff time scale 1 / |df/dv| is neither
                     # accurate nor (from about 2.5) stable: its polynomial became a bogus
@@ -217,8 +228,8 @@ def _run_event(P, S, t_span, out_t, stats, max_events, rtol, atol, out_x, out_v,
                 else:
                     step_end = hstep
                 if out_t is not None:  # outputs inside (t, t + step_end]
-                    while j_out < n_out and out_t[j_out] - origin <= t + step_end + 1e-13 * max(1.0,
-                                                                                     abs(t)):
+                    while j_out < n_out and out_t[j_out] - origin <= t + step_end + (
+                            TIME_REL_TOL * max(1.0, abs(t))):
                         tau = min(max(out_t[j_out] - origin - t, 0.0), step_end)
                         if tau == step_end:
                             out_x[j_out] = x1
@@ -283,8 +294,8 @@ def _run_event(P, S, t_span, out_t, stats, max_events, rtol, atol, out_x, out_v,
             te = -1.0 if held else _stick_exit_time(cx, L, f0, fd0, fdd0, f1, fd1, fdd1)
             step_end = L if te < 0.0 else te
             if out_t is not None:
-                while j_out < n_out and out_t[j_out] - origin <= t + step_end + 1e-13 * max(1.0,
-                                                                                 abs(t)):
+                while j_out < n_out and out_t[j_out] - origin <= t + step_end + (
+                        TIME_REL_TOL * max(1.0, abs(t))):
                     tau = min(max(out_t[j_out] - origin - t, 0.0), step_end)
                     out_x[j_out] = x + V * tau
                     out_v[j_out] = V

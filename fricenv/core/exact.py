@@ -2,8 +2,7 @@
 
 import math
 
-from numba import njit
-
+from ..jit import kernel
 from ..layout import (
     EVENT_SLIP,
     S_MODE,
@@ -29,7 +28,7 @@ from .closed_form import (
     _slip_start,
     _slip_with,
 )
-from .constants import _STATUS_NEAR_RESONANCE, MIN_SPLIT
+from .constants import _STATUS_NEAR_RESONANCE, COUNT_SLACK, GRID_REL_TOL, MIN_SPLIT
 from .contacts import _contact_outcome, _contact_time, _start_slope, _stick_outcome
 from .context import _scan_cap, _setup_context
 from .proofs import _extremum_matters, _monotone, _one_extremum_at_most, _sign_kept, _stick_held
@@ -61,7 +60,6 @@ from .workspace import (
     C_W2,
     C_XA,
     C_XFK,
-    N_T,
     T_NEAR_RES,
     W_C1,
     W_C2,
@@ -91,12 +89,13 @@ from .workspace import (
     W_S2,
     W_SKIP_EXTREMA,
     W_T_KEY,
+    W_T_KEY2,
 )
 
 
 # Exact (closed-form) runner
 # ----------------------------------------------------------------------------------------
-@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+@kernel(inline=True)
 def _run_exact(P, S, t_span, out_t, stats, max_events, out_x, out_v, out_mode, ev_t, ev_kind,
                ev_x, counts, cx):
     """Advance S by t_span with the closed-form solver; see ``advance``. Changes nothing
@@ -110,7 +109,7 @@ def _run_exact(P, S, t_span, out_t, stats, max_events, out_x, out_v, out_mode, e
     inlined, so a whole-call step never pays the call into the scan's large function.
     """
     _setup_context(P, cx)
-    if cx[W_T_KEY + T_NEAR_RES] != 0.0 or cx[W_T_KEY + N_T + T_NEAR_RES] != 0.0:
+    if cx[W_T_KEY + T_NEAR_RES] != 0.0 or cx[W_T_KEY2 + T_NEAR_RES] != 0.0:
         return _STATUS_NEAR_RESONANCE
     ph1 = S[S_PHI1]
     ph2 = S[S_PHI2]
@@ -129,7 +128,7 @@ def _run_exact(P, S, t_span, out_t, stats, max_events, out_x, out_v, out_mode, e
     return _scan_exact(S, t_span, out_t, stats, max_events, out_x, out_v, out_mode, ev_t,
                        ev_kind, ev_x, counts, cx, cap, c1, s1, c2, s2)
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@kernel
 def _scan_exact(S, t_span, out_t, stats, max_events, out_x, out_v, out_mode, ev_t, ev_kind,
                 ev_x, counts, cx, cap, c1, s1, c2, s2):
     """The closed-form scan of ``_run_exact``, from its context (``cx``), the scan cap and
@@ -154,7 +153,7 @@ def _scan_exact(S, t_span, out_t, stats, max_events, out_x, out_v, out_mode, ev_
     if out_t is not None:
         n_int = out_t.shape[0] - 1
         dt_reg = out_t[1] - out_t[0] if n_int > 0 else t_span
-    m_reg = max(1, int(math.ceil(dt_reg / cap - 1e-9)))
+    m_reg = max(1, int(math.ceil(dt_reg / cap - COUNT_SLACK)))
     h_reg = dt_reg / m_reg
     # each piece is recomputed only when its own key changed (an agent retuning nu
     # invalidates the second tone's rotation, not the rest)
@@ -202,11 +201,11 @@ def _scan_exact(S, t_span, out_t, stats, max_events, out_x, out_v, out_mode, ev_
         length = tb - ta
         if length <= 0.0:
             continue
-        regular_interval = abs(length - dt_reg) <= 1e-12 * dt_reg
+        regular_interval = abs(length - dt_reg) <= GRID_REL_TOL * dt_reg
         if regular_interval:
             m = m_reg
         else:
-            m = max(1, int(math.ceil(length / cap - 1e-9)))
+            m = max(1, int(math.ceil(length / cap - COUNT_SLACK)))
         hk = length / m
         for k in range(1, m + 1):
             tk = tb if k == m else ta + k * hk

@@ -6,14 +6,13 @@ extrema of a long step; each proof is a bound, never a sample.
 
 import math
 
-from numba import njit
-
+from ..jit import kernel
 from ..layout import ST_V_MAX, ST_V_MIN
 from .constants import MIN_SPLIT
 from .workspace import C_GDD, C_XFS, W_SKIP_EXTREMA
 
 
-@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+@kernel(inline=True)
 def _stays_positive(k0, d0, k1, d1, L, M):
     """Proof that k > 0 on [0, L] from k, k' at both ends and a bound M on |k''|.
 
@@ -31,7 +30,7 @@ def _stays_positive(k0, d0, k1, d1, L, M):
         return True
     return k0 + t * (d0 - 0.5 * M * t) > 0.0
 
-@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+@kernel(inline=True)
 def _sign_kept(k0, k1, L, M):
     """Proof that k keeps one strict sign on [0, L] from its end values and |k'| <= M."""
     if k0 > 0.0 and k1 > 0.0:
@@ -40,7 +39,7 @@ def _sign_kept(k0, k1, L, M):
         return -(k0 + k1) > M * L
     return False
 
-@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+@kernel(inline=True)
 def _one_extremum_at_most(h0, d0, h1, d1, hdd0, hdd1, L, M2, M3, cap):
     """May a slip step [0, L] go to the contact search, which handles one extremum of h?
 
@@ -52,7 +51,7 @@ def _one_extremum_at_most(h0, d0, h1, d1, hdd0, hdd1, L, M2, M3, cap):
     return (_stays_positive(h0, d0, h1, d1, L, M2) or _monotone(d0, hdd0, d1, hdd1, L, M3)
             or _sign_kept(hdd0, hdd1, L, M3) or L <= MIN_SPLIT * cap)
 
-@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+@kernel(inline=True)
 def _monotone(d0, dd0, d1, dd1, L, M):
     """Proof that a function keeps a monotone course on [0, L]: its derivative (d0, d1 at
     the ends, with derivatives dd0, dd1 and |third derivative| <= M) keeps one sign. The
@@ -61,14 +60,14 @@ def _monotone(d0, dd0, d1, dd1, L, M):
     return _stays_positive(d0, dd0, d1, dd1, L, M) or _stays_positive(-d0, -dd0, -d1, -dd1,
                                                                      L, M)
 
-@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+@kernel(inline=True)
 def _v_one_extremum(a0, j0, a1, j1, L, m3):
     """Proof that v has at most one extremum on [0, L]: v' keeps its sign, or v'' does
     (v' monotone), given v', v'' at both ends and |v'''| <= m3."""
     s = 1.0 if a0 + a1 >= 0.0 else -1.0
     return _stays_positive(s * a0, s * j0, s * a1, s * j1, L, m3) or _sign_kept(j0, j1, L, m3)
 
-@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+@kernel(inline=True)
 def _extremum_matters(cx, stats, sd, v0, v1, a0, a1, L, V, vdd_max):
     """Can the interior extremum of v on this step change v's extrema or touch v = V?
 
@@ -86,7 +85,7 @@ def _extremum_matters(cx, stats, sd, v0, v1, a0, a1, L, V, vdd_max):
         return False
     return not _stays_positive(sd * (v0 - V), sd * a0, sd * (v1 - V), sd * a1, L, vdd_max)
 
-@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+@kernel(inline=True)
 def _stick_held(cx, L, f0, fd0, f1, fd1):
     """Proof that |f| <= xfs holds on a whole stick step [0, L] (f'' = g'' in stick)."""
     xfs = cx[C_XFS]

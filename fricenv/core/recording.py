@@ -1,14 +1,13 @@
 """Event log of a recording run."""
 
-from numba import njit
-
+from ..jit import kernel
 from ..layout import STATUS_BUFFER_FULL, STATUS_EVENT_CAP, STATUS_OK
 
 
 # ----------------------------------------------------------------------------------------
 # Shared per-step pieces
 # ----------------------------------------------------------------------------------------
-@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+@kernel(inline=True)
 def _record_event(ev_t, ev_kind, ev_x, counts, t, kind, x):
     n = counts[0]
     if n >= ev_t.shape[0]:
@@ -19,7 +18,7 @@ def _record_event(ev_t, ev_kind, ev_x, counts, t, kind, x):
     counts[0] = n + 1
     return True
 
-@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+@kernel(inline=True)
 def _log_event(ev_t, ev_kind, ev_x, counts, t, kind, x, n_events, max_events):
     """Record switch number ``n_events`` when a buffer is given; the run's status after it."""
     status = STATUS_OK

@@ -2,8 +2,7 @@
 
 import math
 
-from numba import njit
-
+from ..jit import kernel
 from ..layout import (
     S_MODE,
     S_PHI1,
@@ -19,20 +18,21 @@ from ..layout import (
     STATUS_OK,
 )
 from ..params import P_B1, P_B3, P_LAM, P_U1, P_U2, P_V, P_W1, P_W2, P_XFK
+from .constants import COUNT_SLACK, GRID_REL_TOL
 from .state import _note_v, _note_x
 from .trig import _wrap
 
 
 # The paper's scheme: fixed-step RK4 with sgn
 # ----------------------------------------------------------------------------------------
-@njit(cache=True, error_model="numpy", _nrt=False)
+@kernel
 def _sgn_acc(P, x, v, ph1, ph2):
     vr = v - P[P_V]
     s = 1.0 if vr > 0.0 else (-1.0 if vr < 0.0 else 0.0)
     return (-P[P_LAM] * v - x - P[P_XFK] * s + P[P_B1] * vr - P[P_B3] * vr * vr * vr
             + P[P_U1] * math.cos(ph1) + P[P_U2] * math.cos(ph2))
 
-@njit(cache=True, error_model="numpy")
+@kernel(allocates=True)
 def run_rk4(P, S, t_span, dt, out_t, stats, out_x, out_v, out_mode):
     """The paper's scheme: classical RK4 on Eq. 7 with sgn(v - V), fixed step ``dt``.
 
@@ -61,7 +61,7 @@ def run_rk4(P, S, t_span, dt, out_t, stats, out_x, out_v, out_mode):
     j = 1
     _note_v(stats, v)
     _note_x(stats, x)
-    n = int(math.ceil(t_span / dt - 1e-9))
+    n = int(math.ceil(t_span / dt - COUNT_SLACK))
     k1v = _sgn_acc(P, x, v, ph1, ph2)
     status = STATUS_OK
     for i in range(n):
@@ -80,7 +80,7 @@ def run_rk4(P, S, t_span, dt, out_t, stats, out_x, out_v, out_mode):
         an = _sgn_acc(P, xn, vn, ph1n, ph2n)
         tn = t0 + (i + 1) * dt if i < n - 1 else t0 + t_span
         if out_t is not None:
-            while j < n_out and out_t[j] <= tn + 1e-12 * max(1.0, abs(tn)):
+            while j < n_out and out_t[j] <= tn + GRID_REL_TOL * max(1.0, abs(tn)):
                 th = (out_t[j] - t) / hh
                 h00 = (1.0 + 2.0 * th) * (1.0 - th) * (1.0 - th)
                 h10 = th * (1.0 - th) * (1.0 - th)

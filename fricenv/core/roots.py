@@ -1,10 +1,9 @@
 """Bracketed root and extremum searches on a step's closed form or dense output."""
 
 
-from numba import njit
-
+from ..jit import kernel
 from .closed_form import _slip_at, _stick_at
-from .constants import EVENT_REL_TOL, EXTREMUM_REL_TOL, MAX_ROOT_ITER
+from .constants import EVENT_REL_TOL, EXTREMUM_REL_TOL, MAX_ROOT_ITER, TINY
 from .taylor import _dense_v
 from .workspace import C_SD, C_V
 
@@ -17,7 +16,7 @@ K_STICK_F = 2  # stick: f = -lam V - x + g
 K_DENSE_H = 3  # slip (Taylor polynomial of the step): h = sd * (v - V)
 K_DENSE_V = 4  # slip (Taylor polynomial of the step): v
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@kernel
 def _feval(cx, kind, tau):
     """Value, first and second derivative of the searched function at relative time tau."""
     if kind == K_SLIP_H:
@@ -36,7 +35,7 @@ def _feval(cx, kind, tau):
         return sd * (v - cx[C_V]), sd * dv, sd * ddv
     return v, dv, ddv
 
-@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+@kernel(inline=True)
 def _hermite_root(flo, fhi, dlo, dhi, qlo, qhi, H):
     """Fraction of a bracket of length H where the quintic Hermite interpolant of F (value,
     slope dlo/dhi and curvature qlo/qhi at both ends) vanishes: two Halley steps on it from
@@ -63,7 +62,7 @@ def _hermite_root(flo, fhi, dlo, dhi, qlo, qhi, H):
         s = s - 2.0 * p * dp / (2.0 * dp * dp - p * ddp)
     return s
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@kernel
 def _bracket(cx, kind, deriv, offset, lo, hi, flo, fhi, dlo, dhi, qlo, qhi, rel_tol):
     """Shrink a bracket [lo, hi] of a root of F to rounding level; return (lo, hi).
 
@@ -79,7 +78,7 @@ def _bracket(cx, kind, deriv, offset, lo, hi, flo, fhi, dlo, dhi, qlo, qhi, rel_
         return hi, hi
     if flo == 0.0:
         return lo, lo
-    tol = rel_tol * (abs(lo) + abs(hi)) + 1e-300
+    tol = rel_tol * (abs(lo) + abs(hi)) + TINY
     # start at the root of the ends' Hermite interpolant, else at the secant point (kept
     # off the ends): a step is short against the curvature, so either is already close
     # and Halley needs few iterations (measured, self_excited: 2.5 evaluations a contact
@@ -121,14 +120,14 @@ def _bracket(cx, kind, deriv, offset, lo, hi, flo, fhi, dlo, dhi, qlo, qhi, rel_
         t = tn
     return lo, hi
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@kernel
 def _root(cx, kind, offset, lo, hi, flo, fhi, dlo, dhi, qlo, qhi):
     """Point of a bracket of a root of ``kind`` - offset on ``fhi``'s side (where the
     switch has happened); its derivatives at the ends as in ``_bracket``."""
     _, b = _bracket(cx, kind, 0, offset, lo, hi, flo, fhi, dlo, dhi, qlo, qhi, EVENT_REL_TOL)
     return b
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@kernel
 def _extremum(cx, kind, lo, hi, dlo, dhi, ddlo, ddhi, dddlo, dddhi):
     """Relative time of the extremum of ``kind`` in [lo, hi], from its derivative's signs
     (``dlo``, ``dhi``), and its second and third derivatives there (NaN if unknown)."""

@@ -5,8 +5,7 @@ stages Y_i = y + sum a_ij g_j at t + alpha_i h, (I / (gamma h) - J) g_i = f(Y_i)
 gamma_i h f_t + sum c_ij g_j / h; 3 function values and 4 linear solves a step.
 """
 
-from numba import njit
-
+from ..jit import kernel
 from .slip import _acc, _end_phases, _step_inputs
 from .trig import _sincos
 from .workspace import C_W1, C_W2
@@ -20,14 +19,14 @@ _RE1, _RE2, _RE4 = 17.0 / 54.0, 7.0 / 36.0, 125.0 / 108.0
 _RG1, _RG2, _RG3, _RG4 = 1.0 / 2.0, -3.0 / 2.0, 121.0 / 50.0, 29.0 / 250.0
 _RALPHA3 = 3.0 / 5.0
 
-@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+@kernel(inline=True)
 def _ros_solve(c, j22, r1, r2):
     """(c I - J) z = r for J = [[0, 1], [-1, j22]]."""
     det = 1.0 + c * (c - j22)
     z1 = (r2 + (c - j22) * r1) / det
     return z1, c * z1 - r1
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@kernel
 def _ros4_step(cx, sd, x0, v0, a0, h):
     """One Rosenbrock step of the slip equation from (x0, v0) (phases in cx).
 

@@ -2,18 +2,17 @@
 
 import math
 
-from numba import njit
-
+from ..jit import kernel
 from ..layout import ST_VR2_INT, ST_X_MAX, ST_X_MIN
 from .closed_form import _slip_at
-from .constants import EXTREMUM_REL_TOL
+from .constants import EXTREMUM_REL_TOL, REACH_SLACK
 from .roots import K_SLIP_V, _bracket
 from .state import _note_v, _note_x
 from .taylor import _dense_x
 from .workspace import C_XA, W_SKIP_EXTREMA, W_SKIP_VR2
 
 
-@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+@kernel(inline=True)
 def _x_extrema_between(cx, kind, stats, a, b, va, vb, vabs):
     """Displacement extremum where v changes sign on a monotone piece [a, b] of v.
 
@@ -23,7 +22,7 @@ def _x_extrema_between(cx, kind, stats, a, b, va, vb, vabs):
     """
     if va * vb < 0.0:
         x0 = cx[C_XA]
-        reach = vabs * b * 1.0000001
+        reach = vabs * b * REACH_SLACK
         if x0 + reach <= stats[ST_X_MAX] and x0 - reach >= stats[ST_X_MIN]:
             return
         t = _bracket(cx, kind, 0, 0.0, a, b, va, vb, math.nan, math.nan, math.nan, math.nan,
@@ -34,7 +33,7 @@ def _x_extrema_between(cx, kind, stats, a, b, va, vb, vabs):
             x = _dense_x(cx, t)
         _note_x(stats, x)
 
-@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+@kernel(inline=True)
 def _slip_extrema(cx, kind, stats, tau_e, t_ext, v_ext, v0, v1, x1):
     """Extrema of v and x over a slip step [0, tau_e] (t_ext: v's interior extremum)."""
     _note_v(stats, v1)
@@ -49,7 +48,7 @@ def _slip_extrema(cx, kind, stats, tau_e, t_ext, v_ext, v0, v1, x1):
     else:
         _x_extrema_between(cx, kind, stats, 0.0, tau_e, v0, v1, max(abs(v0), abs(v1)))
 
-@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+@kernel(inline=True)
 def _slip_stats(cx, kind, stats, tau_e, t_ext, v_ext, v0, a0, j0, v1, a1, j1, x1, v_mid, V):
     """Extrema and the (v - V)^2 integral over a slip step [0, tau_e].
 
@@ -76,7 +75,7 @@ def _slip_stats(cx, kind, stats, tau_e, t_ext, v_ext, v0, a0, j0, v1, a1, j1, x1
                                       + tau_e * ((1.0 / 35.0) * (dy0 - dy1)
                                                  + tau_e * (ddy0 + ddy1) / 840.0))
 
-@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+@kernel(inline=True)
 def _vr2_from_values(h, r0, r1, mean):
     """Integral of r^2 over a step of length h from r = v - V at both ends and its mean
     (from the displacement): exact for r quadratic in time.

@@ -2,15 +2,14 @@
 
 import math
 
-from numba import njit
-
+from ..jit import kernel
 from .closed_form import _stick_at
 from .contacts import _force_tie
 from .roots import K_STICK_F, _extremum, _root
 from .workspace import C_XA, C_XFS
 
 
-@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+@kernel(inline=True)
 def _stick_exit_time(cx, L, f0, fd0, fdd0, f1, fd1, fdd1):
     """First relative time in [0, L] where |f| exceeds xfs during a stick, or -1.
 

@@ -11,18 +11,18 @@ times are found on it).
 
 import math
 
-from numba import njit
-
+from ..jit import kernel
+from .constants import TAYLOR_EPS_FLOOR, TINY
 from .slip import _step_inputs
 from .trig import _INV
 from .workspace import C_TN, C_TQ, C_TV, C_TW, C_TX, C_W1, C_W2, TAYLOR_MAX_ORDER
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@kernel
 def taylor_order(rtol):
     """Order of the Taylor steps for a tolerance: about -ln(tol) / 2 + 1 (Jorba & Zou 2005,
     the order that minimises the work per unit time), within [6, TAYLOR_MAX_ORDER]."""
-    n = int(math.ceil(1.0 - 0.5 * math.log(max(rtol, 1e-300))))
+    n = int(math.ceil(1.0 - 0.5 * math.log(max(rtol, TINY))))
     return min(TAYLOR_MAX_ORDER, max(6, n))
 
 # The series' sums may be reassociated (split into parallel partial sums): that shortens
@@ -30,7 +30,7 @@ def taylor_order(rtol):
 # build, only not the left-to-right rounding.
 _SUMS = {"reassoc", "contract"}
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@kernel
 def _taylor_coeffs(cx, sd, x0, v0, rtol, atol):
     """Taylor coefficients of x and v at the step start (tone cos/sin in cx[C_CP1..]), to
     the order in cx[C_TN]; returns the step length at which the last two terms of the
@@ -101,7 +101,7 @@ def _taylor_coeffs(cx, sd, x0, v0, rtol, atol):
     # (floored at rounding level: a zero target, or one below what doubles resolve, would
     # shrink the step to nothing and the run would never end)
     size = max(abs(x0), abs(v0))
-    eps = max(atol + rtol * size, 1e-16 * max(size, 1.0))
+    eps = max(atol + rtol * size, TAYLOR_EPS_FLOOR * max(size, 1.0))
     last = max(abs(cx[C_TX + n]), abs(cx[C_TV + n]))
     prev = max(abs(cx[C_TX + n - 1]), abs(cx[C_TV + n - 1]))
     # h = min((eps / prev)^(1 / (n - 1)), (eps / last)^(1 / n)) times a safety factor
@@ -113,7 +113,7 @@ def _taylor_coeffs(cx, sd, x0, v0, rtol, atol):
         lh = min(lh, (le - math.log(last)) * _INV[n])
     return math.exp(lh - 0.7 * _INV[n - 1])
 
-@njit(cache=True, error_model="numpy", _nrt=False, fastmath=_SUMS)
+@kernel(fastmath=_SUMS)
 def _taylor_vr2(cx, tau):
     """Integral of (v - V)^2 over [0, tau] of the current Taylor step, exactly:
     tau * sum_ij z_i z_j / (i + j + 1) with z_i = w_i tau^i."""
@@ -134,7 +134,7 @@ def _taylor_vr2(cx, tau):
 
 # Dense output of a Taylor slip step: the series itself, in tau from the step start
 # ----------------------------------------------------------------------------------------
-@njit(cache=True, error_model="numpy", _nrt=False)
+@kernel
 def _dense_v(cx, tau):
     """v, v', v'' of the current Taylor step at relative time tau (Horner)."""
     n = int(cx[C_TN])
@@ -147,7 +147,7 @@ def _dense_v(cx, tau):
         p = p * tau + cx[C_TV + k]
     return p, d1, 2.0 * d2
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@kernel
 def _dense_x(cx, tau):
     n = int(cx[C_TN])
     p = cx[C_TX + n]
@@ -155,7 +155,7 @@ def _dense_x(cx, tau):
         p = p * tau + cx[C_TX + k]
     return p
 
-@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+@kernel(inline=True)
 def _dense_bounds(cx, L):
     """Bounds on |v''| and |v'''| over [0, L] of the current Taylor step's polynomial."""
     n = int(cx[C_TN])

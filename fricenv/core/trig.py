@@ -3,13 +3,13 @@
 import math
 
 import numpy as np
-from numba import njit
 
+from ..jit import kernel
 from .constants import TWO_PI
 from .workspace import TAYLOR_MAX_ORDER
 
 
-@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+@kernel(inline=True)
 def _wrap(phi):
     if 0.0 <= phi < TWO_PI:
         return phi
@@ -24,7 +24,7 @@ _S3, _S5, _S7, _S9 = -1.0 / 6.0, 1.0 / 120.0, -1.0 / 5040.0, 1.0 / 362880.0
 _S11, _S13, _S15 = -1.0 / 39916800.0, 1.0 / 6227020800.0, -1.0 / 1307674368000.0
 _S17, _S19 = 1.0 / 355687428096000.0, -1.0 / 121645100408832000.0
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@kernel
 def _sincos(t):
     """cos and sin of t: a Taylor series for |t| <= 1 (error < 1e-18), libm beyond.
 
@@ -48,7 +48,7 @@ def _sincos(t):
     s = t + (t * z) * ps
     return c, s
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@kernel
 def _sincos_long(t):
     """cos and sin of |t| <= 8 by halving into ``_sincos``'s series and doubling back
     (a few ulps); libm beyond."""
@@ -63,7 +63,7 @@ def _sincos_long(t):
         c, s = c * c - s * s, 2.0 * s * c
     return c, s
 
-@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+@kernel(inline=True)
 def _renorm(c, s):
     k = 1.5 - 0.5 * (c * c + s * s)
     return c * k, s * k

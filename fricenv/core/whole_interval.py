@@ -19,8 +19,8 @@ so 1 / p stays tame) and no tone may be resonant.
 import math
 
 import numpy as np
-from numba import njit
 
+from ..jit import kernel
 from ..layout import (
     S_MODE,
     S_PHI1,
@@ -34,7 +34,7 @@ from ..layout import (
     ST_VR2_INT,
 )
 from .closed_form import _homog, _particular
-from .constants import I_MARGIN, I_P2_MIN, TWO_PI
+from .constants import E1_SERIES_MAX_R2, I_MARGIN, I_P2_MIN, TWO_PI
 from .proofs import _stays_positive
 from .state import _end_call, _note_v, _note_x
 from .trig import _INV, _renorm, _sincos_long, _wrap
@@ -70,11 +70,12 @@ from .workspace import (
     W_I_KEY_W2,
     W_I_P,
     W_I_TONE1,
+    W_I_TONE2,
     W_SKIP_VR2,
 )
 
 
-@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+@kernel(inline=True)
 def _e1(s, es):
     """E(s) = (e^s - 1) / s from s and es = e^s (complex), in real arithmetic.
 
@@ -84,7 +85,7 @@ def _e1(s, es):
     a = s.real
     b = s.imag
     r2 = a * a + b * b
-    if r2 < 1e-4:
+    if r2 < E1_SERIES_MAX_R2:
         er = 1.0
         ei = 0.0
         for k in range(7, 1, -1):
@@ -96,16 +97,16 @@ def _e1(s, es):
     inv = 1.0 / r2
     return complex((nr * a + ni * b) * inv, (ni * a - nr * b) * inv)
 
-@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+@kernel(inline=True)
 def _cget(cx, k):
     return complex(cx[k], cx[k + 1])
 
-@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+@kernel(inline=True)
 def _cset(cx, k, z):
     cx[k] = z.real
     cx[k + 1] = z.imag
 
-@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+@kernel(inline=True)
 def _interval_constants(cx, T, lam, p2):
     """The whole-call transition and rotations for span T, each recomputed only when its
     own key changed (retuning a tone redoes that tone's rotation alone)."""
@@ -134,7 +135,7 @@ def _interval_constants(cx, T, lam, p2):
             cx[base + 3] = hs
             cx[W_I_KEY_W1 + i] = w
 
-@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+@kernel(inline=True)
 def _interval_e(cx, T):
     """The E values of the (v - V)^2 integral involving the tones (after
     ``_interval_constants``), recomputed for a retuned tone only."""
@@ -145,7 +146,7 @@ def _interval_e(cx, T):
     eh = _cget(cx, W_I_EH)
     zt = complex(-0.5 * cx[C_LAM] * T, cx[W_I_P] * T)
     r1 = _cget(cx, W_I_TONE1)
-    r2 = _cget(cx, W_I_TONE1 + N_I_TONE)
+    r2 = _cget(cx, W_I_TONE2)
     w1t = cx[C_W1] * T
     w2t = cx[C_W2] * T
     for i in range(2):
@@ -161,7 +162,7 @@ def _interval_e(cx, T):
     cx[W_I_KEY_E1] = cx[C_W1]
     cx[W_I_KEY_E2] = cx[C_W2]
 
-@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+@kernel(inline=True)
 def _arc_passes_zero(c0, s0, cm, sm, c1, s1, alpha, eps):
     """Does the counter-clockwise arc of length alpha >= 0 from direction (c0, s0) through
     (cm, sm) (its midpoint) to (c1, s1) pass the angle 0? Borderline cases, within eps
@@ -176,7 +177,7 @@ def _arc_passes_zero(c0, s0, cm, sm, c1, s1, alpha, eps):
         return (s0 <= eps and sm >= -eps) or (sm <= eps and s1 >= -eps)
     return s0 <= eps and s1 >= -eps
 
-@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+@kernel(inline=True)
 def _lowest(amp, y0, y1, c0, s0, cm, sm, c1, s1, alpha):
     """Lowest value over the call of a sinusoid amp cos(psi) whose direction amp (cos psi,
     sin psi) sweeps the arc alpha from (c0, s0) through (cm, sm) to (c1, s1), with end
@@ -186,13 +187,13 @@ def _lowest(amp, y0, y1, c0, s0, cm, sm, c1, s1, alpha):
         return -amp
     return min(y0, y1)
 
-@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+@kernel(inline=True)
 def _tone_dir(w, kc, ks, c, s):
     """Direction of a tone's particular velocity w (ks cos phi - kc sin phi): its value and
     the quadrature component."""
     return w * (ks * c - kc * s), w * (ks * s + kc * c)
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@kernel
 def _whole_interval(cx, S, T, stats, c1, s1, c2, s2):
     """Advance S over the whole call [t, t + T] in one closed-form step when a proof shows
     it holds no switch (see the section comment); False leaves everything untouched."""
@@ -207,7 +208,7 @@ def _whole_interval(cx, S, T, stats, c1, s1, c2, s2):
         return False
     _interval_constants(cx, T, lam, p2)
     t1 = W_I_TONE1
-    t2 = W_I_TONE1 + N_I_TONE
+    t2 = W_I_TONE2
     nc1, ns1 = _renorm(c1 * cx[t1] - s1 * cx[t1 + 1], s1 * cx[t1] + c1 * cx[t1 + 1])
     nc2, ns2 = _renorm(c2 * cx[t2] - s2 * cx[t2 + 1], s2 * cx[t2] + c2 * cx[t2 + 1])
     mc1 = c1 * cx[t1 + 2] - s1 * cx[t1 + 3]
