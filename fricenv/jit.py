@@ -19,14 +19,59 @@ with ``allocates=True`` and keeps the runtime.
 
 The compilation flags decide the machine code, and with it the last bit of a result:
 changing a kernel's ``inline`` or ``fastmath`` changes what it computes, not only how fast.
+
+Threading layer
+---------------
+The parallel kernels (sweeps, ``cell_statistics``, the vector environment from
+``PARALLEL_MIN_PLANTS`` plants) run on numba's threading layer, which numba picks when the
+first of them starts. Its default here is GNU OpenMP, which is not fork-safe: after any
+parallel kernel has run, a ``multiprocessing`` pool, ``ProcessPoolExecutor`` or joblib's
+multiprocessing backend started by ``fork`` prints ``fork() called from a process already
+using GNU OpenMP`` and its workers hang or crash. This module therefore asks numba for the
+``"safe"`` layer, Intel TBB (a dependency where its wheels exist): safe after ``fork`` and
+safe to call from several Python threads at once (Dask's threaded scheduler, a thread per
+environment). Where TBB cannot be loaded it asks for ``"forksafe"``, which on GNU OpenMP
+systems is numba's ``workqueue`` layer: fork-safe too, but its parallel kernels must not run
+from two Python threads at the same time. A ``NUMBA_THREADING_LAYER`` set in the
+environment is left as it is.
 """
 
 from __future__ import annotations
 
+import importlib
+import os
 from collections.abc import Callable
 from typing import Any
 
+import numba
 from numba import njit
+
+
+def _tbb_loads() -> bool:
+    """Whether numba's TBB threading layer can be loaded: the ``tbb`` wheel is installed,
+    the loader finds its library and numba accepts its version. Asked the way numba asks
+    when it starts a layer (its version check loads the library, then its TBB pool)."""
+    try:
+        from numba.np.ufunc.parallel import _check_tbb_version_compatible
+
+        _check_tbb_version_compatible()
+        importlib.import_module("numba.np.ufunc.tbbpool")
+    except (ImportError, OSError):
+        return False
+    return True
+
+
+def choose_threading_layer() -> str:
+    """Ask numba for a fork-safe threading layer (see the module docstring) unless the user
+    chose one with ``NUMBA_THREADING_LAYER``; the layer asked for. It takes effect if no
+    parallel kernel has run yet in this process."""
+    if os.environ.get("NUMBA_THREADING_LAYER"):
+        return numba.config.THREADING_LAYER
+    numba.config.THREADING_LAYER = "safe" if _tbb_loads() else "forksafe"
+    return numba.config.THREADING_LAYER
+
+
+THREADING_LAYER = choose_threading_layer()  # on import, before any kernel can run
 
 
 def kernel(fn: Callable | None = None, *, inline: bool = False, allocates: bool = False,
