@@ -9,12 +9,13 @@ measurement window of stroboscopic segments (see :mod:`fricenv.sweep` for the fo
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, fields
 
 import numba
 import numpy as np
 
-from .cell_kernels import _cells_kernel
+from .cell_kernels import CELL_KERNELS
 from .checks import (
     check_bounded_real,
     check_finite_real,
@@ -23,6 +24,7 @@ from .checks import (
     got,
     real_array,
 )
+from .core import conditioned_rows
 from .layout import (
     METHOD_EVENT,
     METHOD_EXACT,
@@ -350,17 +352,14 @@ def run_cells(P_cells: np.ndarray, t_transient: np.ndarray, t_segment: np.ndarra
     if n == 0:
         return out_stats, out_status, out_period
     _check_cells(P_cells, t_transient, t_segment, n_segment, tries)
+    spans = (np.ascontiguousarray(t_transient, dtype=np.float64),
+             np.ascontiguousarray(t_segment, dtype=np.float64),
+             np.ascontiguousarray(n_segment, dtype=np.int64),
+             np.ascontiguousarray(tries, dtype=np.int64))
     with _Threads(n_threads):
-        _cells_kernel(P_cells,
-                      np.ascontiguousarray(t_transient, dtype=np.float64),
-                      np.ascontiguousarray(t_segment, dtype=np.float64),
-                      np.ascontiguousarray(n_segment, dtype=np.int64),
-                      np.ascontiguousarray(tries, dtype=np.int64),
-                      float(settings.x0), float(settings.v0), int(method),
-                      float(settings.rtol), float(settings.atol),
-                      float(settings.max_event_rate), int(settings.m_max),
-                      float(settings.strobe_tol), out_stats, out_status, out_period,
-                      numba.get_num_threads(), np.zeros(1, dtype=np.int64))
+        for cell_method, rows in _method_groups(P_cells, method):
+            _run_group(CELL_KERNELS[cell_method], cell_method, rows, P_cells, spans, settings,
+                       out_stats, out_status, out_period)
     missed = np.flatnonzero(out_status == STATUS_NOT_RUN)
     if missed.size:  # an exception inside prange is lost: say so rather than return them
         raise RuntimeError(f"the cell kernel left {missed.size} cell(s) unrun (first: cell "
@@ -368,3 +367,31 @@ def run_cells(P_cells: np.ndarray, t_transient: np.ndarray, t_segment: np.ndarra
     return out_stats, out_status, out_period
 
 
+def _method_groups(P_cells: np.ndarray, method: int) -> list[tuple[int, np.ndarray]]:
+    """The cells each method runs: METHOD_EXACT's cells with a tone too close to resonance
+    for the closed form go to the event method (as ``core.advance`` does inside), so each
+    kernel compiles one method's code only."""
+    everything = np.arange(P_cells.shape[0])
+    if method != METHOD_EXACT:
+        return [(METHOD_EVENT, everything)]
+    ok = conditioned_rows(P_cells)
+    return [(m, everything[sel]) for m, sel in ((METHOD_EXACT, ok), (METHOD_EVENT, ~ok))
+            if sel.any()]
+
+
+def _run_group(cells_kernel: Callable, method: int, rows: np.ndarray, P_cells: np.ndarray,
+               spans: tuple[np.ndarray, ...], settings: SweepSettings, out_stats: np.ndarray,
+               out_status: np.ndarray, out_period: np.ndarray) -> None:
+    """Run the cells ``rows`` by one method's parallel kernel into the outputs' rows. A
+    cell depends on its own row only, so which cells share a call changes no result."""
+    whole = rows.size == P_cells.shape[0]
+    pick = (lambda a: a) if whole else (lambda a: np.ascontiguousarray(a[rows]))
+    st, status, period = pick(out_stats), pick(out_status), pick(out_period)
+    cells_kernel(pick(P_cells), *(pick(a) for a in spans),
+                 float(settings.x0), float(settings.v0), int(method),
+                 float(settings.rtol), float(settings.atol),
+                 float(settings.max_event_rate), int(settings.m_max),
+                 float(settings.strobe_tol), st, status, period,
+                 numba.get_num_threads(), np.zeros(1, dtype=np.int64))
+    if not whole:
+        out_stats[rows], out_status[rows], out_period[rows] = st, status, period

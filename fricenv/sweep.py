@@ -50,7 +50,15 @@ import numpy as np
 
 # Cells (settings, plans, the checked parallel run) live in .cells and their kernels in
 # .cell_kernels; their names stay importable from here.
-from .cell_kernels import _cells_kernel, _converging, _event_cap, _run_cell  # noqa: F401
+from .cell_kernels import (  # noqa: F401
+    CELL_KERNELS,
+    _cells_kernel_event,
+    _cells_kernel_exact,
+    _converging,
+    _event_cap,
+    _run_cell_event,
+    _run_cell_exact,
+)
 from .cells import (  # noqa: F401
     _INT_SETTINGS,
     _P_COLUMNS,

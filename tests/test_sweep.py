@@ -475,7 +475,7 @@ def test_run_cells_never_returns_a_cell_its_kernel_did_not_write(monkeypatch) ->
     from fricenv import cells, sweep
     from fricenv.layout import METHOD_EXACT
 
-    monkeypatch.setattr(cells, "_cells_kernel", lambda *args: None)  # writes nothing
+    monkeypatch.setitem(cells.CELL_KERNELS, METHOD_EXACT, lambda *args: None)  # writes nothing
     P = PARAMS.replace(u0=1.0, nu=0.5).to_array()[None]
     with pytest.raises(RuntimeError, match=r"left 1 cell\(s\) unrun"):
         sweep.run_cells(P, [5.0], [5.0], [1], [0], SweepSettings(), METHOD_EXACT)

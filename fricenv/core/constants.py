@@ -85,3 +85,8 @@ ROS_GROW_MAX = 4.0
 ROS_SHRINK_MIN = 0.2
 ROS_SAFETY = 0.9
 ROS_ERR_FLOOR = 1e-30
+# Damping from which the closed form runs a plant whatever its tones: d2 = (1 - w^2)^2 +
+# (lam w)^2 < 1 / CLOSED_FORM_MAX_GAIN^2 needs |1 - w^2| < 1 / CLOSED_FORM_MAX_GAIN, so
+# w^2 > 1 - 1 / CLOSED_FORM_MAX_GAIN, and lam w < 1 / CLOSED_FORM_MAX_GAIN; twice the lam
+# that allows leaves a margin for rounding.
+LAM_CONDITIONED = 2.0 / (CLOSED_FORM_MAX_GAIN * (1.0 - 1.0 / CLOSED_FORM_MAX_GAIN) ** 0.5)

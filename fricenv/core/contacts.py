@@ -3,7 +3,6 @@
 from ..jit import kernel
 from ..layout import EVENT_REVERSAL, EVENT_STICK, ST_N_REVERSAL, ST_N_SLIP, ST_N_STICK
 from .constants import GRAZE_REL
-from .roots import _root
 from .workspace import C_LAM, C_U1, C_U2, C_V, C_W1, C_W2, C_XFK, C_XFS
 
 
@@ -53,9 +52,10 @@ def _unresolved_return(L, h0, d0, q0, h1, tol):
     return -1.0 if h1 >= -tol else _RESOLVED
 
 @kernel(inline=True)
-def _contact_time(cx, kind, L, h0, d0, q0, h1, d1, q1, t_ext, h_ext, q_ext):
+def _contact_time(root, cx, kind, L, h0, d0, q0, h1, d1, q1, t_ext, h_ext, q_ext):
     """First relative time in (0, L] where h = sd (v - V) reaches 0, or -1 (0: at once).
 
+    ``root`` is the step's family's root search (``_root_closed`` or ``_root_dense``).
     ``t_ext``/``h_ext`` describe the interior extremum of h (t_ext < 0: none); q0, q1 and
     q_ext are h'' at 0, L and t_ext (they place the root search's first point). A phase
     that starts on the switching surface (h0 = 0, d0 clamped to >= 0 by the caller) only
@@ -71,13 +71,13 @@ def _contact_time(cx, kind, L, h0, d0, q0, h1, d1, q1, t_ext, h_ext, q_ext):
                     return te
                 if h_ext <= 0.0:
                     return 0.0
-            return _root(cx, kind, 0.0, t_ext, L, h_ext, h1, 0.0, d1, q_ext, q1)
+            return root(cx, kind, 0.0, t_ext, L, h_ext, h1, 0.0, d1, q_ext, q1)
         return -1.0
     if t_ext >= 0.0 and d0 < 0.0:  # h falls to a minimum (grazing if it only touches 0)
         if h_ext <= 0.0:
             if h0 <= 0.0:
                 return 0.0
-            return _root(cx, kind, 0.0, 0.0, t_ext, h0, h_ext, d0, 0.0, q0, q_ext)
+            return root(cx, kind, 0.0, 0.0, t_ext, h0, h_ext, d0, 0.0, q0, q_ext)
         # a minimum within rounding of 0 is a touch: which side of 0 the computed value
         # lands on is an accident of the last bit
         if h_ext <= tol:
@@ -87,7 +87,7 @@ def _contact_time(cx, kind, L, h0, d0, q0, h1, d1, q1, t_ext, h_ext, q_ext):
         if h0 <= 0.0:
             te = _unresolved_return(L, h0, d0, q0, h1, tol)
             return 0.0 if te == _RESOLVED else te
-        return _root(cx, kind, 0.0, 0.0, L, h0, h1, d0, d1, q0, q1)
+        return root(cx, kind, 0.0, 0.0, L, h0, h1, d0, d1, q0, q1)
     return -1.0
 
 @kernel(inline=True)

@@ -2,6 +2,8 @@
 
 import math
 
+import numpy as np
+
 from ..jit import kernel
 from ..params import P_B1, P_B3, P_LAM, P_U1, P_U2, P_V, P_W1, P_W2, P_XFK, P_XFS
 from .constants import _D2_MIN, DELTA_MAX, DELTA_WIDE, PHASE_PER_STEP, PHASE_PER_STEP_WIDE
@@ -56,6 +58,15 @@ def closed_form_conditioned(P) -> bool:
         if P[P_U1 + i] != 0.0 and 0.0 < d2 < _D2_MIN:
             return False
     return True
+
+@kernel(allocates=True)
+def conditioned_rows(P_rows):
+    """``closed_form_conditioned`` of each row of ``P_rows``."""
+    ok = np.empty(P_rows.shape[0], np.bool_)
+    for i in range(P_rows.shape[0]):
+        ok[i] = closed_form_conditioned(P_rows[i])
+    return ok
+
 
 @kernel
 def _setup_context(P, cx):

@@ -1,5 +1,11 @@
-"""Bracketed root and extremum searches on a step's closed form or dense output."""
+"""Bracketed root and extremum searches on a step's closed form or dense output.
 
+The search itself (``_bracket_with``) is written once; it evaluates the searched function
+through the evaluator it is given. Each family of functions has its own evaluator and its
+own compiled searches: the closed form of a Coulomb slip step and the exact stick motion
+(``_root_closed``, ``_extremum_closed``, ``_bracket_closed``), and the Taylor polynomial of
+an event step (``..._dense``). A Coulomb run thus compiles no Taylor code.
+"""
 
 from ..jit import kernel
 from .closed_form import _slip_at, _stick_at
@@ -8,17 +14,17 @@ from .taylor import _dense_v
 from .workspace import C_SD, C_V
 
 # What a root search evaluates.
-
-# What a root search evaluates.
 K_SLIP_H = 0  # slip (closed form): h = sd * (v - V)
 K_SLIP_V = 1  # slip (closed form): v
 K_STICK_F = 2  # stick: f = -lam V - x + g
 K_DENSE_H = 3  # slip (Taylor polynomial of the step): h = sd * (v - V)
 K_DENSE_V = 4  # slip (Taylor polynomial of the step): v
 
+
 @kernel
-def _feval(cx, kind, tau):
-    """Value, first and second derivative of the searched function at relative time tau."""
+def _feval_closed(cx, kind, tau):
+    """Value, first and second derivative at relative time tau of K_SLIP_H, K_SLIP_V or
+    K_STICK_F."""
     if kind == K_SLIP_H:
         _, v, acc, jerk = _slip_at(cx, tau)
         sd = cx[C_SD]
@@ -26,14 +32,19 @@ def _feval(cx, kind, tau):
     if kind == K_SLIP_V:
         _, v, acc, jerk = _slip_at(cx, tau)
         return v, acc, jerk
-    if kind == K_STICK_F:
-        _, f, fd, fdd = _stick_at(cx, tau)
-        return f, fd, fdd
+    _, f, fd, fdd = _stick_at(cx, tau)
+    return f, fd, fdd
+
+
+@kernel
+def _feval_dense(cx, kind, tau):
+    """Value, first and second derivative at relative time tau of K_DENSE_H or K_DENSE_V."""
     v, dv, ddv = _dense_v(cx, tau)
     if kind == K_DENSE_H:
         sd = cx[C_SD]
         return sd * (v - cx[C_V]), sd * dv, sd * ddv
     return v, dv, ddv
+
 
 @kernel(inline=True)
 def _hermite_root(flo, fhi, dlo, dhi, qlo, qhi, H):
@@ -62,11 +73,15 @@ def _hermite_root(flo, fhi, dlo, dhi, qlo, qhi, H):
         s = s - 2.0 * p * dp / (2.0 * dp * dp - p * ddp)
     return s
 
-@kernel
-def _bracket(cx, kind, deriv, offset, lo, hi, flo, fhi, dlo, dhi, qlo, qhi, rel_tol):
+
+@kernel(inline=True)
+def _bracket_with(feval, cx, kind, deriv, offset, lo, hi, flo, fhi, dlo, dhi, qlo, qhi,
+                  rel_tol):
     """Shrink a bracket [lo, hi] of a root of F to rounding level; return (lo, hi).
 
-    F is ``value - offset`` (deriv = 0) or the first derivative (deriv = 1) of ``kind``;
+    ``feval(cx, kind, tau)`` gives the searched function's value and first two derivatives
+    (a family's evaluator: ``_feval_closed`` or ``_feval_dense``). F is ``value - offset``
+    (deriv = 0) or the first derivative (deriv = 1) of ``kind``;
     ``flo`` and ``fhi`` have opposite signs or ``fhi`` is 0; F' and F'' at the ends
     (``dlo``, ``dhi``, ``qlo``, ``qhi``, NaN if unknown) place the first point. Halley
     steps (Newton steps for a derivative's root) from the last point, kept inside the
@@ -89,7 +104,7 @@ def _bracket(cx, kind, deriv, offset, lo, hi, flo, fhi, dlo, dhi, qlo, qhi, rel_
     t = lo + (hi - lo) * frac
     pos_lo = flo > 0.0
     for _ in range(MAX_ROOT_ITER):
-        f0, f1, f2 = _feval(cx, kind, t)
+        f0, f1, f2 = feval(cx, kind, t)
         if deriv == 0:
             f = f0 - offset
             df = f1
@@ -120,17 +135,50 @@ def _bracket(cx, kind, deriv, offset, lo, hi, flo, fhi, dlo, dhi, qlo, qhi, rel_
         t = tn
     return lo, hi
 
-@kernel
-def _root(cx, kind, offset, lo, hi, flo, fhi, dlo, dhi, qlo, qhi):
-    """Point of a bracket of a root of ``kind`` - offset on ``fhi``'s side (where the
-    switch has happened); its derivatives at the ends as in ``_bracket``."""
-    _, b = _bracket(cx, kind, 0, offset, lo, hi, flo, fhi, dlo, dhi, qlo, qhi, EVENT_REL_TOL)
-    return b
 
 @kernel
-def _extremum(cx, kind, lo, hi, dlo, dhi, ddlo, ddhi, dddlo, dddhi):
+def _bracket_closed(cx, kind, deriv, offset, lo, hi, flo, fhi, dlo, dhi, qlo, qhi, rel_tol):
+    """``_bracket_with`` on the closed form (K_SLIP_H, K_SLIP_V, K_STICK_F)."""
+    return _bracket_with(_feval_closed, cx, kind, deriv, offset, lo, hi, flo, fhi, dlo, dhi,
+                         qlo, qhi, rel_tol)
+
+
+@kernel
+def _bracket_dense(cx, kind, deriv, offset, lo, hi, flo, fhi, dlo, dhi, qlo, qhi, rel_tol):
+    """``_bracket_with`` on a Taylor step's polynomial (K_DENSE_H, K_DENSE_V)."""
+    return _bracket_with(_feval_dense, cx, kind, deriv, offset, lo, hi, flo, fhi, dlo, dhi,
+                         qlo, qhi, rel_tol)
+
+
+@kernel
+def _root_closed(cx, kind, offset, lo, hi, flo, fhi, dlo, dhi, qlo, qhi):
+    """Point of a bracket of a root of ``kind`` - offset on ``fhi``'s side (where the
+    switch has happened); its derivatives at the ends as in ``_bracket_with``."""
+    _, b = _bracket_closed(cx, kind, 0, offset, lo, hi, flo, fhi, dlo, dhi, qlo, qhi,
+                           EVENT_REL_TOL)
+    return b
+
+
+@kernel
+def _root_dense(cx, kind, offset, lo, hi, flo, fhi, dlo, dhi, qlo, qhi):
+    """``_root_closed`` on a Taylor step's polynomial."""
+    _, b = _bracket_dense(cx, kind, 0, offset, lo, hi, flo, fhi, dlo, dhi, qlo, qhi,
+                          EVENT_REL_TOL)
+    return b
+
+
+@kernel
+def _extremum_closed(cx, kind, lo, hi, dlo, dhi, ddlo, ddhi, dddlo, dddhi):
     """Relative time of the extremum of ``kind`` in [lo, hi], from its derivative's signs
     (``dlo``, ``dhi``), and its second and third derivatives there (NaN if unknown)."""
-    a, b = _bracket(cx, kind, 1, 0.0, lo, hi, dlo, dhi, ddlo, ddhi, dddlo, dddhi,
-                    EXTREMUM_REL_TOL)
+    a, b = _bracket_closed(cx, kind, 1, 0.0, lo, hi, dlo, dhi, ddlo, ddhi, dddlo, dddhi,
+                           EXTREMUM_REL_TOL)
+    return 0.5 * (a + b)
+
+
+@kernel
+def _extremum_dense(cx, kind, lo, hi, dlo, dhi, ddlo, ddhi, dddlo, dddhi):
+    """``_extremum_closed`` on a Taylor step's polynomial."""
+    a, b = _bracket_dense(cx, kind, 1, 0.0, lo, hi, dlo, dhi, ddlo, ddhi, dddlo, dddhi,
+                          EXTREMUM_REL_TOL)
     return 0.5 * (a + b)

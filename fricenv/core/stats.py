@@ -6,15 +6,33 @@ from ..jit import kernel
 from ..layout import ST_VR2_INT, ST_X_MAX, ST_X_MIN
 from .closed_form import _slip_at
 from .constants import EXTREMUM_REL_TOL, REACH_SLACK
-from .roots import K_SLIP_V, _bracket
+from .roots import K_DENSE_V, K_SLIP_V, _bracket_closed, _bracket_dense
 from .state import _note_v, _note_x
 from .taylor import _dense_x
 from .workspace import C_XA, W_SKIP_EXTREMA, W_SKIP_VR2
 
 
 @kernel(inline=True)
-def _x_extrema_between(cx, kind, stats, a, b, va, vb, vabs):
-    """Displacement extremum where v changes sign on a monotone piece [a, b] of v.
+def _x_turn_closed(cx, a, b, va, vb):
+    """x where v of the closed-form slip step changes sign in [a, b] (v = va, vb there)."""
+    t = _bracket_closed(cx, K_SLIP_V, 0, 0.0, a, b, va, vb, math.nan, math.nan, math.nan,
+                        math.nan, EXTREMUM_REL_TOL)[1]
+    x, _, _, _ = _slip_at(cx, t)
+    return x
+
+
+@kernel(inline=True)
+def _x_turn_dense(cx, a, b, va, vb):
+    """x where v of the current Taylor step changes sign in [a, b] (v = va, vb there)."""
+    t = _bracket_dense(cx, K_DENSE_V, 0, 0.0, a, b, va, vb, math.nan, math.nan, math.nan,
+                       math.nan, EXTREMUM_REL_TOL)[1]
+    return _dense_x(cx, t)
+
+
+@kernel(inline=True)
+def _x_extrema_between(x_turn, cx, stats, a, b, va, vb, vabs):
+    """Displacement extremum where v changes sign on a monotone piece [a, b] of v
+    (``x_turn``: ``_x_turn_closed`` or ``_x_turn_dense``, the step's family).
 
     ``vabs`` bounds |v| over the whole step, so |x - x(0)| <= vabs * b: when that cannot
     reach past the recorded extrema the search is skipped (it matters once the motion
@@ -25,17 +43,13 @@ def _x_extrema_between(cx, kind, stats, a, b, va, vb, vabs):
         reach = vabs * b * REACH_SLACK
         if x0 + reach <= stats[ST_X_MAX] and x0 - reach >= stats[ST_X_MIN]:
             return
-        t = _bracket(cx, kind, 0, 0.0, a, b, va, vb, math.nan, math.nan, math.nan, math.nan,
-                     EXTREMUM_REL_TOL)[1]
-        if kind == K_SLIP_V:
-            x, _, _, _ = _slip_at(cx, t)
-        else:
-            x = _dense_x(cx, t)
-        _note_x(stats, x)
+        _note_x(stats, x_turn(cx, a, b, va, vb))
+
 
 @kernel(inline=True)
-def _slip_extrema(cx, kind, stats, tau_e, t_ext, v_ext, v0, v1, x1):
-    """Extrema of v and x over a slip step [0, tau_e] (t_ext: v's interior extremum)."""
+def _slip_extrema(x_turn, cx, stats, tau_e, t_ext, v_ext, v0, v1, x1):
+    """Extrema of v and x over a slip step [0, tau_e] (t_ext: v's interior extremum;
+    ``x_turn`` as in ``_x_extrema_between``)."""
     _note_v(stats, v1)
     _note_x(stats, x1)
     if cx[W_SKIP_EXTREMA] == 1.0:
@@ -43,18 +57,18 @@ def _slip_extrema(cx, kind, stats, tau_e, t_ext, v_ext, v0, v1, x1):
     elif 0.0 <= t_ext <= tau_e:
         _note_v(stats, v_ext)
         vabs = max(abs(v0), abs(v_ext), abs(v1))
-        _x_extrema_between(cx, kind, stats, 0.0, t_ext, v0, v_ext, vabs)
-        _x_extrema_between(cx, kind, stats, t_ext, tau_e, v_ext, v1, vabs)
+        _x_extrema_between(x_turn, cx, stats, 0.0, t_ext, v0, v_ext, vabs)
+        _x_extrema_between(x_turn, cx, stats, t_ext, tau_e, v_ext, v1, vabs)
     else:
-        _x_extrema_between(cx, kind, stats, 0.0, tau_e, v0, v1, max(abs(v0), abs(v1)))
+        _x_extrema_between(x_turn, cx, stats, 0.0, tau_e, v0, v1, max(abs(v0), abs(v1)))
 
 @kernel(inline=True)
-def _slip_stats(cx, kind, stats, tau_e, t_ext, v_ext, v0, a0, j0, v1, a1, j1, x1, v_mid, V):
+def _slip_stats(x_turn, cx, stats, tau_e, t_ext, v_ext, v0, a0, j0, v1, a1, j1, x1, v_mid, V):
     """Extrema and the (v - V)^2 integral over a slip step [0, tau_e].
 
     v, v', v'' at both ends, and v at the midpoint unless ``v_mid`` is NaN.
     """
-    _slip_extrema(cx, kind, stats, tau_e, t_ext, v_ext, v0, v1, x1)
+    _slip_extrema(x_turn, cx, stats, tau_e, t_ext, v_ext, v0, v1, x1)
     if cx[W_SKIP_VR2] == 1.0:
         return
     # Hermite quadrature of y = (v - V)^2 from y, y', y'' at both ends and, if given, y at
