@@ -26,7 +26,7 @@ from .checks import (
     items_of,
     real_array,
 )
-from .params import FRICTION_LAWS, OscillatorParams
+from .params import FRICTION_LAWS
 from .regimes import Regime
 
 #: One colour per regime; UNRESOLVED is grey, not-computed cells are white.
@@ -351,7 +351,3 @@ def regime_maps_figure(maps: Sequence[object], titles: Sequence[str] | None = No
     if suptitle:
         fig.suptitle(suptitle)
     return fig
-
-
-def params_title(p: OscillatorParams) -> str:
-    return f"{LAW_TITLES.get(p.law, p.law)}, η = {p.eta:.4g}, λ = {p.lam:g}, V = {p.V:g}"
