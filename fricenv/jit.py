@@ -12,7 +12,7 @@ Kernels that never allocate are compiled with ``_nrt=False`` (numba's CPU target
 that turns its reference-counting runtime off for that function; numba does not document
 it, which is why it is spelled out here only). Otherwise every call that passes an array
 (or a view such as P[i]) does atomic incref/decref pairs on the array's shared counter:
-measured, that was ~40 % of a scan step, and with threads the counters of a batch's common
+measured, that is ~40 % of a scan step, and with threads the counters of a batch's common
 parent array bounce between cores. The caller keeps every array alive for the duration of
 the call, so no count is needed. A kernel that allocates (``np.empty``, ``.copy()``) says so
 with ``allocates=True`` and keeps the runtime.

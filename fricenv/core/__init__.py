@@ -26,10 +26,11 @@ bounds: ``_one_extremum_at_most``, ``_v_one_extremum``, ``_sign_kept``); that is
 grazing contacts, where ``v`` touches ``V`` tangentially, are caught.
 
 Public kernels (all compiled by :func:`fricenv.jit.kernel`, allocation-free in their step
-loops):
-``reset_stats``, ``initial_state``, ``advance`` (stats only) and the recording runners used
-by :mod:`fricenv.simulate`. Array layouts are in :mod:`fricenv.layout` and
-:mod:`fricenv.params`.
+loops): ``reset_stats``, ``initial_state``, the stats-only ``advance`` / ``advance_ws`` and
+the recording ``record`` used by :mod:`fricenv.simulate`. Each method also has its own
+entry kernels (``advance_exact``, ``record_event``, ...; :func:`kernels_for` picks them),
+which compile that method's code alone. Array layouts are in :mod:`fricenv.layout`,
+:mod:`fricenv.params` and ``workspace``.
 
 Modules: building blocks ``constants``, ``workspace``, ``trig``, ``state``, ``context``,
 ``closed_form``, ``slip``, ``taylor``, ``rosenbrock``, ``roots``, ``proofs``, ``contacts``,

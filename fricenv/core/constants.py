@@ -22,9 +22,9 @@ MIN_SPLIT = 1.0 / 1024.0
 MAX_ROOT_ITER = 200
 # The closed form writes x = x_p + H (x0 - x_p), and a tone's particular amplitude is
 # |u| / sqrt(d2), d2 = (1 - w^2)^2 + (lam w)^2. Near resonance both terms are large and
-# their sum loses digits: over tau = 60 at lam = 0, the max |x| error was 9e-13 at a gain
+# their sum loses digits: over tau = 60 at lam = 0, the max |x| error is 9e-13 at a gain
 # 1 / sqrt(d2) of 500, 6e-11 at 5e3 and 1e-9 at 5e4 (and a gain of 1e15, one ulp off
-# resonance, made rounding noise look like chattering). Past this gain the exact method
+# resonance, makes rounding noise look like chattering). Past this gain the exact method
 # hands the call to the event method; exact resonance (d2 = 0) keeps its own closed form.
 CLOSED_FORM_MAX_GAIN = 1e3
 _D2_MIN = 1.0 / (CLOSED_FORM_MAX_GAIN * CLOSED_FORM_MAX_GAIN)

@@ -14,8 +14,8 @@ def _start_slope(cx, fresh, h0, d0, x, v):
     reverses with h' = |f| - x_fk >= x_fs - x_fk >= 0, so a negative h' there within the
     rounding of the acceleration's terms is taken as 0. A larger negative one (a given
     state, or an excitation retuned between calls) heads to the other side at once and is
-    kept: the contact is then at the start (it was clamped to 0 too, and a dip of h below
-    0 that came back within the step went unseen: slip on with v past V, status OK).
+    kept: the contact is then at the start (clamped to 0 too, a dip of h below 0 that comes
+    back within the step would go unseen: slip on with v past V, status OK).
     """
     if fresh and h0 <= 0.0 and d0 < 0.0:
         noise = GRAZE_REL * (
@@ -95,8 +95,8 @@ def _force_tie(cx, x):
     """How far |f| may pass x_fs and still be taken as x_fs: the rounding of f's terms.
 
     At a regime boundary a contact lands with |f| = x_fs to the last bits, where the
-    computed f falls on either side by accident. Taken as a pass, a falling |f| made a
-    reversal whose slip (h' = |f| - x_fk ~ 0 when x_fs = x_fk) came back at once to the
+    computed f falls on either side by accident. Taken as a pass, a falling |f| makes a
+    reversal whose slip (h' = |f| - x_fk ~ 0 when x_fs = x_fk) comes back at once to the
     same tie, or a stick left again at once: hundreds of switches ~1e-16 apart, or the
     event cap. A tie with |f| falling sticks, and a stick holds through it.
     """

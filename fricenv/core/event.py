@@ -336,7 +336,7 @@ def _run_event(P, S, t_span, stats, max_events, rtol, atol, rec, cx):
     # Time runs from 0 inside the call, and S[S_T] + t is formed only for events and the
     # end: thresholds relative to t (the end cut, the step floor) and rounding of t then
     # scale with the call's span, not with how long the run has been going (a call
-    # continued from t = 1e12 was off by 1e-5 in x after 50 units of tau).
+    # continued from t = 1e12 would be off by 1e-5 in x after 50 units of tau).
     t_start = S[S_T]
     t_stop = t_span
     origin = rec.out_t[0] if rec is not None else 0.0

@@ -96,7 +96,7 @@ def _vr2_from_values(h, r0, r1, mean):
 
     For Rosenbrock steps, where v' and v'' from the equation of motion are useless: in a
     stiff stretch they carry the state's rounding times |df/dv| and its square, which in
-    ``_slip_stats``' Hermite rule made the integral wrong by up to several times itself.
+    ``_slip_stats``' Hermite rule make the integral wrong by up to several times itself.
     The mean's own error telescopes: it is the displacement's error at the step's ends.
     """
     d = mean - 0.5 * (r0 + r1)  # r = r0 (1 - s) + r1 s + 6 d s (1 - s), s in [0, 1]
