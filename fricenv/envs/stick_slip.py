@@ -36,7 +36,7 @@ from fricenv.envs.scenes import (
     get_scene,
     new_episode_arrays,
 )
-from fricenv.envs.steppers import steppers_for_plants
+from fricenv.envs.steppers import steppers_for, steppers_for_plants
 from fricenv.layout import (
     METHOD_EVENT,
     METHOD_EXACT,
@@ -513,7 +513,8 @@ class StickSlipEnv(gym.Env):
             self._P, self._S, self._ctrl, self._cfg, self._P_new, self._init, self._obs, self._work
         )
         # within an episode only u0 and nu change, which leave the method's choice alone
-        self._steppers = steppers_for_plants(self._cfg[K.C_METHOD], self._P)
+        law = self._P[P_B1] != 0.0 or self._P[P_B3] != 0.0  # (scalars: a reset stays cheap)
+        self._steppers = steppers_for(self._cfg[K.C_METHOD], self._P[P_LAM], not law, law)
         self._needs_reset = False
         if self._renderer is not None:
             self._renderer.clear(self._S[S_T], self._S[S_V], self._S[S_MODE] == 0.0)
