@@ -96,10 +96,6 @@ def algo_class(algo: str) -> type[BaseAlgorithm]:
 
 
 # -- hyperparameters (rl-baselines3-zoo style) ----------------------------------------------
-#: Keys that configure the run rather than the algorithm's constructor.
-RUN_KEYS = ("n_timesteps", "n_envs", "normalize", "env_kwargs", "policy")
-
-
 def load_hyperparams(algo: str, scene: str, path: str | Path | None = None) -> dict[str, Any]:
     """The entry of ``scene``'s environment id in ``<algo>.yml`` (or the file ``path``).
 

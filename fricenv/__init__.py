@@ -15,6 +15,7 @@ from .simulate import (
     simulate,
 )
 from .sweep import RegimeMap, SweepSettings, cell_statistics, regime_map
+from .warmup import warmup
 
 __all__ = [
     "EVENT_NAMES",
@@ -34,6 +35,7 @@ __all__ = [
     "run_stats",
     "simulate",
     "strobe_period",
+    "warmup",
 ]
 __version__ = "0.1.0"
 

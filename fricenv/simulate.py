@@ -445,6 +445,7 @@ def simulate(
     w = max(params.omega1, params.omega2, 1.0)
     capacity = int(min(max_events + 1, 64 + 8 * t_span * w / (2 * math.pi)))
     counts = np.zeros(2, np.int64)
+    record = core.kernels_for(code, P).record  # compiles this method's kernels only
     while True:
         S = state.to_array()
         core.reset_stats(stats)
@@ -452,8 +453,8 @@ def simulate(
         ev_t = np.empty(capacity)
         ev_kind = np.empty(capacity, np.int8)
         ev_x = np.empty(capacity)
-        status = core.record(P, S, out_t, stats, code, rtol, atol, max_events, out_x, out_v,
-                             out_mode, ev_t, ev_kind, ev_x, counts)
+        status = record(P, S, out_t, stats, code, rtol, atol, max_events, out_x, out_v,
+                        out_mode, ev_t, ev_kind, ev_x, counts)
         if status != STATUS_BUFFER_FULL:
             break
         capacity *= 4
@@ -499,7 +500,8 @@ def run_stats(
     stats = np.empty(N_STATS)
     core.reset_stats(stats)
     code = METHOD_EXACT if method == "exact" else METHOD_EVENT
-    status = core.advance(P, S, t_span, stats, code, check_rtol(rtol),
-                          _positive("atol", atol), max_events)
+    advance = core.kernels_for(code, P).advance  # compiles this method's kernels only
+    status = advance(P, S, t_span, stats, code, check_rtol(rtol), _positive("atol", atol),
+                     max_events)
     _raise_status(status, S[S_T], max_events, t_span)
     return RunStats.from_array(stats, OscillatorState.from_array(S))

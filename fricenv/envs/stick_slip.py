@@ -36,6 +36,7 @@ from fricenv.envs.scenes import (
     get_scene,
     new_episode_arrays,
 )
+from fricenv.envs.steppers import steppers_for, steppers_for_plants
 from fricenv.layout import (
     METHOD_EVENT,
     METHOD_EXACT,
@@ -441,6 +442,10 @@ class StickSlipEnv(gym.Env):
         self._res = np.zeros(K.N_RES)
         self._work = new_workspace(extrema=False)  # core cache kept across control intervals
         self._P_new, self._init = new_episode_arrays()
+        # the entry kernels of the method this episode's plant needs (set at each reset)
+        self._steppers = steppers_for_plants(
+            self._cfg[K.C_METHOD], self.setup.scene.params.to_array(), self.setup.draw_lo,
+            self.setup.draw_hi)
         self._act_shape = self.action_space.shape
         self._needs_reset = True
 
@@ -464,7 +469,7 @@ class StickSlipEnv(gym.Env):
             a = coerce_action(action, self._act_shape)
         if self._renderer is not None:
             self._record_trace(a)
-        status = K.step_single(
+        status = self._steppers.step_single(
             self._P, self._S, self._ctrl, self._cfg, a, self._stats, self._obs, self._res,
             self._work,
         )
@@ -508,6 +513,9 @@ class StickSlipEnv(gym.Env):
         K.start_episode(
             self._P, self._S, self._ctrl, self._cfg, self._P_new, self._init, self._obs, self._work
         )
+        # within an episode only u0 and nu change, which leave the method's choice alone
+        law = self._P[P_B1] != 0.0 or self._P[P_B3] != 0.0  # (scalars: a reset stays cheap)
+        self._steppers = steppers_for(self._cfg[K.C_METHOD], self._P[P_LAM], not law, law)
         self._needs_reset = False
         if self._renderer is not None:
             self._renderer.clear(self._S[S_T], self._S[S_V], self._S[S_MODE] == 0.0)
@@ -593,8 +601,8 @@ class StickSlipEnv(gym.Env):
 
     def _sample_into(self, a: np.ndarray, t: np.ndarray, v: np.ndarray,
                      stuck: np.ndarray) -> int:
-        return K.sample_interval(self._P, self._S, self._ctrl, self._cfg, a, self._stats, t, v,
-                                 stuck)
+        return self._steppers.sample_interval(self._P, self._S, self._ctrl, self._cfg, a,
+                                              self._stats, t, v, stuck)
 
     def _record_trace(self, a: np.ndarray) -> None:
         r = self._renderer
