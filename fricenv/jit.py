@@ -65,10 +65,11 @@ def choose_threading_layer() -> str:
     """Ask numba for a fork-safe threading layer (see the module docstring) unless the user
     chose one with ``NUMBA_THREADING_LAYER``; the layer asked for. It takes effect if no
     parallel kernel has run yet in this process."""
+    config: Any = numba.config  # (numba sets its options as module attributes at run time)
     if os.environ.get("NUMBA_THREADING_LAYER"):
-        return numba.config.THREADING_LAYER
-    numba.config.THREADING_LAYER = "safe" if _tbb_loads() else "forksafe"
-    return numba.config.THREADING_LAYER
+        return str(config.THREADING_LAYER)
+    config.THREADING_LAYER = "safe" if _tbb_loads() else "forksafe"
+    return str(config.THREADING_LAYER)
 
 
 THREADING_LAYER = choose_threading_layer()  # on import, before any kernel can run

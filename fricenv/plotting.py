@@ -29,7 +29,7 @@ from .checks import (
     items_of,
     real_array,
 )
-from .params import FRICTION_LAWS
+from .params import FRICTION_LAWS, OscillatorParams
 from .regimes import Regime
 
 #: One colour per regime; UNRESOLVED is grey, not-computed cells are white.

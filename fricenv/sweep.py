@@ -112,6 +112,7 @@ from .params import (
 from .regimes import Regime, classify
 
 if TYPE_CHECKING:
+    import xarray as xr
     from matplotlib.axes import Axes
 
 FORMAT = "fricenv.regime_map"
@@ -208,7 +209,7 @@ class RegimeMap:
         """Number of computed cells per regime name."""
         return {r.name: int(np.sum(self.labels == r)) for r in Regime}
 
-    def to_xarray(self) -> object:
+    def to_xarray(self) -> xr.Dataset:
         """This map as an ``xarray.Dataset`` over ``(u0, nu)``, laid out as an atlas
         (:func:`fricenv.atlas`); needs the ``scale`` extra."""
         from .atlas.store import regime_map_dataset

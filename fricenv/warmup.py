@@ -14,8 +14,6 @@ from __future__ import annotations
 import time
 from collections.abc import Iterable
 
-import numpy as np
-
 from .params import FRICTION_LAWS, OscillatorParams
 from .simulate import run_stats, simulate
 from .sweep import cell_statistics
@@ -79,7 +77,7 @@ def _warm_envs(workloads: list[str], scenes: Iterable[str] | None, parallel: boo
             def single(scene=scene) -> None:
                 env = StickSlipEnv(scene=scene)
                 env.reset(seed=0)
-                env.step(np.zeros(env.action_space.shape, np.float32))
+                env.step(env.action_space.sample() * 0.0)
             timed(f"env:{scene}", single)
         if "vector_env" in workloads:
             sizes = [1, PARALLEL_MIN_ENVS] if parallel else [1]
@@ -88,5 +86,5 @@ def _warm_envs(workloads: list[str], scenes: Iterable[str] | None, parallel: boo
                 for n in sizes:
                     vec = StickSlipVectorEnv(num_envs=n, scene=scene)
                     vec.reset(seed=0)
-                    vec.step(np.zeros(vec.action_space.shape, np.float32))
+                    vec.step(vec.action_space.sample() * 0.0)
             timed(f"vector_env:{scene}", vector)

@@ -19,6 +19,7 @@ import importlib
 import inspect
 import sys
 import types
+from typing import Any
 
 __all__ = ["AXIS_FIELDS", "atlas", "onset_surface_figure", "open_atlas", "plot_slice",
            "regime_map_dataset", "slice_figure", "stick_boundaries"]
@@ -29,11 +30,17 @@ _HOMES = {"atlas": "api", "AXIS_FIELDS": "core", "open_atlas": "store",
           "stick_boundaries": "views", "onset_surface_figure": "views"}
 
 
-def __getattr__(name: str) -> object:
+def _api_atlas() -> Any:
+    from .api import atlas
+
+    return atlas
+
+
+def __getattr__(name: str) -> Any:
     if name in _HOMES:
         return getattr(importlib.import_module(f".{_HOMES[name]}", __name__), name)
     if name == "__signature__":  # inspect.signature(fricenv.atlas)
-        return inspect.signature(__getattr__("atlas"))
+        return inspect.signature(_api_atlas())
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
@@ -45,7 +52,7 @@ class _CallableModule(types.ModuleType):
     """Importing the package ``fricenv.atlas`` binds it as ``fricenv``'s attribute
     ``atlas``, over any function of that name: so the package itself runs the atlas."""
 
-    def __call__(self, *args: object, **kwargs: object) -> object:
+    def __call__(self, *args: Any, **kwargs: Any) -> Any:
         from .api import atlas
 
         return atlas(*args, **kwargs)

@@ -5,6 +5,7 @@ from __future__ import annotations
 import os
 from collections.abc import Iterator, Mapping
 from dataclasses import replace
+from typing import Any
 
 import numba
 import numpy as np
@@ -26,7 +27,7 @@ from .store import (
 )
 
 
-def _executor_threads(client: object) -> int:
+def _executor_threads(client: Any) -> int:
     """Threads that will run chunks at once (sets the default chunk size)."""
     if client is None:
         return numba.get_num_threads()
@@ -92,10 +93,13 @@ def atlas(base: OscillatorParams | str, axes: Mapping[str, object],
     tasks = chunk_tasks(spec, todo)
     results = run_local(tasks) if client is None else _distributed(client, tasks)
     _drain(spec, results, sink, arrays, progress, sum(_cells(spec, t.slices) for t in tasks))
-    return open_atlas(store) if store is not None else to_dataset(spec, arrays)
+    if store is not None:
+        return open_atlas(store)
+    assert arrays is not None  # (filled in memory when there is no store)
+    return to_dataset(spec, arrays)
 
 
-def _distributed(client: object, tasks: list) -> Iterator:
+def _distributed(client: Any, tasks: list) -> Iterator:
     from .distributed import run_distributed
 
     return run_distributed(client, tasks)
@@ -120,7 +124,7 @@ def _drain(spec: AtlasSpec, results: Iterator, sink: ZarrSink | None,
             sl = chunk_slices(spec, index)
             if sink is not None:
                 sink(sl, values)
-            else:
+            elif arrays is not None:
                 for k, v in values.items():
                     arrays[k][sl] = v
             if bar is not None:

@@ -16,6 +16,7 @@ import argparse
 import sys
 import time
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 
@@ -38,10 +39,10 @@ def parse_axis(spec: str) -> tuple[str, np.ndarray]:
         raise ValueError(f"--axis {spec!r}: {exc}") from None
 
 
-def parse_settings(pairs: Sequence[str]) -> dict[str, object]:
+def parse_settings(pairs: Sequence[str]) -> dict[str, Any]:
     """``--setting KEY=VALUE`` strings as a dict (numbers as int or float, else the text,
     as ``SweepSettings`` takes them: ``method=event``, ``n_strobe=24``)."""
-    out: dict[str, object] = {}
+    out: dict[str, Any] = {}
     for item in pairs:
         key, sep, value = item.partition("=")
         if not sep or not key.strip():

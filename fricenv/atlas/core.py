@@ -19,6 +19,7 @@ import itertools
 import math
 from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass, replace
+from typing import Any
 
 import numpy as np
 
@@ -303,7 +304,7 @@ def check_chunks(chunks: object, names: Sequence[str], shape: Sequence[int],
     return tuple(out)
 
 
-def make_spec(base: object, axes: object, settings: object, chunks: object,
+def make_spec(base: object, axes: object, settings: Any, chunks: object,
               n_threads: int) -> AtlasSpec:
     """Validate everything an atlas needs before any cell runs (``TypeError`` /
     ``ValueError`` naming the field and the value)."""
@@ -360,12 +361,12 @@ def _span_costs(spec: AtlasSpec, tasks: list[ChunkTask]) -> list[float]:
         n_other = math.prod(g.size for k, g in t.grids.items()
                             if k not in names + ["nu", "u0"])
         u0 = t.grids.get("u0", np.array([spec.base.u0]))
-        n_other *= float(np.sum(1.0 + np.log1p(u0)))
+        weight = n_other * float(np.sum(1.0 + np.log1p(u0)))
         jn = t.slices[list(spec.axes).index("nu")] if "nu" in spec.axes else slice(None)
         total = 0.0
         for values in itertools.product(*(t.grids[k] for k in names)):
             total += float(spans[tuple(float(v) for v in values)][jn].sum())
-        costs.append(total * n_other)
+        costs.append(total * weight)
     return costs
 
 

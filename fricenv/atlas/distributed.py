@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import uuid
 from collections.abc import Iterator, Sequence
+from typing import Any
 
 import numba
 import numpy as np
@@ -66,7 +67,8 @@ def _worker_threads() -> int:
         n = get_worker().state.nthreads
     except (ValueError, AttributeError):  # not on a worker (a test's direct call)
         n = 1
-    return max(1, min(int(n), numba.config.NUMBA_NUM_THREADS))
+    config: Any = numba.config  # (numba sets its options as module attributes at run time)
+    return max(1, min(int(n), config.NUMBA_NUM_THREADS))
 
 
 def run_chunk(task: ChunkTask) -> tuple[tuple[int, ...], dict[str, np.ndarray]]:

@@ -22,6 +22,7 @@ import re
 import shutil
 from dataclasses import asdict, fields
 from pathlib import Path
+from typing import Any, Literal
 
 import numpy as np
 import xarray as xr
@@ -60,7 +61,7 @@ def label_attrs() -> dict:
             "not_computed": NOT_COMPUTED}
 
 
-def variable_attrs(name: str) -> dict:
+def variable_attrs(name: str) -> dict[str, Any]:
     return label_attrs() if name == "label" else {"long_name": _DESCRIPTIONS[name]}
 
 
@@ -74,7 +75,7 @@ def dataset_attrs(spec: AtlasSpec, algorithm: int = ALGORITHM) -> dict:
             "axes": json.dumps(list(spec.axes)), "fricenv_version": __version__}
 
 
-_Q_ATTRS = {"long_name": "tested denominator of nu (0: not tested)"}
+_Q_ATTRS: dict[str, Any] = {"long_name": "tested denominator of nu (0: not tested)"}
 
 
 def _q(spec: AtlasSpec) -> tuple[tuple[str, ...], np.ndarray, dict]:
@@ -91,7 +92,7 @@ def to_dataset(spec: AtlasSpec, arrays: dict[str, np.ndarray], algorithm: int = 
                ) -> xr.Dataset:
     """An in-memory atlas: ``arrays`` (shaped like the grid) with the axes as coordinates."""
     dims = spec.names
-    coords = {k: (k, v) for k, v in spec.axes.items()}
+    coords: dict[str, tuple[Any, ...]] = {k: (k, v) for k, v in spec.axes.items()}
     coords["q"] = _q(spec)
     data = {k: (dims, arrays[k], variable_attrs(k)) for k in VARIABLES}
     return xr.Dataset(data, coords=coords, attrs=dataset_attrs(spec, algorithm))
@@ -149,7 +150,15 @@ def create_store(path: Path, spec: AtlasSpec) -> None:
         shutil.rmtree(tmp, ignore_errors=True)
 
 
-def _open_group(path: Path, mode: str = "r+") -> zarr.Group:
+def _array(group: zarr.Group, name: str) -> zarr.Array:
+    """The array ``name`` of an atlas store (a group there means a damaged store)."""
+    a = group[name]
+    if not isinstance(a, zarr.Array):
+        raise ValueError(f"the atlas store's {name!r} is a group, not an array")
+    return a
+
+
+def _open_group(path: Path, mode: Literal["r", "r+"] = "r+") -> zarr.Group:
     """``path``'s store, or ``ValueError`` naming it if it is no fricenv atlas."""
     try:
         group = zarr.open_group(path, mode=mode)
@@ -170,9 +179,9 @@ def _stored_spec_mismatch(group: zarr.Group, spec: AtlasSpec, chunks_given: bool
         return (f"it was made by measurement code version (ALGORITHM) "
                 f"{attrs.get('algorithm')!r}, this fricenv measures with {ALGORITHM}")
     try:
-        axes = json.loads(attrs["axes"])
-        base = OscillatorParams(**json.loads(attrs["base"]))
-        settings = SweepSettings(**json.loads(attrs["settings"]))
+        axes = json.loads(str(attrs["axes"]))
+        base = OscillatorParams(**json.loads(str(attrs["base"])))
+        settings = SweepSettings(**json.loads(str(attrs["settings"])))
     except (KeyError, TypeError, ValueError) as exc:
         return f"its attributes are damaged ({exc!r})"
     if axes != list(spec.axes):
@@ -187,12 +196,12 @@ def _stored_spec_mismatch(group: zarr.Group, spec: AtlasSpec, chunks_given: bool
         return ", ".join(f"setting {f.name} = {a[f.name]!r}, not {b[f.name]!r}"
                          for f in fields(SweepSettings) if a[f.name] != b[f.name])
     for name, grid in spec.axes.items():
-        old = np.asarray(group[name][...])
+        old = np.asarray(_array(group, name)[...])
         if old.shape != grid.shape or not np.array_equal(old, grid):
             return (f"its {name} grid differs ({old.size} values from {float(old.min())!r} "
                     f"to {float(old.max())!r}; given {grid.size} from "
                     f"{float(grid.min())!r} to {float(grid.max())!r})")
-    stored_chunks = tuple(group["label"].chunks)
+    stored_chunks = tuple(_array(group, "label").chunks)
     if chunks_given and stored_chunks != spec.chunks:
         return f"its chunks are {stored_chunks}, not {spec.chunks}"
     return None
@@ -208,16 +217,16 @@ def open_for_resume(path: Path, spec: AtlasSpec, chunks_given: bool
         raise ValueError(f"{path} holds another atlas: {why}; remove it or choose "
                          "another path")
     for k in VARIABLES:
-        if k not in group or tuple(group[k].shape) != spec.shape:
+        if k not in group or tuple(_array(group, k).shape) != spec.shape:
             raise ValueError(f"{path} is a damaged atlas store: no {k} of shape {spec.shape}")
-    return group, tuple(group["label"].chunks)
+    return group, tuple(_array(group, "label").chunks)
 
 
 def done_chunks(path: Path, ndim: int) -> set[tuple[int, ...]]:
     """Indices of the chunks whose label is stored (complete chunks), from the file names
     (no chunk is read; safe while a run writes)."""
     root = path / "label" / _CHUNK_DIR
-    done = set()
+    done: set[tuple[int, ...]] = set()
     if not root.is_dir():
         return done
     for dirpath, _, files in os.walk(root):
@@ -239,14 +248,14 @@ class ZarrSink:
     """Writes chunks into an open store: the label last, as the chunk's completion mark."""
 
     def __init__(self, group: zarr.Group) -> None:
-        self.arrays = {k: group[k] for k in VARIABLES}  # (VARIABLES ends with label)
+        self.arrays = {k: _array(group, k) for k in VARIABLES}  # (VARIABLES ends with label)
 
     def __call__(self, slices: tuple[slice, ...], values: dict[str, np.ndarray]) -> None:
         for k, arr in self.arrays.items():
             arr[slices] = values[k]
 
 
-def open_atlas(path: str | os.PathLike, chunks: object = None) -> xr.Dataset:
+def open_atlas(path: str | os.PathLike, chunks: Any = None) -> xr.Dataset:
     """Open an atlas: a Zarr store written by :func:`fricenv.atlas` (lazily: cells are
     read when used; ``chunks`` as in ``xarray.open_zarr`` gives Dask arrays instead), or a
     regime map's ``.npz`` file (converted in memory)."""

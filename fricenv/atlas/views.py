@@ -5,6 +5,7 @@ matplotlib; figures are built without ``pyplot`` (see :mod:`fricenv.plotting`)."
 from __future__ import annotations
 
 from types import SimpleNamespace
+from typing import Any
 
 import numpy as np
 import xarray as xr
@@ -75,7 +76,7 @@ def _slice_2d(ds: xr.Dataset, x: str, y: str, sel: dict) -> xr.DataArray:
 
 def plot_slice(ds: xr.Dataset, ax: Axes | None = None, x: str = "u0", y: str = "nu",
                boundaries: bool | None = None, title: str | None = None,
-               **sel: float) -> Axes:
+               **sel: Any) -> Axes:
     """Draw the 2-d slice ``(x, y)`` of an atlas as a regime map, the other axes fixed by
     keyword (nearest grid value), e.g. ``plot_slice(ds, eta=0.2)``. The stick boundaries
     are drawn along ``x`` (default: when ``x`` is u0). Returns the axes drawn on."""
@@ -93,7 +94,7 @@ def plot_slice(ds: xr.Dataset, ax: Axes | None = None, x: str = "u0", y: str = "
 
 
 def slice_figure(ds: xr.Dataset, x: str = "u0", y: str = "nu", panel: str | None = None,
-                 **sel: float) -> Figure:
+                 **sel: Any) -> Figure:
     """One slice per value of the axis ``panel`` (two per row) with a shared legend; the
     atlas's Figs. 8-10. Other axes are fixed by keyword as in :func:`plot_slice`."""
     ds = _check_atlas(ds)
@@ -102,7 +103,7 @@ def slice_figure(ds: xr.Dataset, x: str = "u0", y: str = "nu", panel: str | None
     nrow = -(-len(values) // ncol)
     fig, axes = _subplots(nrow, ncol, figsize=(6.0 * ncol, 4.6 * nrow + 1.0))
     for ax, v in zip(axes.flat, values, strict=False):
-        extra = {} if v is None else {panel: v}
+        extra: dict[str, Any] = {} if v is None or panel is None else {panel: v}
         plot_slice(ds, ax, x, y, title=None if v is None else f"{panel} = {v:.4g}",
                    **sel, **extra)
     for ax in list(axes.flat)[len(values):]:

@@ -136,7 +136,7 @@ def fig3(rep: Report, out: Path, res: Resolution, settings: SweepSettings,
             "; ".join(peaks_txt) + ". A second maximum sits at η ≈ 1/ν (the second "
             "tone's resonance); for ν = 1.15 it merges with the first and pulls the "
             "peak below η = 1.", _verdict(near1))
-    by_nu = {}
+    by_nu: dict[float, dict[float, tuple[float, float]]] = {}
     for (lam, nu), w, h in sharp:
         by_nu.setdefault(nu, {})[lam] = (w, h)
     ok = all(d[0.25][0] < d[0.5][0] for d in by_nu.values())

@@ -115,9 +115,9 @@ def _regime_shares(rep: Report, c: _Maps) -> None:
             "|---|" + "---|" * len(Regime))
     for fig, ms in maps.items():
         for k, m in enumerate(ms):
-            c = m.counts()
+            counts = m.counts()
             rep.add(f"| {name(fig, k)} | " + " | ".join(
-                f"{100 * c[r.name] / m.labels.size:.1f}" for r in Regime) + " |")
+                f"{100 * counts[r.name] / m.labels.size:.1f}" for r in Regime) + " |")
     rep.add("")
 
 
