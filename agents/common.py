@@ -14,7 +14,7 @@ import pickle
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Protocol
+from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 import yaml
@@ -22,6 +22,9 @@ import yaml
 import fricenv  # noqa: F401  (registers the environments)
 from fricenv.envs import ENV_IDS
 from fricenv.envs.scenes import SCENES, Scene
+
+if TYPE_CHECKING:
+    from stable_baselines3.common.base_class import BaseAlgorithm
 
 #: Scene name -> registered Gymnasium id (the key of the hyperparameter files).
 SCENE_ENV_IDS: dict[str, str] = {scene: env_id for env_id, scene in ENV_IDS.items()}
@@ -85,17 +88,14 @@ def check_algo(algo: str) -> str:
     return algo
 
 
-def algo_class(algo: str) -> type:
+def algo_class(algo: str) -> type[BaseAlgorithm]:
     from stable_baselines3 import PPO, SAC
 
-    return {"ppo": PPO, "sac": SAC}[check_algo(algo)]
+    classes: dict[str, type[BaseAlgorithm]] = {"ppo": PPO, "sac": SAC}
+    return classes[check_algo(algo)]
 
 
 # -- hyperparameters (rl-baselines3-zoo style) ----------------------------------------------
-#: Keys that configure the run rather than the algorithm's constructor.
-RUN_KEYS = ("n_timesteps", "n_envs", "normalize", "env_kwargs", "policy")
-
-
 def load_hyperparams(algo: str, scene: str, path: str | Path | None = None) -> dict[str, Any]:
     """The entry of ``scene``'s environment id in ``<algo>.yml`` (or the file ``path``).
 
@@ -382,7 +382,7 @@ def split_hyperparams(algo: str, hp: dict[str, Any]) -> RunSpec:
         hp["policy_kwargs"] = _policy_kwargs(hp["policy_kwargs"])
     if "train_freq" in hp and isinstance(hp["train_freq"], list):
         hp["train_freq"] = tuple(hp["train_freq"])
-    allowed = set(inspect.signature(algo_class(algo).__init__).parameters) - {
+    allowed = set(inspect.signature(algo_class(algo)).parameters) - {
         "self", "policy", "env", "seed", "device", "verbose", "tensorboard_log"}
     unknown = sorted(set(hp) - allowed)
     if unknown:

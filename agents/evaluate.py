@@ -37,6 +37,7 @@ import numpy as np
 from agents.baselines import (
     BASELINES,
     ActionMap,
+    Baseline,
     ZeroExcitation,
     make_baseline,
     search_best_constant,
@@ -82,6 +83,18 @@ class Entry:
     info: dict[str, Any] = field(default_factory=dict)
     metrics: EpisodeMetrics | None = None
     seed_means: dict[str, list[float]] = field(default_factory=dict)
+
+    @property
+    def scores(self) -> EpisodeMetrics:
+        """The metrics ``run_entry`` measured (tables and plots read them only after)."""
+        if self.metrics is None:
+            raise RuntimeError(f"{self.key!r} has not been evaluated yet")
+        return self.metrics
+
+
+def _constant(controller: Controller) -> Callable[[int], Controller]:
+    """A factory giving the same controller for every evaluation seed."""
+    return lambda k: controller
 
 
 # -- seeds ----------------------------------------------------------------------------------
@@ -161,7 +174,7 @@ def trained_entries(paths: list[Path], scene: str,
         info = {"paths": [str(m[2]) for m in members],
                 "train_seconds": secs, "timesteps": steps,
                 "seeds": [m[1].get("seed") for m in members]}
-        factories = [(lambda k, c=m[0]: c) for m in members]
+        factories = [_constant(m[0]) for m in members]
         entries.append(Entry(key, label, "trained", factories, info))
     return entries, env_kwargs or {}
 
@@ -179,16 +192,16 @@ def baseline_entries(names: list[str], scene: str, env_kwargs: dict, out: Path,
                     "n_candidates": res["n_candidates"], "n_grid_cells": res["n_grid_cells"],
                     "search_seeds": [res["key"]["seed"],
                                      res["key"]["seed"] + res["key"]["episodes"] - 1]}
-            entries.append(Entry(name, ctrl.label, "baseline", [lambda k, c=ctrl: c], info))
+            entries.append(Entry(name, ctrl.label, "baseline", [_constant(ctrl)], info))
         elif name == "random":
-            def factory(k: int, name: str = name) -> Controller:
+            def factory(k: int, name: str = name) -> Baseline:
                 return make_baseline(name, scene, env_kwargs, seed=k)
 
             ctrl = factory(0)
             entries.append(Entry(name, ctrl.label, "baseline", [factory], {"seed": "k"}))
         else:
             ctrl = make_baseline(name, scene, env_kwargs)
-            entries.append(Entry(name, ctrl.label, "baseline", [lambda k, c=ctrl: c],
+            entries.append(Entry(name, ctrl.label, "baseline", [_constant(ctrl)],
                                  ctrl.describe()))
     return entries
 
@@ -208,7 +221,7 @@ def run_entry(entry: Entry, scene: str, env_kwargs: dict, n_seeds: int, episodes
 
 
 def _summary(entry: Entry) -> dict[str, Any]:
-    m = entry.metrics
+    m = entry.scores
     out: dict[str, Any] = {"label": entry.label, "kind": entry.kind, "n": int(m.ret.size)}
     for f, _, _ in COLUMNS:
         mean, std = summarize(getattr(m, f))
@@ -223,7 +236,7 @@ def markdown(scene: str, entries: list[Entry], n_seeds: int, episodes: int,
     sc = ActionMap(scene, env_kwargs).scene  # the scene as evaluated, not the preset
     zero = next((e for e in entries if e.key == "zero"), None)
     best = next((e for e in entries if e.key == "best_constant"), None)
-    z_stick = float(zero.metrics.stick_fraction.mean()) if zero else float("nan")
+    z_stick = float(zero.scores.stick_fraction.mean()) if zero else float("nan")
     ref = zero.label.split(" (")[0] if zero else "zero excitation"
     head = ["controller", "n"] + [name for _, name, _ in COLUMNS] + [f"stick cut vs {ref}"]
     lines = [
@@ -242,7 +255,7 @@ def markdown(scene: str, entries: list[Entry], n_seeds: int, episodes: int,
         "|" + "|".join(["---"] + ["---:"] * (len(head) - 1)) + "|",
     ]
     for e in entries:
-        m = e.metrics
+        m = e.scores
         cells = [e.label, str(m.ret.size)]
         for f, _, d in COLUMNS:
             cells.append(fmt_pm(*summarize(getattr(m, f)), digits=d))
@@ -283,9 +296,9 @@ def markdown(scene: str, entries: list[Entry], n_seeds: int, episodes: int,
         for b in entries:
             if b.kind != "baseline" or b.key == "zero":
                 continue
-            n_ep = b.metrics.ret.size
-            agent = e.metrics.ret.reshape(-1, n_ep).mean(axis=0)  # average over its models
-            d = agent - b.metrics.ret
+            n_ep = b.scores.ret.size
+            agent = e.scores.ret.reshape(-1, n_ep).mean(axis=0)  # average over its models
+            d = agent - b.scores.ret
             se = d.std(ddof=1) / np.sqrt(n_ep) if n_ep > 1 else 0.0
             paired.append(f"{b.label}: {d.mean():+.2f} ± {se:.2f} "
                           f"(better in {(d > 0).sum()} of {n_ep})")
@@ -294,8 +307,8 @@ def markdown(scene: str, entries: list[Entry], n_seeds: int, episodes: int,
                          "standard error; the agent averaged over its models): "
                          + "; ".join(paired) + ".")
         if zero is not None and best is not None:
-            cut = 1.0 - float(e.metrics.stick_fraction.mean()) / z_stick
-            r_e, r_b = float(e.metrics.ret.mean()), float(best.metrics.ret.mean())
+            cut = 1.0 - float(e.scores.stick_fraction.mean()) / z_stick
+            r_e, r_b = float(e.scores.ret.mean()), float(best.scores.ret.mean())
             ok_time = bool(secs) and max(secs) <= 15 * 60
             ok = cut >= 0.9 and r_e > r_b and ok_time
             took = f"max training time {max(secs):.0f} s" if secs else "training time unknown"
@@ -332,7 +345,7 @@ def time_history(controllers: list[tuple[str, Controller]], scene: str, env_kwar
     top = max(amap.u_range[1], amap.nu_range[1])
     for row, (label, ctrl) in enumerate(controllers):
         env = gym.make(SCENE_ENV_IDS[scene], scene=scene, **env_kwargs)
-        u = env.unwrapped
+        u: Any = env.unwrapped  # a StickSlipEnv: sample_interval and snapshot
         obs, _ = env.reset(seed=seed)
         ts, vs, ss, tu, us, ns = [], [], [], [], [], []
         total, stuck, done = 0.0, 0.0, False
@@ -349,7 +362,7 @@ def time_history(controllers: list[tuple[str, Controller]], scene: str, env_kwar
             tu.append(t_now)
             us.append(float(obs[K.O_U0]))
             ns.append(float(obs[K.O_NU]))
-            total += r
+            total += float(r)
             stuck += info["stick_fraction"]
             done = term or trunc
         env.close()
@@ -409,10 +422,10 @@ def learning_curves(entries: list[Entry], baselines: list[Entry], path: Path) ->
     styles = {"zero": ":", "best_constant": "--", "feedback": "-."}
     for b in baselines:
         if b.key in styles:
-            a1.axhline(b.metrics.ret.mean(), color="k", ls=styles[b.key], lw=0.8, label=b.label)
-            a2.axhline(max(b.metrics.stick_fraction.mean(), 1e-4), color="k", ls=styles[b.key],
+            a1.axhline(b.scores.ret.mean(), color="k", ls=styles[b.key], lw=0.8, label=b.label)
+            a2.axhline(max(b.scores.stick_fraction.mean(), 1e-4), color="k", ls=styles[b.key],
                        lw=0.8)
-    lows = [b.metrics.ret.mean() for b in baselines] + [r.min() for _, rs in curves
+    lows = [b.scores.ret.mean() for b in baselines] + [r.min() for _, rs in curves
                                                           for _, r, _ in rs]
     a1.set_xlabel("training steps")
     a1.set_ylabel("episode return")
@@ -536,7 +549,7 @@ def evaluate_scene(scene: str, args: argparse.Namespace,
         "episodes": args.episodes, "eval_plant_seeds": eval_seeds(args.seeds, args.episodes),
         "seconds": round(time.perf_counter() - t0, 2),
         "controllers": {e.key: {**_summary(e), "info": e.info,
-                                "per_episode": e.metrics.as_dict(),
+                                "per_episode": e.scores.as_dict(),
                                 "seed_means": e.seed_means} for e in entries},
     }
     (out / f"{scene}_results.json").write_text(json.dumps(result, indent=1, default=str))

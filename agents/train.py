@@ -71,7 +71,7 @@ def _callbacks() -> tuple[type, type]:
             self.total = total
             self.status = status
             self.enabled = enabled
-            self.bar = None
+            self.bar: Any = None  # a tqdm bar from the training's start
             self._done = 0
 
         def _on_training_start(self) -> None:

@@ -15,6 +15,7 @@ from .simulate import (
     simulate,
 )
 from .sweep import RegimeMap, SweepSettings, cell_statistics, regime_map
+from .warmup import warmup
 
 __all__ = [
     "EVENT_NAMES",
@@ -34,8 +35,21 @@ __all__ = [
     "run_stats",
     "simulate",
     "strobe_period",
+    "warmup",
 ]
 __version__ = "0.1.0"
+
+
+def __getattr__(name: str) -> object:
+    """``fricenv.atlas`` and ``fricenv.open_atlas`` on first use: they need Dask, Zarr
+    and xarray (the ``scale`` extra), which ``import fricenv`` must not load."""
+    if name in ("atlas", "open_atlas"):
+        import importlib
+
+        module = importlib.import_module(".atlas", __name__)  # callable: fricenv.atlas(...)
+        return module if name == "atlas" else module.open_atlas
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
 
 from .envs import register_envs as _register_envs  # noqa: E402
 

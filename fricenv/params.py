@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import asdict, dataclass, fields, replace
+from typing import Any
 
 import numpy as np
 
@@ -57,7 +59,7 @@ def resolve_law(name: str) -> str:
     return key
 
 
-def check_known_fields(cls_or_obj: object, names: object, what: str) -> None:
+def check_known_fields(cls_or_obj: Any, names: Iterable[str], what: str) -> None:
     """``ValueError`` listing the names that are not fields of a dataclass, and the valid ones."""
     known = {f.name for f in fields(cls_or_obj)}
     unknown = sorted(set(names) - known)

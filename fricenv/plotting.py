@@ -11,8 +11,10 @@ import io
 import os
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
+from matplotlib.artist import Artist
 from matplotlib.axes import Axes
 from matplotlib.colors import BoundaryNorm, ListedColormap
 from matplotlib.figure import Figure
@@ -105,7 +107,7 @@ class ShowableFigure(Figure):
         return buf.getvalue()
 
 
-def _subplots(nrows: int, ncols: int, figsize: tuple[float, float], **kw: object
+def _subplots(nrows: int, ncols: int, figsize: tuple[float, float], **kw: Any
               ) -> tuple[Figure, np.ndarray]:
     fig = ShowableFigure(figsize=figsize, layout="constrained")
     kw.setdefault("squeeze", False)
@@ -179,7 +181,7 @@ def params_title(p: OscillatorParams) -> str:
             f"u0 = {p.u0:.4g}")
 
 
-def _run_dict(run: object) -> dict:
+def _run_dict(run: Any) -> dict[str, Any]:
     """A time-history run as a dict: a ``Trajectory`` (anything with ``t, x, v, mode`` and
     ``params``) or a dict with those arrays, ``title`` and ``V``."""
     if isinstance(run, dict):
@@ -220,10 +222,10 @@ def time_history_figure(runs: Sequence[object], suptitle: str | None = None) -> 
         raise TypeError(f"runs must be a list of Trajectory (or of dicts), {got(runs)}")
     if not items:
         raise ValueError("runs is empty: nothing to draw")
-    runs = [_run_dict(r) for r in items]
-    n = len(runs)
+    dicts = [_run_dict(r) for r in items]
+    n = len(dicts)
     fig, axes = _subplots(2, n, figsize=(5.6 * n, 5.6), sharex="col")
-    for j, run in enumerate(runs):
+    for j, run in enumerate(dicts):
         ax_x, ax_v = axes[0, j], axes[1, j]
         t, x, v, mode = (np.asarray(run[k]) for k in ("t", "x", "v", "mode"))
         ax_x.plot(t, x, color="C0", lw=0.9)
@@ -289,7 +291,7 @@ def _axis(name: str, value: object) -> np.ndarray:
     return a
 
 
-def _sorted_grid(rmap: object) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _sorted_grid(rmap: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``rmap``'s ``(u0, nu, labels)`` with both axes in increasing order. A map may be
     computed on an unsorted grid (cells are independent), but cell edges and boundary lines
     need order: drawn as given they were meaningless. A repeated value has no cell of its
@@ -311,7 +313,7 @@ def _sorted_grid(rmap: object) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return u0, nu, labels
 
 
-def draw_regime_map(ax: Axes, rmap: object, boundaries: bool = True,
+def draw_regime_map(ax: Axes, rmap: Any, boundaries: bool = True,
                     title: str | None = None) -> None:
     """One (u0, nu) panel: u0 on x (log if the grid is geometric), nu on y.
 
@@ -343,7 +345,7 @@ def draw_regime_map(ax: Axes, rmap: object, boundaries: bool = True,
             for i in range(u0.size):
                 lab = int(labels[i, j])
                 if lab in (Regime.PERIODIC_OSCILLATION, Regime.PERIODIC_STICK_SLIP):
-                    ax.plot([ue[i], ue[i + 1]], [nu[j], nu[j]], color=REGIME_COLORS[lab],
+                    ax.plot([ue[i], ue[i + 1]], [nu[j], nu[j]], color=REGIME_COLORS[Regime(lab)],
                             lw=3.0, solid_capstyle="butt")
     ax.set_xlabel("tone amplitude $u_0$" + (" (log scale)" if log else ""))
     ax.set_ylabel("frequency ratio ν = ω₂/ω₁")
@@ -355,8 +357,9 @@ def regime_legend_handles(include_unresolved: bool = True, boundaries: bool = Tr
     """Legend entries for a regime map: a patch per regime, then the two boundary lines
     that ``draw_regime_map`` draws (``boundaries=False`` leaves them out, for a plot of
     labels alone)."""
-    hs = [Patch(facecolor=REGIME_COLORS[r], edgecolor="k", lw=0.4, label=REGIME_SHORT[r])
-          for r in Regime if include_unresolved or r != Regime.UNRESOLVED]
+    hs: list[Artist] = [
+        Patch(facecolor=REGIME_COLORS[r], edgecolor="k", lw=0.4, label=REGIME_SHORT[r])
+        for r in Regime if include_unresolved or r != Regime.UNRESOLVED]
     if boundaries:
         hs.append(Line2D([], [], color="k", lw=1.2, label="1st boundary: stick begins"))
         hs.append(Line2D([], [], color="k", lw=1.0, ls="--",

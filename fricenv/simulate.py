@@ -3,8 +3,9 @@
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -336,74 +337,115 @@ def output_times(t0: float, t_end: float, dt_out: float) -> np.ndarray:
     return t
 
 
+#: Keywords ``simulate`` took before it shared ``run_stats``' vocabulary (``t_span`` for the
+#: run's length, ``state`` for where it starts); they still work, with a
+#: ``DeprecationWarning``, and go in a later release.
+DEPRECATED_SIMULATE_KEYWORDS = ("t_end", "x0", "v0", "phase1", "phase2")
+
+
+def _deprecated_start(params: OscillatorParams, t_span: float | None,
+                      state: OscillatorState | None, old: dict[str, Any]
+                      ) -> tuple[float, OscillatorState]:
+    """``(t_span, state)`` from the new keywords or the deprecated ones (never both)."""
+    unknown = sorted(set(old) - set(DEPRECATED_SIMULATE_KEYWORDS))
+    if unknown:
+        raise TypeError(f"simulate() got unexpected keyword argument(s) {unknown}")
+    if old:
+        names = ", ".join(sorted(old))
+        warnings.warn(f"simulate(): {names} {'is' if len(old) == 1 else 'are'} deprecated; "
+                      "pass t_span "
+                      "(the run's length) and state=OscillatorState.start(params, x0, v0, "
+                      "phase1=..., phase2=...), as run_stats takes them",
+                      DeprecationWarning, stacklevel=3)
+    if "t_end" in old:
+        if t_span is not None:
+            raise TypeError("simulate() got both t_span and its deprecated name t_end")
+        t_span = old.pop("t_end")
+    if t_span is None:
+        raise TypeError("simulate() missing the run's length: simulate(params, t_span)")
+    if old:
+        if state is not None:
+            raise TypeError(f"simulate() got both state and {', '.join(sorted(old))}; "
+                            "give the start in state alone")
+        state = OscillatorState.start(params, **old)
+    return t_span, state if state is not None else OscillatorState.start(params)
+
+
 def simulate(
     params: OscillatorParams,
-    t_end: float,
+    t_span: float | None = None,
     *,
-    x0: float = 0.0,
-    v0: float = 0.0,
+    state: OscillatorState | None = None,
     dt_out: float = 0.1,
     method: str = "auto",
     rtol: float = 1e-10,
     atol: float = 1e-12,
     dt: float = 0.04,
-    phase1: float = 0.0,
-    phase2: float = 0.0,
     max_event_rate: float = MAX_EVENT_RATE,
+    **deprecated: Any,
 ) -> Trajectory:
-    """Simulate from (x0, v0) at t = 0 to ``t_end`` and record the state every ``dt_out``.
+    """Simulate for ``t_span`` from ``state`` (default: rest at t = 0), recording the state
+    every ``dt_out``.
 
     ``method``: ``"exact"`` (closed form, Coulomb law), ``"event"`` (Taylor-series
     steps in slip, any law; ``rtol``/``atol`` set its accuracy), ``"rk4"`` (the paper's
     fixed-step scheme with step ``dt``; it cannot stick) or ``"auto"`` (exact where it
     applies, event otherwise). ``dt`` is checked (a finite number > 0) whatever the method,
-    though only ``"rk4"`` uses it, so a bad value never passes unseen. Output times are 0,
-    dt_out, 2 dt_out, ... and t_end (appended when off the grid): always at least 0 and
-    t_end.
+    though only ``"rk4"`` uses it, so a bad value never passes unseen. Output times are
+    ``state.t``, then every ``dt_out`` on, and the end ``state.t + t_span`` (appended when
+    off the grid): always at least the start and the end. ``t_span`` and ``state`` mean
+    what they mean in :func:`run_stats`; the older keywords ``t_span``, ``x0``, ``v0``,
+    ``phase1`` and ``phase2`` still work, with a ``DeprecationWarning``.
     """
     _check_params(params)
-    t_end = _positive("t_end", t_end)
+    t_span, state = _deprecated_start(params, t_span, state, deprecated)
+    t_span = _positive("t_span", t_span)
+    if not isinstance(state, OscillatorState):
+        raise TypeError(f"state must be an OscillatorState, got {type(state).__name__}")
+    _check_state(state, params, t_span)
     dt_out = _positive("dt_out", dt_out)
     dt = _positive("dt", dt)  # every method: dt='abc' passed silently unless method='rk4'
     rtol = check_rtol(rtol)
     atol = _positive("atol", atol)
     max_event_rate = _positive("max_event_rate", max_event_rate)
     method = resolve_method(params, method)
-    if t_end / dt_out > MAX_OUTPUTS:
-        raise ValueError(f"dt_out = {dt_out!r} asks for {t_end / dt_out:.3g} output instants up "
-                         f"to t_end = {t_end!r} (at most {MAX_OUTPUTS:g}); use a larger dt_out, "
+    if t_span / dt_out > MAX_OUTPUTS:
+        raise ValueError(f"dt_out = {dt_out!r} asks for {t_span / dt_out:.3g} output instants up "
+                         f"to t_span = {t_span!r} (at most {MAX_OUTPUTS:g}); use a larger dt_out, "
                          "or run_stats, which keeps no trajectory")
-    state = OscillatorState.start(params, x0, v0, phase1=phase1, phase2=phase2)
     P = params.to_array()
     if method != "rk4":  # before the output arrays are allocated
-        check_scan_steps(P[None], np.array([t_end]))
-    out_t = output_times(0.0, t_end, dt_out)
+        check_scan_steps(P[None], np.array([t_span]))
+    out_t = output_times(0.0, t_span, dt_out)
+    if state.t != 0.0:  # the grid counts from the start, as the kernels' time does
+        out_t = state.t + out_t
     n = out_t.shape[0]
     out_x = np.empty(n)
     out_v = np.empty(n)
     out_mode = np.empty(n)
     stats = np.empty(N_STATS)
     if method == "rk4":
-        if t_end / dt > MAX_SCAN_STEPS:
-            raise ValueError(f"dt = {dt!r} needs {t_end / dt:.3g} RK4 steps to reach "
-                             f"t_end = {t_end!r} (at most {MAX_SCAN_STEPS:g})")
+        if t_span / dt > MAX_SCAN_STEPS:
+            raise ValueError(f"dt = {dt!r} needs {t_span / dt:.3g} RK4 steps to reach "
+                             f"t_span = {t_span!r} (at most {MAX_SCAN_STEPS:g})")
         S = state.to_array()
         core.reset_stats(stats)
         # a span under 1e-9 dt would take no step (and fill no output); over (1e-9 dt, dt]
-        # the one step is t_end long either way
-        status = core.run_rk4(P, S, t_end, min(dt, t_end), out_t, stats, out_x, out_v,
+        # the one step is t_span long either way
+        status = core.run_rk4(P, S, t_span, min(dt, t_span), out_t, stats, out_x, out_v,
                               out_mode)
-        _raise_status(status, S[S_T], 0, t_end)
+        _raise_status(status, S[S_T], 0, t_span)
         empty = np.empty(0)
         return Trajectory(params, method, out_t, out_x, out_v, out_mode.astype(np.int8),
                           empty, np.empty(0, np.int8), empty,
                           RunStats.from_array(stats, OscillatorState.from_array(S)))
-    max_events = int(min(max_event_rate * max(t_end, 1.0), 2**62))
+    max_events = int(min(max_event_rate * max(t_span, 1.0), 2**62))
     code = METHOD_EXACT if method == "exact" else METHOD_EVENT
     # A periodic run switches a few times per forcing period; start there, grow if needed.
     w = max(params.omega1, params.omega2, 1.0)
-    capacity = int(min(max_events + 1, 64 + 8 * t_end * w / (2 * math.pi)))
+    capacity = int(min(max_events + 1, 64 + 8 * t_span * w / (2 * math.pi)))
     counts = np.zeros(2, np.int64)
+    record = core.kernels_for(code, P).record  # compiles this method's kernels only
     while True:
         S = state.to_array()
         core.reset_stats(stats)
@@ -411,12 +453,12 @@ def simulate(
         ev_t = np.empty(capacity)
         ev_kind = np.empty(capacity, np.int8)
         ev_x = np.empty(capacity)
-        status = core.record(P, S, out_t, stats, code, rtol, atol, max_events, out_x, out_v,
-                             out_mode, ev_t, ev_kind, ev_x, counts)
+        status = record(P, S, out_t, stats, code, rtol, atol, max_events, out_x, out_v,
+                        out_mode, ev_t, ev_kind, ev_x, counts)
         if status != STATUS_BUFFER_FULL:
             break
         capacity *= 4
-    _raise_status(status, S[S_T], max_events, t_end)
+    _raise_status(status, S[S_T], max_events, t_span)
     k = int(counts[0])
     return Trajectory(params, method, out_t, out_x, out_v, out_mode.astype(np.int8),
                       ev_t[:k].copy(), ev_kind[:k].copy(), ev_x[:k].copy(),
@@ -458,7 +500,8 @@ def run_stats(
     stats = np.empty(N_STATS)
     core.reset_stats(stats)
     code = METHOD_EXACT if method == "exact" else METHOD_EVENT
-    status = core.advance(P, S, t_span, stats, code, check_rtol(rtol),
-                          _positive("atol", atol), max_events)
+    advance = core.kernels_for(code, P).advance  # compiles this method's kernels only
+    status = advance(P, S, t_span, stats, code, check_rtol(rtol), _positive("atol", atol),
+                     max_events)
     _raise_status(status, S[S_T], max_events, t_span)
     return RunStats.from_array(stats, OscillatorState.from_array(S))

@@ -39,7 +39,6 @@ parameters, grid, settings, time spans or measurement code (``ALGORITHM``) is re
 from __future__ import annotations
 
 import json
-import math
 import os
 import time
 import zipfile
@@ -48,62 +47,72 @@ from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-import numba
 import numpy as np
-from numba import njit, prange
 
-from . import core
-from .atomic import fetch_add
+# Cells (settings, plans, the checked parallel run) live in .cells and their kernels in
+# .cell_kernels; their names stay importable from here.
+from .cell_kernels import (  # noqa: F401
+    CELL_KERNELS,
+    _cells_kernel_event,
+    _cells_kernel_exact,
+    _converging,
+    _event_cap,
+    _run_cell_event,
+    _run_cell_exact,
+)
+from .cells import (  # noqa: F401
+    _INT_SETTINGS,
+    _P_COLUMNS,
+    MAX_LOCK_EXTENSIONS,
+    MAX_PERIOD,
+    MAX_SEGMENTS,
+    STATUS_NOT_RUN,
+    CellPlan,
+    SweepSettings,
+    _cell_rows,
+    _check_cells,
+    _check_rows,
+    _count,
+    _Threads,
+    check_n_threads,
+    modulation_period,
+    plan_cells,
+    run_cells,
+)
 from .checks import (
     check_bool,
-    check_bounded_real,
     check_dict,
     check_finite_real,
     check_int,
     check_output_dir,
     check_path,
-    check_rtol,
     got,
     real_array,
 )
 from .layout import (
     METHOD_EVENT,
     METHOD_EXACT,
-    METHODS,
-    N_STATE,
     N_STATS,
-    S_V,
-    S_X,
     ST_DURATION,
     ST_N_REVERSAL,
     ST_N_STICK,
     ST_STICK_TIME,
     ST_V_MAX,
     ST_V_MIN,
-    ST_VR2_INT,
     ST_X_MAX,
     ST_X_MIN,
-    STATUS_OK,
 )
 from .params import (
-    N_PARAMS,
-    P_B1,
-    P_B3,
-    P_LAM,
-    P_U1,
-    P_U2,
     P_W1,
     P_W2,
-    P_XFK,
-    P_XFS,
     PARAM_LIMIT,
     OscillatorParams,
     resolve_law,
 )
-from .regimes import Regime, _strobe_period, classify, exact_rational, rational_denominator
-from .simulate import check_scan_steps
+from .regimes import Regime, classify
 
 if TYPE_CHECKING:
+    import xarray as xr
     from matplotlib.axes import Axes
 
 FORMAT = "fricenv.regime_map"
@@ -124,427 +133,6 @@ NOT_COMPUTED = -1
 STAT_NAMES = ("duration", "stick_time", "n_stick", "n_slip", "n_reversal", "v_max", "v_min",
               "x_max", "x_min", "vr2_int", "n_steps")
 assert len(STAT_NAMES) == N_STATS
-
-
-#: Most stroboscopic samples a cell keeps (two float64 each): ample for any sensible window
-#: (about 40 at eta = 7/3, 1600 at eta = 100), far below what would exhaust memory.
-MAX_SEGMENTS = 1_000_000
-#: Largest tested denominator / candidate period (the map stores both as int16, and a
-#: common period of 1000 forcing periods, sampled n_strobe times, already runs for hours).
-MAX_PERIOD = 1000
-#: Most repeated windows of a slowly locking cell (each is a full window).
-MAX_LOCK_EXTENSIONS = 100
-#: A cell that the kernel never wrote (its outputs start so): not a :mod:`layout` status.
-STATUS_NOT_RUN = -1
-
-#: The integer-valued fields of :class:`SweepSettings` and their largest values: beyond
-#: them the int64 kernels' arguments or the segment counts would overflow.
-_INT_SETTINGS = {"q_max": MAX_PERIOD, "m_max": MAX_PERIOD,
-                 "lock_extensions": MAX_LOCK_EXTENSIONS, "n_strobe": MAX_SEGMENTS}
-
-
-@dataclass(frozen=True)
-class SweepSettings:
-    """How each cell is run and measured (see the module docstring for the formulas).
-
-    ``x0, v0``: initial state, at rest by default (so the block starts slipping backwards
-    relative to the belt). ``method``: ``"auto"`` (closed form for Coulomb, event-driven
-    otherwise), ``"exact"`` or ``"event"``. ``rtol, atol``: tolerances of the event-driven
-    integrator (the closed form ignores them); 1e-6 / 1e-8 gave labels identical to 1e-9 on
-    every cell checked (scripts/bench_sweep.py repeats the check) at half the cost.
-    ``max_event_rate``: events allowed per unit time before a cell is declared UNRESOLVED
-    (chattering); ``q_max, m_max, n_strobe, strobe_tol, lock_extensions``: periodicity test.
-    ``x0, v0`` lie within ``PARAM_LIMIT`` like every parameter; ``q_max`` and ``m_max`` are
-    at most ``MAX_PERIOD``, ``lock_extensions`` at most ``MAX_LOCK_EXTENSIONS`` and
-    ``n_strobe`` at most ``MAX_SEGMENTS``, ``atol`` > 0 and ``strobe_tol`` in (0, 1)
-    (``ValueError`` naming the field).
-    """
-
-    x0: float = 0.0
-    v0: float = 0.0
-    transient_min: float = 100.0
-    transient_periods: float = 1.0
-    transient_efolds: float = 25.0
-    window_min: float = 100.0
-    window_periods: float = 1.0
-    modulation_cap: float = 100.0
-    q_max: int = 4
-    m_max: int = 4
-    lock_extensions: int = 3
-    n_strobe: int = 12
-    strobe_tol: float = 1e-6
-    method: str = "auto"
-    rtol: float = 1e-6
-    atol: float = 1e-8
-    max_event_rate: float = 200.0
-
-    def __post_init__(self) -> None:
-        for f in fields(self):
-            v = getattr(self, f.name)
-            if f.name == "method":
-                if not isinstance(v, str):
-                    raise TypeError(f"method must be 'auto', 'exact' or 'event', {got(v)}")
-                if v not in ("auto", "exact", "event"):
-                    raise ValueError(f"method must be 'auto', 'exact' or 'event', got {v!r}")
-                continue
-            if f.name in _INT_SETTINGS:  # counts: 12.0 is a TypeError, not silently 12
-                n = check_int(f.name, v, 0)
-                if n > _INT_SETTINGS[f.name]:
-                    raise ValueError(f"{f.name} must be an integer <= {_INT_SETTINGS[f.name]}, "
-                                     f"{got(v)}")
-                object.__setattr__(self, f.name, n)
-            elif f.name in ("x0", "v0"):  # a state as large as no parameter may be
-                object.__setattr__(self, f.name, check_bounded_real(f.name, v, PARAM_LIMIT))
-            else:  # TypeError for a non-number, ValueError for NaN or inf
-                object.__setattr__(self, f.name, check_finite_real(f.name, v))
-        check_rtol(self.rtol)
-        for name in ("transient_min", "transient_periods", "transient_efolds",
-                     "window_periods"):
-            if getattr(self, name) < 0:
-                raise ValueError(f"{name} must be >= 0, got {getattr(self, name)!r}")
-        for name in ("window_min", "max_event_rate", "strobe_tol", "modulation_cap", "atol"):
-            if getattr(self, name) <= 0:  # (atol as in run_stats and simulate)
-                raise ValueError(f"{name} must be > 0, got {getattr(self, name)!r}")
-        if self.strobe_tol >= 1.0:  # relative to the orbit's size: any orbit would match
-            raise ValueError(f"strobe_tol must be < 1, got {self.strobe_tol!r}")
-
-    def method_code(self, params: OscillatorParams) -> int:
-        if self.method == "auto":
-            return METHOD_EXACT if params.is_coulomb else METHOD_EVENT
-        if self.method == "exact" and not params.is_coulomb:
-            raise ValueError("method 'exact' needs the Coulomb law (b1 = b3 = 0)")
-        return METHODS[self.method]
-
-
-@dataclass(frozen=True)
-class CellPlan:
-    """Per-nu time spans of a sweep (arrays of the nu grid's length)."""
-
-    nu_exact: np.ndarray  # p/q when rational with small q, else nu
-    q: np.ndarray  # tested denominator, 0 if not tested
-    t_transient: np.ndarray
-    t_segment: np.ndarray  # window = n_segment * t_segment
-    n_segment: np.ndarray
-    tries: np.ndarray  # windows allowed until the response locks (0: no periodicity test)
-
-
-def modulation_period(eta: float, nu: np.ndarray, cap: float) -> np.ndarray:
-    """Slowest time scale of the two-tone forcing, ``2 pi / (eta dist(nu, Z))``.
-
-    The second tone's phase drifts against the nearest harmonic ``n`` of the first one at the
-    rate ``eta |nu - n|``; over that period the forcing's waveform runs through all its
-    shapes (for ``nu < 1/2`` it is the slow tone's period, near ``nu = 1`` the beat period).
-    Integer ``nu`` gives an unmodulated forcing: ``T1 = 2 pi / eta``. Capped at ``cap * T1``.
-    """
-    nu = np.asarray(nu, dtype=float)
-    t1 = 2.0 * math.pi / eta
-    d = np.abs(nu - np.round(nu))
-    with np.errstate(divide="ignore"):
-        t_mod = np.where(d > 1e-12, t1 / np.where(d > 1e-12, d, 1.0), t1)
-    return np.minimum(t_mod, cap * t1)
-
-
-def plan_cells(params: OscillatorParams, nu: np.ndarray, settings: SweepSettings) -> CellPlan:
-    """Transient, window and stroboscopic segments for each nu (module docstring)."""
-    nu = np.asarray(nu, dtype=float)
-    q = np.array([rational_denominator(float(n), settings.q_max) for n in nu], dtype=np.int64)
-    if settings.n_strobe < 2 * max(settings.m_max, 1) + 1:
-        q[:] = 0  # too few samples to test any period: do not pretend
-    nu_exact = np.array([exact_rational(float(n), int(k)) for n, k in zip(nu, q, strict=True)])
-    t1 = 2.0 * math.pi / params.eta
-    t_mod = modulation_period(params.eta, nu_exact, settings.modulation_cap)
-    lam_eff = params.lam - params.b1  # damping of slip near v = V (b1 pumps energy in)
-    decay = settings.transient_efolds * 2.0 / lam_eff if lam_eff > 0 else 0.0
-    t_tr = np.maximum(max(settings.transient_min, decay), settings.transient_periods * t_mod)
-    win = np.maximum(settings.window_min, settings.window_periods * t_mod)
-    tc = q * t1
-    n_seg = np.where(q > 0, np.maximum(np.ceil(win / np.where(q > 0, tc, 1.0) - 1e-9),
-                                        settings.n_strobe), 1)
-    over = ~(n_seg <= MAX_SEGMENTS)  # tested as floats: the int64 cast would wrap (or NaN)
-    if over.any():
-        i = int(np.argmax(over))
-        cause = ("window_min" if settings.window_min >= settings.window_periods * t_mod[i]
-                 else "window_periods")
-        raise ValueError(
-            f"nu = {float(nu[i])!r}: a window of {win[i]:.4g} would keep {_count(n_seg[i])} "
-            f"stroboscopic samples (at most {MAX_SEGMENTS}), one per common forcing period of "
-            f"{tc[i]:.4g}; check eta = {params.eta!r} and the setting {cause} = "
-            f"{getattr(settings, cause)!r}")
-    n_seg = n_seg.astype(np.int64)
-    t_seg = np.where(q > 0, tc, win)
-    tries = np.where(q == 1, 1 + settings.lock_extensions, np.where(q > 0, 1, 0))
-    return CellPlan(nu_exact, q, t_tr, t_seg, n_seg, tries.astype(np.int64))
-
-
-def _count(n: float) -> str:
-    """A float count for a message: whole digits, or 4 significant ones when huge."""
-    return f"{n:.0f}" if n < 1e15 else f"{n:.4g}"
-
-
-@njit(cache=True, error_model="numpy")
-def _event_cap(t_span: float, rate: float) -> int:
-    return int(min(rate * t_span + 1000.0, 2.0e9))
-
-
-@njit(cache=True, error_model="numpy")
-def _run_cell(P: np.ndarray, x0: float, v0: float, t_trans: float, t_seg: float,
-              n_seg: int, tries: int, method: int, rtol: float, atol: float, rate: float,
-              m_max: int, tol: float, stats: np.ndarray) -> tuple[int, int]:
-    """One cell: transient, then a window of ``n_seg`` segments measured into ``stats``.
-
-    ``tries`` = 0: no periodicity test. Otherwise the window is tested and, while no period
-    is found but the strobe mismatch is still shrinking (:func:`_converging`), repeated up
-    to ``tries - 1`` more times, each failed window becoming part of the transient (slowly
-    converging orbits still lock; the stats are the last window's).
-    """
-    S = np.empty(N_STATE)
-    core.initial_state(P, x0, v0, S)
-    core.reset_stats(stats)
-    # One workspace for the whole cell; the maps never read the (v - V)^2 integral. The
-    # transient's stats are dropped, so it skips the extrema too: locating them holds the
-    # closed form to short scan steps (1.4-2.2 times the transient's cost on Coulomb cells).
-    work = core.fresh_workspace(False, False)
-    status = STATUS_OK
-    if t_trans > 0.0:
-        status = core.advance_ws(P, S, t_trans, stats, method, rtol, atol,
-                                 _event_cap(t_trans, rate), work)
-    work[core.W_SKIP_EXTREMA] = 0.0
-    xs = np.empty(n_seg)
-    vs = np.empty(n_seg)
-    period = 0
-    for _ in range(max(tries, 1)):
-        core.reset_stats(stats)
-        k = 0
-        while status == STATUS_OK and k < n_seg:
-            status = core.advance_ws(P, S, t_seg, stats, method, rtol, atol,
-                                     _event_cap(t_seg, rate), work)
-            xs[k] = S[S_X]
-            vs[k] = S[S_V]
-            k += 1
-        if status != STATUS_OK or tries == 0:
-            break
-        period = _strobe_period(xs, vs, m_max, tol)
-        if period > 0 or not _converging(xs, vs, m_max):
-            break
-    stats[ST_VR2_INT] = np.nan  # skipped (the maps never read it): not a measured 0
-    return status, period
-
-
-@njit(cache=True, error_model="numpy")
-def _converging(xs: np.ndarray, vs: np.ndarray, m_max: int) -> bool:
-    """True if, for some candidate period m, the strobe mismatch |z_k - z_{k-m}| shrinks by
-    half or more from the first to the second half of the window: an orbit still
-    converging (worth another window), unlike a quasi-periodic or chaotic one."""
-    n = xs.shape[0]
-    for m in range(1, m_max + 1):
-        if n - m < 4:
-            break
-        half = m + (n - m) // 2
-        r1 = 0.0
-        r2 = 0.0
-        for k in range(m, n):
-            d = max(abs(xs[k] - xs[k - m]), abs(vs[k] - vs[k - m]))
-            if k < half:
-                r1 = max(r1, d)
-            else:
-                r2 = max(r2, d)
-        if r2 < 0.5 * r1:
-            return True
-    return False
-
-
-@njit(parallel=True, cache=True, error_model="numpy")
-def _cells_kernel(P_cells: np.ndarray, t_trans: np.ndarray, t_seg: np.ndarray,
-                  n_seg: np.ndarray, tries: np.ndarray, x0: float, v0: float, method: int,
-                  rtol: float, atol: float, rate: float, m_max: int, tol: float,
-                  out_stats: np.ndarray, out_status: np.ndarray,
-                  out_period: np.ndarray, n_workers: int, next_cell: np.ndarray) -> None:
-    """Run the cells on ``n_workers`` workers (one ``prange`` iteration each).
-
-    Cells differ in cost by orders of magnitude (a stiff or slowly locking cell runs long
-    transients), so rather than take a fixed share, each worker claims the next cell from
-    the counter ``next_cell[0]`` (bumped atomically) as soon as it is free.
-    """
-    n = P_cells.shape[0]
-    next_cell[0] = 0
-    for _ in prange(n_workers):
-        c = fetch_add(next_cell, 0, 1)
-        while c < n:
-            P = P_cells[c].copy()
-            stats = np.empty(N_STATS)
-            st, per = _run_cell(P, x0, v0, t_trans[c], t_seg[c], n_seg[c], tries[c], method,
-                                rtol, atol, rate, m_max, tol, stats)
-            out_stats[c, :] = stats
-            out_status[c] = st
-            out_period[c] = per
-            c = fetch_add(next_cell, 0, 1)
-
-
-def check_n_threads(n: object) -> int:
-    """``n`` as a thread count numba can run, else ``TypeError`` / ``ValueError`` naming it."""
-    n = check_int("n_threads", n)
-    if not 1 <= n <= numba.config.NUMBA_NUM_THREADS:
-        raise ValueError(f"n_threads must be in [1, {numba.config.NUMBA_NUM_THREADS}], got {n}")
-    return n
-
-
-class _Threads:
-    """Temporarily set numba's thread count (None: leave it)."""
-
-    def __init__(self, n: int | None) -> None:
-        self.n = n
-        self.old = None
-
-    def __enter__(self) -> None:
-        if self.n is not None:
-            n = check_n_threads(self.n)
-            self.old = numba.get_num_threads()
-            numba.set_num_threads(n)
-
-    def __exit__(self, *exc: object) -> None:
-        if self.old is not None:
-            numba.set_num_threads(self.old)
-
-
-def _cell_rows(base: np.ndarray, u0: np.ndarray, nu: np.ndarray) -> np.ndarray:
-    """Parameter vectors of map cells: ``base`` with both tones at ``u0[k]`` and the second
-    tone at ``nu[k]`` times the first's frequency."""
-    P = np.repeat(base[None, :], u0.size, axis=0)
-    P[:, P_U1] = u0
-    P[:, P_U2] = u0
-    P[:, P_W2] = nu * P[:, P_W1]
-    return P
-
-
-def _check_cells(P_cells: np.ndarray, t_transient: np.ndarray, t_segment: np.ndarray,
-                 n_segment: np.ndarray, tries: np.ndarray) -> None:
-    """``ValueError`` before a sweep whose cells would run for hours or fill the memory."""
-    n_segment = np.asarray(n_segment)
-    if n_segment.size and n_segment.max() > MAX_SEGMENTS:
-        i = int(np.argmax(n_segment))
-        raise ValueError(
-            f"a cell would keep {n_segment[i]} stroboscopic samples (at most {MAX_SEGMENTS}): "
-            f"its window is that many common forcing periods of {t_segment[i]:.4g} (or "
-            f"n_strobe asks for them); check eta = {P_cells[i, P_W1]:.6g} and the settings "
-            "window_min, window_periods and n_strobe"
-        )
-    longest = np.asarray(t_transient) + np.asarray(t_segment) * n_segment * np.maximum(
-        np.asarray(tries), 1)  # the transient plus every window a cell may be given
-    check_scan_steps(
-        P_cells, np.ascontiguousarray(longest, dtype=np.float64),
-        "a cell's span is its transient (at least transient_efolds * 2 / (lam - b1)) plus "
-        "its windows: check these values and the settings transient_min, transient_efolds "
-        "and window_min")
-
-
-#: What each column of a parameter row is (layout ``params.P_*``), for messages.
-_P_COLUMNS = ("lam", "V", "xfk", "xfs", "b1", "b3", "u1", "u2", "w1 = eta", "w2 = nu * eta")
-assert len(_P_COLUMNS) == N_PARAMS
-
-
-def _check_rows(P: np.ndarray) -> None:
-    """``ValueError`` naming the first entry of ``P`` (rows in layout ``params.P_*``) that
-    :class:`OscillatorParams` would refuse: the kernels would run it to numbers without a
-    word (a NaN row to status 2, lam = -5 or xfs < xfk to made-up statistics)."""
-    big = ~(np.abs(P) <= PARAM_LIMIT)  # NaN and inf too
-    if big.any():
-        i, j = (int(k) for k in np.argwhere(big)[0])
-        raise ValueError(f"P_cells[{i}, {j}] ({_P_COLUMNS[j]}) must be finite and within "
-                         f"+-{PARAM_LIMIT:g} (as every parameter), got {float(P[i, j])!r}")
-    rules = ((P_LAM, P[:, P_LAM] >= 0.0, "must be >= 0"),
-             (P_W1, P[:, P_W1] > 0.0, "must be > 0"),
-             (P_W2, P[:, P_W2] >= 0.0, "must be >= 0"),
-             (P_U1, P[:, P_U1] >= 0.0, "must be >= 0"),
-             (P_U2, P[:, P_U2] >= 0.0, "must be >= 0"),
-             (P_XFK, P[:, P_XFK] >= 0.0, "must be >= 0"),
-             (P_XFS, P[:, P_XFS] >= P[:, P_XFK], "must be >= xfk"))
-    for j, ok, why in rules:
-        if not ok.all():
-            i = int(np.argmin(ok))
-            raise ValueError(f"P_cells[{i}, {j}] ({_P_COLUMNS[j]}) {why}, got "
-                             f"{float(P[i, j])!r}"
-                             + (f" (xfk = {float(P[i, P_XFK])!r})" if j == P_XFS else ""))
-
-
-def run_cells(P_cells: np.ndarray, t_transient: np.ndarray, t_segment: np.ndarray,
-              n_segment: np.ndarray, tries: np.ndarray, settings: SweepSettings,
-              method: int, n_threads: int | None = None
-              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Run independent cells in parallel: returns (stats[n, N_STATS], status[n], period[n]).
-
-    ``P_cells`` holds one parameter vector per row (layout ``params.P_*``), each obeying
-    :class:`OscillatorParams`' rules; ``n_segment`` is at most ``MAX_SEGMENTS`` and ``tries``
-    at most ``1 + MAX_LOCK_EXTENSIONS``. This is the engine under :func:`regime_map`; it is
-    public so that other scans (e.g. amplitude versus eta) reuse the same measured
-    quantities.
-    """
-    if not isinstance(settings, SweepSettings):  # its fields are the kernel's arguments
-        raise TypeError(f"settings must be a fricenv.SweepSettings, {got(settings)}")
-    if check_int("method", method) not in (METHOD_EXACT, METHOD_EVENT):  # not True or 1.0
-        raise ValueError(f"method must be METHOD_EXACT ({METHOD_EXACT}) or METHOD_EVENT "
-                         f"({METHOD_EVENT}), got {method!r}")
-    P_cells = np.ascontiguousarray(real_array(P_cells, "P_cells must be an array of real "
-                                              "numbers"), dtype=np.float64)
-    if P_cells.ndim != 2 or P_cells.shape[1] != N_PARAMS:
-        raise ValueError(f"P_cells must have shape (n, {N_PARAMS}) (a row of params.P_* per "
-                         f"cell), got {P_cells.shape}")
-    _check_rows(P_cells)
-    n = P_cells.shape[0]
-    spans = {}
-    for name, a in (("t_transient", t_transient), ("t_segment", t_segment),
-                    ("n_segment", n_segment), ("tries", tries)):
-        a = real_array(a, f"{name} must be an array of real numbers")
-        if a.shape != (n,):  # the kernel reads one entry per cell, unchecked
-            raise ValueError(f"{name} must have one entry per cell, shape ({n},), got {a.shape}")
-        spans[name] = a
-    bad = ~np.isfinite(spans["t_transient"]) | (spans["t_transient"] < 0)
-    bad |= ~np.isfinite(spans["t_segment"]) | (spans["t_segment"] <= 0)
-    bad |= (spans["n_segment"] < 1) | (spans["tries"] < 0)
-    bad |= (spans["n_segment"] % 1 != 0) | (spans["tries"] % 1 != 0)
-    if bad.any():
-        i = int(np.argmax(bad))
-        raise ValueError(f"cell {i}: need a finite t_transient >= 0, t_segment > 0 and whole "
-                         f"n_segment >= 1, tries >= 0; got {spans['t_transient'][i]!r}, "
-                         f"{spans['t_segment'][i]!r}, {spans['n_segment'][i]!r}, "
-                         f"{spans['tries'][i]!r}")
-    for name, most in (("n_segment", MAX_SEGMENTS), ("tries", 1 + MAX_LOCK_EXTENSIONS)):
-        over = spans[name] > most  # checked as floats: the int64 cast would wrap 1e20
-        if over.any():
-            i = int(np.argmax(over))
-            raise ValueError(f"cell {i}: {name} must be at most {most}, got "
-                             f"{float(spans[name][i])!r}")
-    if method == METHOD_EXACT and n:
-        friction = (P_cells[:, P_B1] != 0.0) | (P_cells[:, P_B3] != 0.0)
-        if friction.any():  # the closed form would silently drop b1, b3
-            i = int(np.argmax(friction))
-            raise ValueError(f"cell {i}: METHOD_EXACT needs the Coulomb law (b1 = b3 = 0), "
-                             f"got b1 = {P_cells[i, P_B1]!r}, b3 = {P_cells[i, P_B3]!r}")
-    t_transient, t_segment = spans["t_transient"], spans["t_segment"]
-    n_segment, tries = spans["n_segment"].astype(np.int64), spans["tries"].astype(np.int64)
-    # A cell the kernel never writes must not read as a result (np.empty once returned
-    # stale memory with status OK): NaN statistics and a status that is not a layout one.
-    out_stats = np.full((n, N_STATS), np.nan)
-    out_status = np.full(n, STATUS_NOT_RUN, dtype=np.int64)
-    out_period = np.zeros(n, dtype=np.int64)
-    if n == 0:
-        return out_stats, out_status, out_period
-    _check_cells(P_cells, t_transient, t_segment, n_segment, tries)
-    with _Threads(n_threads):
-        _cells_kernel(P_cells,
-                      np.ascontiguousarray(t_transient, dtype=np.float64),
-                      np.ascontiguousarray(t_segment, dtype=np.float64),
-                      np.ascontiguousarray(n_segment, dtype=np.int64),
-                      np.ascontiguousarray(tries, dtype=np.int64),
-                      float(settings.x0), float(settings.v0), int(method),
-                      float(settings.rtol), float(settings.atol),
-                      float(settings.max_event_rate), int(settings.m_max),
-                      float(settings.strobe_tol), out_stats, out_status, out_period,
-                      numba.get_num_threads(), np.zeros(1, dtype=np.int64))
-    missed = np.flatnonzero(out_status == STATUS_NOT_RUN)
-    if missed.size:  # an exception inside prange is lost: say so rather than return them
-        raise RuntimeError(f"the cell kernel left {missed.size} cell(s) unrun (first: cell "
-                           f"{int(missed[0])}); this is a bug in fricenv.sweep")
-    return out_stats, out_status, out_period
 
 
 # ------------------------------------------------------------------------------------------
@@ -620,6 +208,13 @@ class RegimeMap:
     def counts(self) -> dict[str, int]:
         """Number of computed cells per regime name."""
         return {r.name: int(np.sum(self.labels == r)) for r in Regime}
+
+    def to_xarray(self) -> xr.Dataset:
+        """This map as an ``xarray.Dataset`` over ``(u0, nu)``, laid out as an atlas
+        (:func:`fricenv.atlas`); needs the ``scale`` extra."""
+        from .atlas.store import regime_map_dataset
+
+        return regime_map_dataset(self)
 
     # -- storage -----------------------------------------------------------------------
     def metadata(self) -> dict:

@@ -153,7 +153,7 @@ def _kernel_stepper(vec, n_actions: int = 512, seed: int = 0,
     from fricenv.envs import kernels as K
 
     actions = _actions(vec, n_actions, seed)
-    kernel = K.step_batch if serial else vec._step_kernel
+    kernel = vec._serial_kernel if serial else vec._step_kernel
 
     def step() -> None:
         kernel(vec._table, vec._cfg, next(actions), vec._obs_pair, vec._res,

@@ -22,6 +22,7 @@ from closed_forms import slip_phase_params  # noqa: E402
 from fricenv.layout import EVENT_STICK  # noqa: E402
 from fricenv.params import PAPER_CASES as PAPER_OVERRIDES  # noqa: E402
 from fricenv.params import OscillatorParams  # noqa: E402
+from fricenv.simulate import OscillatorState  # noqa: E402
 
 pytest.importorskip("scipy")
 from scipy_reference import reference_run, reference_solution  # noqa: E402
@@ -114,7 +115,8 @@ def test_closed_forms_match_scipy_reference(name: str) -> None:
 def test_exact_matches_closed_forms_in_pure_slip(name: str) -> None:
     simulate = _sim()
     p = PURE_SLIP_CASES[name]
-    traj = simulate(p, T_END, x0=PURE_X0, v0=PURE_V0, dt_out=0.1, method="exact")
+    start = OscillatorState.start(p, PURE_X0, PURE_V0)
+    traj = simulate(p, T_END, state=start, dt_out=0.1, method="exact")
     assert traj.n_stick == 0 and len(traj.event_t) == 0 and np.all(traj.mode == -1)
     xc, vc = slip_phase_params(traj.t, p, s=-1, x0=PURE_X0, v0=PURE_V0)
     scale = max(1.0, float(np.abs(xc).max()))
@@ -129,7 +131,8 @@ def test_exact_matches_closed_forms_in_pure_slip(name: str) -> None:
 def test_event_matches_closed_forms_in_pure_slip(name: str) -> None:
     simulate = _sim()
     p = PURE_SLIP_CASES[name]
-    traj = simulate(p, T_END, x0=PURE_X0, v0=PURE_V0, dt_out=0.1, method="event")
+    start = OscillatorState.start(p, PURE_X0, PURE_V0)
+    traj = simulate(p, T_END, state=start, dt_out=0.1, method="event")
     assert traj.n_stick == 0 and len(traj.event_t) == 0
     xc, _ = slip_phase_params(traj.t, p, s=-1, x0=PURE_X0, v0=PURE_V0)
     err = float(np.abs(traj.x - xc).max())
@@ -266,7 +269,8 @@ def test_grazing_contact_is_detected(method: str) -> None:
         if method == "scipy":
             events = reference_run(p, t_end, x0, v0).events
         else:
-            traj = _sim()(p, t_end, x0=x0, v0=v0, dt_out=0.1, method=method)
+            start = OscillatorState.start(p, x0, v0)
+            traj = _sim()(p, t_end, state=start, dt_out=0.1, method=method)
             events = _event_list(traj)
         print(f"\n[grazing/{method}] V = v_max {dv:+.0e}: events {events}, t* = {t_star:.6f}")
         if sticks:
@@ -291,7 +295,8 @@ def test_event_error_follows_tolerance() -> None:
     simulate = _sim()
     p = C("stribeck", eta=0.6, nu=0.1, u0=0.5)
     x0 = p.xfk - p.b1 * p.V + p.b3 * p.V**3
-    ref = simulate(p, T_END, x0=x0, v0=0.0, dt_out=0.1, method="event", rtol=1e-13,
+    start = OscillatorState.start(p, x0, 0.0)
+    ref = simulate(p, T_END, state=start, dt_out=0.1, method="event", rtol=1e-13,
                    atol=1e-15)
     assert ref.n_stick == 0 and len(ref.event_t) == 0 and float(np.max(ref.v)) < p.V
     _, x_sp, *_ = reference_solution(p, T_END, x0=x0, v0=0.0, t_eval=ref.t)
@@ -299,7 +304,7 @@ def test_event_error_follows_tolerance() -> None:
     rtols = (1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10)
     steps, errs = [], []
     for rtol in rtols:
-        tr = simulate(p, T_END, x0=x0, v0=0.0, dt_out=0.1, method="event", rtol=rtol,
+        tr = simulate(p, T_END, state=start, dt_out=0.1, method="event", rtol=rtol,
                       atol=rtol * 1e-2)
         steps.append(tr.n_steps)
         errs.append(float(np.abs(tr.x - ref.x).max()))
@@ -419,10 +424,10 @@ def test_slip_too_stiff_for_the_smallest_step_is_an_error(v0: float) -> None:
 
     p = OscillatorParams.preset("stribeck")
     with pytest.raises(SimulationError, match="stiffer than the smallest step"):
-        simulate(p, 1.0, v0=v0, dt_out=1.0)
+        simulate(p, 1.0, state=OscillatorState.start(p, 0.0, v0), dt_out=1.0)
     with pytest.raises(SimulationError, match="stiffer than the smallest step"):
         run_stats(p, 1.0, state=OscillatorState.start(p, 0.0, v0))
-    tr = simulate(p, 1.0, v0=1e6, dt_out=1.0)
+    tr = simulate(p, 1.0, state=OscillatorState.start(p, 0.0, 1e6), dt_out=1.0)
     s = run_stats(p, 1.0, state=OscillatorState.start(p, 0.0, 1e6))
     assert abs(tr.x[-1] - 3.27025) < 1e-5 and abs(s.state.x - 3.27025) < 1e-5
 

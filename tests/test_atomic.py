@@ -10,7 +10,7 @@ from fricenv.atomic import fetch_add
 
 
 @njit(parallel=True)
-def _claim_all(n, n_workers, counter, hits, gate, claims):
+def _claim_all(n, n_workers, counter, hits, gate, claims, met):
     for w in prange(n_workers):
         # Start together: each worker checks in and waits (boundedly, never hanging the
         # suite) for the others, so the claims below really race.
@@ -18,6 +18,7 @@ def _claim_all(n, n_workers, counter, hits, gate, claims):
         spins = 0
         while fetch_add(gate, 0, 0) < n_workers and spins < 2_000_000_000:
             spins += 1
+        met[w] = fetch_add(gate, 0, 0) >= n_workers
         i = fetch_add(counter, 0, 1)
         while i < n:
             fetch_add(hits, i, 1)  # atomic too, so a doubly claimed index shows as 2
@@ -41,10 +42,16 @@ def test_workers_claim_every_index_exactly_once():
     counter = np.zeros(1, dtype=np.int64)
     hits = np.zeros(n, dtype=np.int64)
     claims = np.zeros(n_workers, dtype=np.int64)
-    _claim_all(n, n_workers, counter, hits, np.zeros(1, dtype=np.int64), claims)
+    met = np.zeros(n_workers, dtype=np.bool_)
+    _claim_all(n, n_workers, counter, hits, np.zeros(1, dtype=np.int64), claims, met)
     assert np.all(hits == 1)
     assert counter[0] == n + n_workers  # each worker's last claim came back empty
-    assert claims.sum() == n and np.count_nonzero(claims) >= 2, claims.tolist()
+    assert claims.sum() == n
+    if not met.all() or np.count_nonzero(claims) < 2:
+        # TBB may run a prange's iterations in turn on one thread, and on a busy machine
+        # one worker may claim everything while the other waits for a CPU: the claims
+        # above are then right but did not race, which no test can force
+        pytest.skip(f"the workers did not race (claims {claims.tolist()})")
 
 
 def test_returns_the_old_value_and_adds():

@@ -28,7 +28,7 @@ def test_console_script_lists_every_command():
         assert name in out
 
 
-@pytest.mark.parametrize("name", sorted(set(COMMANDS) - {"atlas"}))
+@pytest.mark.parametrize("name", sorted(COMMANDS))
 def test_every_command_has_help(capsys, name):
     code, out, _ = run(capsys, name, "--help")
     assert code == 0
@@ -133,3 +133,11 @@ def test_train_and_reproduce_keep_their_options(capsys):
     code, out, _ = run(capsys, "reproduce", "--help")
     assert "usage: fricenv reproduce" in out
     assert "--quick" in out
+
+
+def test_atlas_shares_the_plant_options(capsys, tmp_path):
+    code, _, err = run(capsys, "atlas", "--set", "lam=-1", "--axis", "u0=1,2",
+                       "--out", str(tmp_path / "a.zarr"))
+    assert code == 2
+    assert "lam must be >= 0, got -1.0" in err
+    assert not (tmp_path / "a.zarr").exists()

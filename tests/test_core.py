@@ -101,10 +101,10 @@ def test_simulate_arguments_of_wrong_type_raise_type_error():
     """simulate's own finiteness check was a second mechanism that parsed strings ('1.5'
     ran) and called None a ValueError; it is checks.check_finite_real now."""
     p = OscillatorParams(u0=1.0)
-    with pytest.raises(TypeError, match=r"t_end must be a real number, got '1\.5' \(str\)"):
+    with pytest.raises(TypeError, match=r"t_span must be a real number, got '1\.5' \(str\)"):
         simulate(p, "1.5")
     with pytest.raises(TypeError, match=r"x0 must be a real number, got None \(NoneType\)"):
-        simulate(p, 1.0, x0=None)
+        simulate(p, 1.0, state=OscillatorState.start(p, None))
     with pytest.raises(TypeError, match=r"dt must be a real number, got '0\.1'"):
         simulate(p, 1.0, method="rk4", dt="0.1")
     with pytest.raises(TypeError, match=r"t_span must be a real number, got None"):
@@ -120,8 +120,9 @@ def test_simulate_arguments_of_wrong_type_raise_type_error():
     with pytest.raises(TypeError, match=r"method must be 'auto' or one of .* got \['exact'\]"):
         simulate(p, 1.0, method=["exact"])
     with pytest.raises(ValueError, match=r"x0 must be finite, got inf"):  # values: ValueError
-        simulate(p, 1.0, x0=math.inf)
-    assert simulate(p, np.float32(1.0), x0=np.int64(0)).t[-1] == 1.0  # numpy numbers are
+        simulate(p, 1.0, state=OscillatorState.start(p, math.inf))
+    start = OscillatorState.start(p, np.int64(0))
+    assert simulate(p, np.float32(1.0), state=start).t[-1] == 1.0  # numpy numbers are
 
 
 def test_xfs_below_xfk_rejected():
@@ -146,7 +147,7 @@ def test_separate_tone_amplitudes():
 # -- simulate: input checking ---------------------------------------------------------------
 @pytest.mark.parametrize("t_end", [0.0, -1.0, float("nan"), float("inf")])
 def test_bad_t_end(t_end):
-    with pytest.raises(ValueError, match="t_end"):
+    with pytest.raises(ValueError, match="t_span"):
         simulate(OscillatorParams(), t_end)
 
 
@@ -207,7 +208,7 @@ def test_exact_and_event_agree(case):
 def test_free_oscillation_closed_form():
     """No friction contact (huge V), no forcing: x - xfk is a damped cosine."""
     p = OscillatorParams(V=1e3, lam=0.3)
-    tr = simulate(p, 30.0, x0=1.0, method="exact")
+    tr = simulate(p, 30.0, state=OscillatorState.start(p, 1.0), method="exact")
     lam = p.lam
     om = math.sqrt(1 - lam**2 / 4)
     y0 = 1.0 - p.xfk  # slip below the belt: friction pushes forward, equilibrium x = +xfk
@@ -218,7 +219,7 @@ def test_free_oscillation_closed_form():
 def test_stick_phase_is_exact():
     """From rest on a belt with a weak spring force the block rides: x = V t exactly."""
     p = OscillatorParams(V=0.5)
-    tr = simulate(p, 3.0, v0=0.5, method="exact")
+    tr = simulate(p, 3.0, state=OscillatorState.start(p, 0.0, 0.5), method="exact")
     assert np.all(tr.mode == 0)
     np.testing.assert_array_equal(tr.x, 0.5 * tr.t)
 
@@ -236,7 +237,7 @@ def test_grazing_contact_is_found():
     """A velocity maximum that touches V tangentially must stick, not slip past."""
     p = OscillatorParams(V=1.0, lam=0.0, xfk=0.0, xfs=0.5)
     # Free undamped motion x = -cos t has v = sin t, whose maximum 1 touches V at t = pi/2.
-    tr = simulate(p, 3.0, x0=-1.0, v0=0.0, method="exact")
+    tr = simulate(p, 3.0, state=OscillatorState.start(p, -1.0, 0.0), method="exact")
     assert tr.n_stick == 1
     assert abs(tr.event_t[0] - math.pi / 2) < 1e-6
 
@@ -248,7 +249,7 @@ def test_near_grazing_contact_is_not_missed(method, side):
     amp = 1.0 + 1e-7
     p = OscillatorParams(V=side * 1.0, lam=0.0, xfk=0.0, xfs=0.5)
     # x = -side * amp cos t: v = side * amp sin t reaches V = side at t ~ pi/2
-    tr = simulate(p, 3.0, x0=-side * amp, v0=0.0, method=method)
+    tr = simulate(p, 3.0, state=OscillatorState.start(p, -side * amp, 0.0), method=method)
     assert tr.n_stick == 1
     assert abs(tr.event_t[0] - math.pi / 2) < 1e-3
 
@@ -333,7 +334,7 @@ def test_a_tie_with_the_static_level_and_a_falling_force_sticks(method):
                          xfk=4.692795499016583, xfs=4.692795499016583)
     x0 = -4.733936320711327  # f(0) = x_fs to the last bit; f' = -V + ... < 0
     assert OscillatorState.start(p, x0, p.V).mode == 1  # the start reads |f| > x_fs
-    tr = simulate(p, 10.0, x0=x0, v0=p.V, method=method)
+    tr = simulate(p, 10.0, state=OscillatorState.start(p, x0, p.V), method=method)
     assert tr.event_kind.tolist() == [EVENT_STICK, EVENT_SLIP]
     assert tr.event_t[0] < 1e-15
     assert abs(tr.event_t[1] - 4.892408) < 1e-5  # where |f| reaches x_fs again
@@ -461,7 +462,8 @@ def test_tiny_tolerances_do_not_stall_the_event_method():
 def test_output_grid_of_a_tiny_span_starts_at_zero(method, t_end):
     """For t_end <= 1e-9 dt_out the grid was [t_end] alone: no 0 (against the docstring),
     and the kernels ran a span of 0, returning the start as the state at t_end."""
-    tr = simulate(OscillatorParams(u0=1.0), t_end, x0=0.3, v0=-0.2, method=method)
+    p = OscillatorParams(u0=1.0)
+    tr = simulate(p, t_end, state=OscillatorState.start(p, 0.3, -0.2), method=method)
     assert tr.t.tolist() == [0.0, t_end]
     assert (tr.x[0], tr.v[0]) == (0.3, -0.2)
     assert tr.final_state.t == t_end and tr.stats.duration == t_end
@@ -667,7 +669,7 @@ def test_vr2_quadrature_against_a_fine_trajectory(kw):
     against Simpson's rule on a finely recorded trajectory."""
     p = OscillatorParams.preset("coulomb", **kw)
     dt = math.pi / 6.0
-    tr = simulate(p, 20 * dt, x0=0.3, v0=-0.2, dt_out=dt / 2000)
+    tr = simulate(p, 20 * dt, state=OscillatorState.start(p, 0.3, -0.2), dt_out=dt / 2000)
     P = p.to_array()
     for work in (None, new_workspace(extrema=False)):
         S = np.empty(N_STATE)
@@ -713,7 +715,8 @@ def test_event_vr2_is_exact_on_the_series(law, kw):
     p = OscillatorParams.preset(law, **kw)
     dt = math.pi / 6.0
     n_fine = 2000
-    tr = simulate(p, 20 * dt, x0=0.3, v0=-0.2, dt_out=dt / n_fine, method="event", rtol=1e-12,
+    tr = simulate(p, 20 * dt, state=OscillatorState.start(p, 0.3, -0.2), dt_out=dt / n_fine,
+                  method="event", rtol=1e-12,
                   atol=1e-14)
     P = p.to_array()
     states, all_stats = [], []
@@ -864,3 +867,44 @@ def test_arc_test_never_misses_the_angle(psi0, alpha):
         assert got
     elif to_go > alpha + 1e-6 and to_go < 2 * math.pi - 1e-6 and alpha < 2 * math.pi:
         assert not got
+
+
+def test_simulate_shares_run_stats_vocabulary():
+    """t_span and state mean the same in simulate and run_stats; the old keywords still
+    work, with a DeprecationWarning, and give the same run."""
+    p = OscillatorParams(u0=1.15, nu=0.1)
+    start = OscillatorState.start(p, 0.3, -0.2, phase1=0.5)
+    new = simulate(p, 20.0, state=start)
+    with pytest.warns(DeprecationWarning, match="t_end, v0, x0 are deprecated"):
+        old = simulate(p, t_end=20.0, x0=0.3, v0=-0.2)
+    with pytest.warns(DeprecationWarning, match="phase1"):
+        old_phase = simulate(p, 20.0, x0=0.3, v0=-0.2, phase1=0.5)
+    np.testing.assert_array_equal(old_phase.x, new.x)
+    assert old.t[-1] == new.t[-1] == 20.0
+    s = run_stats(p, 20.0, state=start)  # (recording splits steps at the outputs: rounding)
+    assert s.state.x == pytest.approx(new.final_state.x, abs=1e-12)
+    assert s.state.mode == new.final_state.mode
+    with pytest.raises(TypeError, match="both t_span and its deprecated name t_end"), \
+            pytest.warns(DeprecationWarning, match="t_end is deprecated"):
+        simulate(p, 1.0, t_end=1.0)
+    with pytest.raises(TypeError, match="both state and x0"), pytest.warns(DeprecationWarning):
+        simulate(p, 1.0, state=start, x0=1.0)
+    with pytest.raises(TypeError, match=r"unexpected keyword argument\(s\) \['x1'\]"):
+        simulate(p, 1.0, x1=1.0)
+    with pytest.raises(TypeError, match="missing the run's length"):
+        simulate(p)
+    with pytest.raises(TypeError, match="state must be an OscillatorState"):
+        simulate(p, 1.0, state=(0.0, 0.0))
+
+
+def test_simulate_continues_from_a_state():
+    """A trajectory continued from a run's final state lies on that run's time axis and
+    ends where run_stats over the same span ends."""
+    p = OscillatorParams(u0=1.15, nu=0.1)
+    first = simulate(p, 10.0)
+    second = simulate(p, 5.0, state=first.final_state, dt_out=0.5)
+    assert second.t[0] == first.t[-1] and second.t[-1] == 15.0
+    assert second.x[0] == first.x[-1]
+    end = run_stats(p, 5.0, state=first.final_state).state
+    assert end.t == second.final_state.t
+    assert end.x == pytest.approx(second.final_state.x, abs=1e-12)

@@ -963,7 +963,7 @@ def test_starts_far_out_are_bounded_like_parameters():
         with pytest.raises(ValueError, match=rf"reset option '{key}' must lie within"):
             env.reset(seed=0, options={key: -1e200})
     with pytest.raises(ValueError, match=r"x0 must lie within"):
-        fricenv.simulate(fricenv.OscillatorParams(), 1.0, x0=1e13)
+        fricenv.OscillatorState.start(fricenv.OscillatorParams(), 1e13)
     env.reset(seed=0, options={"x0": 1e12, "v0": -1e12})
     reward, terminated = env.step(env.action_space.sample())[1:3]
     assert -1.6 <= reward <= 0.0 and terminated  # far outside the observation box
@@ -1124,13 +1124,12 @@ def test_ppo_learns_to_quench_self_excited_stick_slip():
 
 def _parallel_and_serial(n, **kw):
     """Two vector envs alike but for their kernel: (parallel, serial)."""
-    from fricenv.envs import kernels
 
     kw = {"scene": "self_excited", "randomize": True, "max_episode_steps": 9, **kw}
     par = gym.make_vec(ENV_ID, num_envs=n, **kw)
     ser = gym.make_vec(ENV_ID, num_envs=n, **kw)
-    par._step_kernel = kernels.step_batch_parallel
-    ser._step_kernel = kernels.step_batch
+    par._step_kernel = par._steppers.step_batch_parallel
+    ser._step_kernel = ser._steppers.step_batch
     par._watch_workers = lambda: None  # compare the kernels: no serial spells
     return par, ser
 
@@ -1198,13 +1197,13 @@ def test_late_workers_send_the_vector_env_serial_for_doubling_stretches(monkeypa
     late, first, probe = vec_mod.LATE_STEPS, vec_mod.SERIAL_STRETCH_MIN, vec_mod.PROBE_STEPS
     n_steps = late + first + probe + 2 * first + probe
     serial_steps = []
-    step_batch = kernels.step_batch  # the reference env keeps its own reference to it
+    step_batch = par._serial_kernel
 
     def counted(*args):
         serial_steps.append(k)
         return step_batch(*args)
 
-    monkeypatch.setattr(kernels, "step_batch", counted)
+    monkeypatch.setattr(par, "_serial_kernel", counted)
     before = numba.get_num_threads()
     try:
         numba.set_num_threads(1)

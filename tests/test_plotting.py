@@ -374,18 +374,18 @@ def test_regime_maps_figure_checks_maps_and_titles() -> None:
     assert len([ax for ax in fig.axes if ax.get_visible()]) == 5 and len(fig.axes) == 6
 
 
-def test_readme_plane_example_draws_its_map(tmp_path, monkeypatch) -> None:
-    """The README's (u0, eta) example (``cell_statistics`` + the regime colours) runs as
+def test_docs_plane_example_draws_its_map(tmp_path, monkeypatch) -> None:
+    """The (u0, eta) example of docs/regimes.md (``cell_statistics`` + the regime colours) runs as
     printed and finds the three regimes its plane holds."""
     import matplotlib
 
     matplotlib.use("Agg")
-    text = (Path(__file__).parents[1] / "README.md").read_text(encoding="utf-8")
-    section = text.split("### Other parameter planes", 1)[1]
+    text = (Path(__file__).parents[1] / "docs" / "regimes.md").read_text(encoding="utf-8")
+    section = text.split("## Other parameter planes", 1)[1]
     code = section.split("```python\n", 1)[1].split("```", 1)[0]
     monkeypatch.chdir(tmp_path)
     ns: dict = {}
-    exec(compile(code, "README.md", "exec"), ns)
+    exec(compile(code, "docs/regimes.md", "exec"), ns)
     assert (tmp_path / "coulomb_u0_eta.png").stat().st_size > 5_000
     assert set(np.unique(ns["labels"]).tolist()) == {Regime.WM1, Regime.WM2, Regime.SSM1}
     assert ns["labels"].shape == ns["stick_fraction"].shape == (60, 60)

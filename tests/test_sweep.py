@@ -472,10 +472,10 @@ def test_run_cells_never_returns_a_cell_its_kernel_did_not_write(monkeypatch) ->
     """Outputs were np.empty: a cell the kernel skipped (an exception inside prange is lost)
     read as whatever the memory held. Now they start as NaN / STATUS_NOT_RUN, and any
     left so is an error."""
-    from fricenv import sweep
+    from fricenv import cells, sweep
     from fricenv.layout import METHOD_EXACT
 
-    monkeypatch.setattr(sweep, "_cells_kernel", lambda *args: None)  # writes nothing
+    monkeypatch.setitem(cells.CELL_KERNELS, METHOD_EXACT, lambda *args: None)  # writes nothing
     P = PARAMS.replace(u0=1.0, nu=0.5).to_array()[None]
     with pytest.raises(RuntimeError, match=r"left 1 cell\(s\) unrun"):
         sweep.run_cells(P, [5.0], [5.0], [1], [0], SweepSettings(), METHOD_EXACT)

@@ -17,6 +17,7 @@ import numpy as np
 
 from fricenv.cli._args import add_plant_arguments, number, out_dir, plant
 from fricenv.layout import METHODS
+from fricenv.simulate import Trajectory
 
 
 def build_parser(prog: str | None = None) -> argparse.ArgumentParser:
@@ -32,7 +33,7 @@ def build_parser(prog: str | None = None) -> argparse.ArgumentParser:
     return p
 
 
-def write_data(tr: object, path: Path, fmt: str) -> Path:
+def write_data(tr: Trajectory, path: Path, fmt: str) -> Path:
     """The trajectory's samples (t, x, v, mode) and events, as npz or CSV (events in a
     second file ``<stem>_events.csv``)."""
     if fmt == "npz":

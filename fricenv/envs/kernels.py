@@ -7,7 +7,7 @@ stats-only path (``core.advance``): an environment step integrates to the next c
 instant and keeps no trajectory.
 
 Kernels that allocate nothing are compiled without numba's reference-counting runtime
-(``_nrt=False``, see ``fricenv.core``): otherwise every per-plant call does atomic count
+(``_nrt=False``, see ``fricenv.jit``): otherwise every per-plant call does atomic count
 updates on the batch arrays, which threads then fight over.
 
 These kernels inline much of ``fricenv.core``; their numba cache is keyed on the whole
@@ -19,11 +19,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit, prange
 
-from fricenv.atomic import fetch_add
 from fricenv.core import (
-    N_WORK,
     W_C1,
     W_C2,
     W_PH1,
@@ -36,11 +33,100 @@ from fricenv.core import (
     initial_state,
     reset_stats,
 )
+
+# The arrays' layouts (declared in .tables; importable from here too).
+from fricenv.envs.tables import (  # noqa: F401
+    C_ACTION_MODE,
+    C_ATOL,
+    C_DNU,
+    C_DT,
+    C_DU,
+    C_EFFORT_NORM,
+    C_G1,
+    C_G2,
+    C_INCREMENTAL,
+    C_MAX_EVENTS,
+    C_METHOD,
+    C_NU_HI,
+    C_NU_LO,
+    C_NU_START,
+    C_RTOL,
+    C_U0_START,
+    C_U_HI,
+    C_U_LO,
+    C_V_LIM,
+    C_W_EFFORT,
+    C_W_STICK,
+    C_W_VEL,
+    C_X_LIM,
+    COUNTER_STRIDE,
+    CT_CURSOR,
+    CT_STATUS,
+    CT_STEPS,
+    D_B1,
+    D_B3,
+    D_ETA,
+    D_LAM,
+    D_PHI1,
+    D_PHI2,
+    D_V,
+    D_V0,
+    D_X0,
+    D_XFK,
+    D_XFS,
+    F_AUTORESET,
+    F_DID_RESET,
+    F_TERMINATED,
+    F_TRUNCATED,
+    I_NU,
+    I_PHI1,
+    I_PHI2,
+    I_U0,
+    I_V0,
+    I_X0,
+    IV_MAX_STEPS,
+    IV_MODE,
+    IV_N_EMPTY,
+    IV_N_LATE,
+    IV_N_RESET,
+    IV_N_WORKERS,
+    N_CFG,
+    N_COUNTERS,
+    N_FLAGS,
+    N_INIT,
+    N_IVARS,
+    N_OBS,
+    N_RES,
+    N_TABLE,
+    O_COS1,
+    O_COS2,
+    O_NU,
+    O_SIN1,
+    O_SIN2,
+    O_STICK,
+    O_U0,
+    O_VR,
+    O_X,
+    OB_FINAL,
+    OB_NOW,
+    R_EFFORT,
+    R_MEAN_VR,
+    R_REWARD,
+    R_STICK,
+    R_TERM,
+    R_VAR,
+    T_CTRL,
+    T_NEW_INIT,
+    T_NEW_P,
+    T_P,
+    T_S,
+    T_STATS,
+    T_WORK,
+)
+from fricenv.jit import kernel
 from fricenv.layout import (
     METHOD_EVENT,
     METHOD_EXACT,
-    N_STATE,
-    N_STATS,
     S_MODE,
     S_PHI1,
     S_PHI2,
@@ -51,57 +137,16 @@ from fricenv.layout import (
     ST_VR2_INT,
     STATUS_NONFINITE,
 )
-from fricenv.params import N_PARAMS, P_B1, P_B3, P_LAM, P_U1, P_U2, P_V, P_W1, P_W2, P_XFK, P_XFS
+from fricenv.params import P_B1, P_B3, P_LAM, P_U1, P_U2, P_V, P_W1, P_W2, P_XFK, P_XFS
+
+# Floor of V^2 in the velocity-fluctuation term (a belt at rest would divide by 0).
+V2_FLOOR = 1e-12
 
 # Action modes (index into scenes.ACTION_MODES).
 MODE_AMPLITUDE, MODE_FREQUENCY, MODE_BOTH = 0, 1, 2
 
-# Layout of the float64 configuration vector shared by all plants of an environment.
-(
-    C_DT,
-    C_ACTION_MODE,
-    C_INCREMENTAL,
-    C_U_LO,
-    C_U_HI,
-    C_NU_LO,
-    C_NU_HI,
-    C_DU,
-    C_DNU,
-    C_G1,
-    C_G2,
-    C_W_STICK,
-    C_W_VEL,
-    C_W_EFFORT,
-    C_EFFORT_NORM,
-    C_X_LIM,
-    C_V_LIM,
-    C_METHOD,
-    C_RTOL,
-    C_ATOL,
-    C_MAX_EVENTS,
-    C_U0_START,
-    C_NU_START,
-) = range(23)
-N_CFG = 23
 METHOD_AUTO = -1
-
-# Per-step results (float64): reward, stick fraction, effort, velocity variance, mean of
-# v - V, terminated. A single env's ``res`` is one such vector; the batch kernels' ``res``
-# is (N_RES, n), a row per result, so the vector env returns each as one contiguous copy.
-R_REWARD, R_STICK, R_EFFORT, R_VAR, R_MEAN_VR, R_TERM = range(6)
-N_RES = 6
-
-# Layout of the per-episode starting vector (mirrors scenes.I_*).
-I_X0, I_V0, I_PHI1, I_PHI2, I_U0, I_NU = range(6)
-N_INIT = 6
-
-# Layout of one episode's uniform draws (mirrors scenes.RANDOMIZABLE + scenes.INITIAL).
-D_LAM, D_ETA, D_V, D_XFK, D_XFS, D_B1, D_B3, D_X0, D_V0, D_PHI1, D_PHI2 = range(11)
 TWO_PI = 2.0 * math.pi
-
-# Observation layout.
-O_X, O_VR, O_STICK, O_COS1, O_SIN1, O_COS2, O_SIN2, O_U0, O_NU = range(9)
-N_OBS = 9
 
 # Status returned when an action is not finite (the core's codes are >= 0).
 STATUS_BAD_ACTION = -1
@@ -109,51 +154,14 @@ STATUS_BAD_ACTION = -1
 # Autoreset modes of the vector kernel.
 AUTORESET_NEXT_STEP, AUTORESET_SAME_STEP, AUTORESET_DISABLED = 0, 1, 2
 
-# Slots of the vector kernel's int64 ``ivars``: two inputs, two counts it writes, the
-# parallel kernel's worker count (set by the caller: numba's ``get_num_threads`` inside the
-# kernel would make it uncacheable) and its count of late workers (see
-# ``step_batch_parallel``). The parallel kernel's work counters, one per pair of workers,
-# follow these N_IVARS slots, COUNTER_STRIDE slots (a cache line) apart.
-IV_MAX_STEPS, IV_MODE, IV_N_RESET, IV_N_EMPTY, IV_N_WORKERS, IV_N_LATE = range(6)
-N_IVARS = 6
-
-# Plants a thread of the parallel kernel claims at a time in the middle of its region:
-# small, so that the threads finish together. Each worker's first claim is a big cell
-# instead (see ``_cells``), because every claim is an atomic add on a counter whose cache
-# line the two threads pass back and forth.
-CHUNK = 8
-COUNTER_STRIDE = 8
-
-# Vector kernels' arrays. The batch is laid out in few arrays, because numba's dispatch and
-# the hand-off to the threads cost per array argument (~1.4 us a call for the fifteen
-# per-plant arrays these merge):
-# * ``table`` (n, N_TABLE) float64, a row per plant: its parameters, state, excitation
-#   (u0, nu), interval stats, next episode's parameter and starting vectors, and core
-#   workspace, in the column ranges below (the kernels take views of them);
-# * ``obs`` (2, n, N_OBS) float32: the current observations and, in same-step autoreset,
-#   the final ones of episodes that ended (OB_NOW, OB_FINAL);
-# * ``flags`` (N_FLAGS, n) bool and ``counters`` (N_COUNTERS, n) int64, a row per quantity.
-T_P = 0
-T_S = T_P + N_PARAMS
-T_CTRL = T_S + N_STATE
-T_STATS = T_CTRL + 2
-T_NEW_P = T_STATS + N_STATS
-T_NEW_INIT = T_NEW_P + N_PARAMS
-T_WORK = T_NEW_INIT + N_INIT
-N_TABLE = T_WORK + N_WORK
-OB_NOW, OB_FINAL = range(2)
-F_TERMINATED, F_TRUNCATED, F_AUTORESET, F_DID_RESET = range(4)
-N_FLAGS = 4
-CT_STEPS, CT_CURSOR, CT_STATUS = range(3)
-N_COUNTERS = 3
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@kernel
 def _clip(v, lo, hi):
     return lo if v < lo else (hi if v > hi else v)
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@kernel
 def actions_finite(a) -> bool:
     for k in range(a.shape[0]):
         if not math.isfinite(a[k]):
@@ -161,7 +169,7 @@ def actions_finite(a) -> bool:
     return True
 
 
-@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+@kernel(inline=True)
 def set_excitation(P, ctrl, cfg) -> None:
     """Write the tone amplitudes and the second tone's frequency from (u0, nu).
 
@@ -173,7 +181,7 @@ def set_excitation(P, ctrl, cfg) -> None:
     P[P_W2] = ctrl[1] * P[P_W1]
 
 
-@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+@kernel(inline=True)
 def apply_action(ctrl, cfg, a) -> None:
     """Map a normalised action in [-1, 1] (clipped) to (u0, nu), absolute or incremental."""
     mode = int(cfg[C_ACTION_MODE])
@@ -194,7 +202,7 @@ def apply_action(ctrl, cfg, a) -> None:
             ctrl[1] = cfg[C_NU_LO] + 0.5 * (ai + 1.0) * (cfg[C_NU_HI] - cfg[C_NU_LO])
 
 
-@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+@kernel(inline=True)
 def _method(P, cfg) -> int:
     m = int(cfg[C_METHOD])
     if m != METHOD_AUTO:
@@ -204,9 +212,10 @@ def _method(P, cfg) -> int:
     return METHOD_EVENT
 
 
-@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
-def control_interval(P, S, ctrl, cfg, a, stats, res, work) -> int:
-    """Apply action ``a``, advance one control interval, fill the reward terms in ``res``.
+@kernel(inline=True)
+def control_interval(advance_ws, P, S, ctrl, cfg, a, stats, res, work) -> int:
+    """Apply action ``a``, advance one control interval by the core's entry kernel
+    ``advance_ws`` (see :mod:`fricenv.envs.steppers`), fill the reward terms in ``res``.
 
     Returns the core's status (non-zero: the interval failed and ``res`` is meaningless).
     """
@@ -229,7 +238,7 @@ def control_interval(P, S, ctrl, cfg, a, stats, res, work) -> int:
         if math.isnan(var):  # the state is finite but its square overflowed
             return STATUS_NONFINITE
         var = 0.0
-    fluct = var / (var + max(V * V, 1e-12))
+    fluct = var / (var + max(V * V, V2_FLOOR))
     effort = (P[P_U1] * P[P_U1] + P[P_U2] * P[P_U2]) * cfg[C_EFFORT_NORM]
     res[R_REWARD] = -(cfg[C_W_STICK] * stick + cfg[C_W_VEL] * fluct + cfg[C_W_EFFORT] * effort)
     res[R_STICK] = stick
@@ -239,7 +248,7 @@ def control_interval(P, S, ctrl, cfg, a, stats, res, work) -> int:
     return 0
 
 
-@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+@kernel(inline=True)
 def _cos_sin(phi, work, key, c, s):
     """cos and sin of ``phi``, from the core's cache when it holds this very angle."""
     if phi == work[key]:
@@ -247,7 +256,7 @@ def _cos_sin(phi, work, key, c, s):
     return math.cos(phi), math.sin(phi)
 
 
-@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+@kernel(inline=True)
 def write_obs(P, S, ctrl, cfg, obs, work) -> bool:
     """Write the float32 observation; True when the state left the observation box.
 
@@ -272,7 +281,7 @@ def write_obs(P, S, ctrl, cfg, obs, work) -> bool:
     return abs(x) > xl or abs(vr) > vl
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@kernel
 def start_episode(P, S, ctrl, cfg, P_new, init, obs, work) -> None:
     """Begin an episode from a sampled parameter vector and starting vector."""
     for k in range(P.shape[0]):
@@ -288,12 +297,12 @@ def start_episode(P, S, ctrl, cfg, P_new, init, obs, work) -> None:
     write_obs(P, S, ctrl, cfg, obs, work)
 
 
-@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+@kernel(inline=True)
 def _scaled(u, bounds, k):
     return bounds[0, k] + (bounds[1, k] - bounds[0, k]) * u[k]
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@kernel
 def episode_from_uniforms(u, bounds, cfg, P_out, init_out) -> None:
     """One episode's parameter and starting vectors from its N_DRAWS uniforms ``u``.
 
@@ -323,273 +332,20 @@ def episode_from_uniforms(u, bounds, cfg, P_out, init_out) -> None:
     init_out[I_NU] = nu
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
-def step_single(P, S, ctrl, cfg, a, stats, obs, res, work) -> int:
+@kernel(inline=True)
+def step_single_with(advance_ws, P, S, ctrl, cfg, a, stats, obs, res, work) -> int:
     """One step of the single environment (one dispatch per step keeps it cheap)."""
     if not actions_finite(a):
         return STATUS_BAD_ACTION
-    status = control_interval(P, S, ctrl, cfg, a, stats, res, work)
+    status = control_interval(advance_ws, P, S, ctrl, cfg, a, stats, res, work)
     if status != 0:
         return status
     res[R_TERM] = 1.0 if write_obs(P, S, ctrl, cfg, obs, work) else 0.0
     return 0
 
 
-@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
-def _plant_rows(table, i):
-    """Plant ``i``'s parameters, state, excitation, stats and workspace: views of its row."""
-    row = table[i]
-    return (row[T_P:T_S], row[T_S:T_CTRL], row[T_CTRL:T_STATS], row[T_STATS:T_NEW_P],
-            row[T_WORK:])
-
-
-@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
-def _plant_step(i, table, cfg, A, obs, res, flags, counters, max_steps, mode) -> int:
-    """Body of the batch step for plant ``i`` (see ``step_batch``).
-
-    Marks in ``flags[F_DID_RESET, i]`` a plant whose next episode must start now; the
-    caller starts it (``_start_next``).
-    """
-    flags[F_DID_RESET, i] = False
-    if mode == AUTORESET_NEXT_STEP and flags[F_AUTORESET, i]:
-        for k in range(res.shape[0]):
-            res[k, i] = 0.0
-        flags[F_TERMINATED, i] = False
-        flags[F_TRUNCATED, i] = False
-        flags[F_AUTORESET, i] = False
-        flags[F_DID_RESET, i] = True
-        return 0
-    Pi, Si, ci, sti, wi = _plant_rows(table, i)
-    status = control_interval(Pi, Si, ci, cfg, A[i], sti, res[:, i], wi)
-    if status != 0:
-        return status
-    term = write_obs(Pi, Si, ci, cfg, obs[OB_NOW, i], wi)
-    res[R_TERM, i] = 1.0 if term else 0.0
-    counters[CT_STEPS, i] += 1
-    trunc = counters[CT_STEPS, i] >= max_steps
-    flags[F_TERMINATED, i] = term
-    flags[F_TRUNCATED, i] = trunc
-    done = term or trunc
-    if mode == AUTORESET_SAME_STEP and done:
-        for k in range(obs.shape[2]):
-            obs[OB_FINAL, i, k] = obs[OB_NOW, i, k]
-        flags[F_DID_RESET, i] = True
-    else:
-        flags[F_AUTORESET, i] = done
-    return 0
-
-
-@njit(cache=True, error_model="numpy", _nrt=False)
-def _start_next(i, table, cfg, obs, counters, draws, bounds):
-    """Start plant ``i``'s next episode from its next buffered row of draws.
-
-    The caller refills a spent buffer before the next call; the modulo only keeps a caller
-    that forgets from reading outside the buffer.
-    """
-    row = counters[CT_CURSOR, i] % draws.shape[1]
-    new_P = table[i, T_NEW_P:T_NEW_INIT]
-    new_init = table[i, T_NEW_INIT:T_WORK]
-    episode_from_uniforms(draws[i, row], bounds, cfg, new_P, new_init)
-    counters[CT_CURSOR, i] += 1
-    Pi, Si, ci, _, wi = _plant_rows(table, i)
-    start_episode(Pi, Si, ci, cfg, new_P, new_init, obs[OB_NOW, i], wi)
-    counters[CT_STEPS, i] = 0
-
-
-@njit(cache=True, error_model="numpy", _nrt=False)
-def first_bad_action(A, autoreset, mode) -> int:
-    """The first plant whose action is not finite, or -1 (a plant that next-step mode
-    resets instead of stepping ignores its action, so it is not checked)."""
-    for i in range(A.shape[0]):
-        if mode == AUTORESET_NEXT_STEP and autoreset[i]:
-            continue
-        if not actions_finite(A[i]):
-            return i
-    return -1
-
-
-@njit(cache=True, error_model="numpy", _nrt=False)
-def _count(flags, counters, n_rows, ivars) -> int:
-    """Write the reset and empty-buffer counts to ``ivars``; return the failure count."""
-    n_failed = 0
-    n_reset = 0
-    n_empty = 0
-    for i in range(flags.shape[1]):
-        if counters[CT_STATUS, i] != 0:
-            n_failed += 1
-        if flags[F_DID_RESET, i]:
-            n_reset += 1
-            if counters[CT_CURSOR, i] >= n_rows:
-                n_empty += 1
-    ivars[IV_N_RESET] = n_reset
-    ivars[IV_N_EMPTY] = n_empty
-    return n_failed
-
-
-@njit(cache=True, error_model="numpy", _nrt=False)
-def _step_range(lo, hi, table, cfg, A, obs, res, flags, counters, draws, bounds, max_steps,
-                mode) -> None:
-    """Step plants ``lo`` to ``hi - 1`` (the body of both batch kernels).
-
-    The per-plant body is inlined here: a call per plant would pass the batch's array
-    structures each time, which measured as much as a sixth of a plant-step.
-    """
-    for i in range(lo, hi):
-        counters[CT_STATUS, i] = _plant_step(i, table, cfg, A, obs, res, flags, counters,
-                                             max_steps, mode)
-        if flags[F_DID_RESET, i]:
-            _start_next(i, table, cfg, obs, counters, draws, bounds)
-
-
-@njit(cache=True, error_model="numpy", _nrt=False)
-def step_batch(table, cfg, A, obs, res, flags, counters, draws, bounds, ivars) -> int:
-    """Step N plants with autoreset in one call.
-
-    The batch's arrays (see "Vector kernels' arrays" above): plant ``table``, ``obs``
-    (current and final observations), ``res``, ``flags``, ``counters``; ``ivars`` =
-    [max_episode_steps, autoreset mode, n_reset, n_empty, n_workers, work counters...].
-    ``F_AUTORESET`` marks a plant whose episode ended on the previous call. NEXT_STEP: such
-    a plant is reset instead of stepped, with reward 0. SAME_STEP: a plant whose episode
-    ends now is reset at once, its last observation saved in ``obs[OB_FINAL]``. DISABLED:
-    the caller resets. A reset starts the episode made of the uniforms ``draws[i, cursor]``
-    (scaled by ``bounds``, built in the plant's next-episode columns) and advances its
-    cursor. ``F_DID_RESET`` marks the plants reset now; the kernel writes their number to
-    ``ivars[2]`` and, in ``ivars[3]``, how many of them used their last buffered row (the
-    caller refills those before the next call). Actions are all checked before any plant
-    moves: a non-finite one returns its plant's index + 1 as a negative number. Otherwise
-    returns the number of plants whose integration failed (their codes are in
-    ``counters[CT_STATUS]``).
-    """
-    mode = ivars[IV_MODE]
-    bad = first_bad_action(A, flags[F_AUTORESET], mode)
-    if bad >= 0:
-        return -(bad + 1)
-    _step_range(0, table.shape[0], table, cfg, A, obs, res, flags, counters, draws, bounds,
-                ivars[IV_MAX_STEPS], mode)
-    return _count(flags, counters, draws.shape[1], ivars)
-
-
-@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
-def _region(worker, n_workers, n):
-    """Plants [lo, hi) of the region that ``worker`` shares with its partner (workers 2r
-    and 2r + 1 share region r; with an odd count the last worker has a region alone), sized
-    by its number of workers so that every worker starts with an equal share."""
-    first = worker - worker % 2
-    return first * n // n_workers, min(first + 2, n_workers) * n // n_workers
-
-
-@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
-def _cells(lo, hi):
-    """How the region [lo, hi) is cut into claimable cells: (big, n_cells).
-
-    The region's middle half (at least two chunks) is cut into chunks of ``CHUNK``
-    plants; the rest forms two big cells of ``big`` plants, the first and the last. A pair
-    of workers on time each claims one big cell first, from its own end, and the two meet
-    in the middle chunks: half the claims of a region all in chunks (the counter's cache
-    line moves between the threads at each claim; 1-6 % of a step in paired rounds). A
-    big cell of a quarter still lets a worker slowed to half its partner's speed end with
-    a third of the region, as a balanced split would. A region too small for that
-    (``big == 0``) is all chunks.
-    """
-    n = hi - lo
-    middle = min(n, CHUNK * max(2, (n + 2 * CHUNK - 1) // (2 * CHUNK)))
-    big = (n - middle) // 2
-    n_chunks = (n - 2 * big + CHUNK - 1) // CHUNK
-    return big, n_chunks + (2 if big > 0 else 0)
-
-
-@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
-def _cell(lo, hi, big, n_cells, done, from_back):
-    """Plants [start, end) of a worker's ``done``-th claim in the region [lo, hi), cut as
-    ``_cells`` says.
-
-    Both ends count cells on one grid, so when the region's counter has handed out its
-    ``n_cells`` claims, a front worker's first a cells and a back worker's first b =
-    n_cells - a never overlap and leave nothing out (a worker on time alone takes both big
-    cells).
-    """
-    k = n_cells - 1 - done if from_back else done
-    if big > 0:
-        if k == 0:
-            return lo, lo + big
-        if k == n_cells - 1:
-            return hi - big, hi
-        k -= 1
-    start = lo + big + k * CHUNK
-    return start, min(hi - big, start + CHUNK)
-
-
-@njit(cache=True, error_model="numpy", parallel=True, _nrt=False)
-def step_batch_parallel(table, cfg, A, obs, res, flags, counters, draws, bounds, ivars) -> int:
-    """``step_batch`` on ``ivars[4]`` workers (one ``prange`` iteration each) that share
-    the plants out as they go.
-
-    Plants differ in cost (a switch interval costs several whole-interval steps), and the
-    host may slow one thread, so a fixed split leaves one thread waiting for the other.
-    Instead the plants are split into one region per pair of workers; in a region, one
-    worker steps cells of plants (``_cells``: a big one, then chunks of ``CHUNK``) from the
-    front and the other from the back, each claiming its next cell from the region's
-    counter in ``ivars`` (bumped atomically), until the region's cells are handed out.
-    Working from opposite ends keeps the two off each other's cache lines of the per-plant
-    rows of ``res``, ``flags`` and ``counters`` (chunks handed out in turn from one end
-    made the kernel slower than the serial one). Without counter slots in ``ivars`` the
-    plants are stepped in order.
-
-    Each plant reads and writes only its own slots, so the result is identical to the
-    serial kernel whatever the worker or thread count and order. Like the other kernels it
-    allocates nothing, so it runs without numba's reference counting (``_nrt=False``),
-    whose atomic updates on the shared batch arrays the threads would otherwise fight over.
-
-    ``ivars[IV_N_LATE]`` counts the workers that found their region (of at least four
-    cells) already handed out: their thread got a CPU only after its partner had done
-    all the work, and the step waited for it at the loop's end. On a machine busy with
-    other processes that wait is a scheduler time slice, and the caller should step
-    serially for a while (the vector env does).
-    """
-    mode = ivars[IV_MODE]
-    bad = first_bad_action(A, flags[F_AUTORESET], mode)
-    if bad >= 0:
-        return -(bad + 1)
-    n = table.shape[0]
-    max_steps = ivars[IV_MAX_STEPS]
-    n_workers = min(max(1, ivars[IV_N_WORKERS]),
-                    2 * ((ivars.shape[0] - N_IVARS) // COUNTER_STRIDE))
-    if n_workers == 0:
-        _step_range(0, n, table, cfg, A, obs, res, flags, counters, draws, bounds, max_steps,
-                    mode)
-        return _count(flags, counters, draws.shape[1], ivars)
-    for r in range((n_workers + 1) // 2):
-        ivars[N_IVARS + r * COUNTER_STRIDE] = 0
-    ivars[IV_N_LATE] = 0
-    for worker in prange(n_workers):
-        lo, hi = _region(worker, n_workers, n)
-        big, n_cells = _cells(lo, hi)
-        counter = N_IVARS + (worker // 2) * COUNTER_STRIDE
-        done = 0
-        while fetch_add(ivars, counter, 1) < n_cells:
-            start, end = _cell(lo, hi, big, n_cells, done, worker % 2 == 1)
-            _step_range(start, end, table, cfg, A, obs, res, flags, counters, draws, bounds,
-                        max_steps, mode)
-            done += 1
-        if done == 0 and n_cells >= 4:  # (a worker alone in its region is never late)
-            fetch_add(ivars, IV_N_LATE, 1)
-    return _count(flags, counters, draws.shape[1], ivars)
-
-
-@njit(cache=True, error_model="numpy", _nrt=False)
-def start_batch(table, cfg, mask, obs, flags, counters) -> None:
-    """Begin episodes for the plants selected by ``mask``, from their next-episode columns."""
-    for i in range(table.shape[0]):
-        if mask[i]:
-            Pi, Si, ci, _, wi = _plant_rows(table, i)
-            start_episode(Pi, Si, ci, cfg, table[i, T_NEW_P:T_NEW_INIT],
-                          table[i, T_NEW_INIT:T_WORK], obs[OB_NOW, i], wi)
-            counters[CT_STEPS, i] = 0
-            flags[F_AUTORESET, i] = False
-
-
-@njit(cache=True, error_model="numpy")
-def sample_interval(P, S, ctrl, cfg, a, stats, t_out, v_out, stick_out) -> int:
+@kernel(inline=True, allocates=True)
+def sample_interval_with(advance, P, S, ctrl, cfg, a, stats, t_out, v_out, stick_out) -> int:
     """The coming interval's velocity at ``len(t_out)`` instants (the renderer's trace and
     ``StickSlipEnv.sample_interval``).
 
@@ -606,7 +362,8 @@ def sample_interval(P, S, ctrl, cfg, a, stats, t_out, v_out, stick_out) -> int:
     t0 = Sc[S_T]
     for k in range(n):
         reset_stats(stats)
-        status = advance(Pc, Sc, h, stats, m, cfg[C_RTOL], cfg[C_ATOL], int(cfg[C_MAX_EVENTS]))
+        status = advance(Pc, Sc, h, stats, m, cfg[C_RTOL], cfg[C_ATOL],
+                         int(cfg[C_MAX_EVENTS]))
         if status != 0:
             return status
         t_out[k] = t0 + (k + 1) * h
@@ -617,3 +374,36 @@ def sample_interval(P, S, ctrl, cfg, a, stats, t_out, v_out, stick_out) -> int:
 
 def empty_cfg() -> np.ndarray:
     return np.zeros(N_CFG)
+
+
+# ----------------------------------------------------------------------------------------
+# Entry kernels taking the core's method at run time (METHOD_AUTO: by the plant's law);
+# they compile every method. fricenv.envs.steppers has one set per method.
+# ----------------------------------------------------------------------------------------
+@kernel
+def step_single(P, S, ctrl, cfg, a, stats, obs, res, work) -> int:
+    """``step_single_with`` by ``core.advance_ws`` (the method from ``cfg``)."""
+    return step_single_with(advance_ws, P, S, ctrl, cfg, a, stats, obs, res, work)
+
+
+@kernel(allocates=True)
+def sample_interval(P, S, ctrl, cfg, a, stats, t_out, v_out, stick_out) -> int:
+    """``sample_interval_with`` by ``core.advance``."""
+    return sample_interval_with(advance, P, S, ctrl, cfg, a, stats, t_out, v_out, stick_out)
+
+
+# The vector environment's kernels live in .batch (which builds on this module); their names
+# stay importable from here, looked up on first use.
+_BATCH_NAMES = frozenset((
+    "CHUNK", "_cell", "_cells", "_count", "_plant_rows", "_plant_step", "_region",
+    "_start_next", "_step_range", "first_bad_action", "start_batch", "step_batch",
+    "step_batch_parallel", "step_batch_parallel_with", "step_batch_with", "step_range_with",
+))
+
+
+def __getattr__(name: str):
+    if name in _BATCH_NAMES:
+        from fricenv.envs import batch
+
+        return getattr(batch, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

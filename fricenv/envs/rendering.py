@@ -13,6 +13,7 @@ import warnings
 import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
+from matplotlib.image import AxesImage
 from matplotlib.patches import FancyArrow, Rectangle
 
 #: Velocity samples drawn per control interval (the trace is sampled on a copy of the state).
@@ -91,7 +92,7 @@ class Painter:
         self.block = Rectangle((0, 0), self.BLOCK_W, self.BLOCK_H, color=_SLIP_COLOR)
         ax.add_patch(self.block)
         (self.spring,) = ax.plot([], [], color="black", lw=1.5)
-        self.force = None
+        self.force: FancyArrow | None = None
         self.label = ax.text(0, 0, "", ha="center", va="center", color="white", fontsize=9)
         self.title = self.fig.text(0.5, 0.95, "", ha="center", va="center", fontsize=10)
         self.belt_label = ax.text(0, 0, "", ha="right", va="center", fontsize=8)
@@ -183,7 +184,7 @@ class Renderer:
         self.trace = Trace(dt)
         self.buf_t, self.buf_v, self.buf_s = self.trace.buf_t, self.trace.buf_v, self.trace.buf_s
         self.painter: Painter | None = None
-        self._window = None
+        self._window: tuple[Figure, AxesImage] | None = None
         self._warned = False  # the headless warning is given once per environment
 
     def __getstate__(self) -> dict:

@@ -4,7 +4,8 @@ one numba call.
 This is the exact plant as a model for planning (``agents.mpc``): each sample copies a
 start plant vector (``fricenv.envs.state``) into its own row and steps it through its
 actions with the environments' own per-interval kernel (``kernels.control_interval``,
-and the actuator of ``fricenv.envs.sensors`` when the env has one), so a sample's rewards
+and the actuator of ``fricenv.envs.sensors`` when the env has one), built on the core
+method its plants need (``fricenv.envs.steppers``), so a sample's rewards
 and stick fractions are bit for bit those the environment would return for the same
 actions from that state. Samples run on numba threads (``prange``: each writes only its
 own rows), so the result is the same for any thread count. The sensors are not modelled:
@@ -21,12 +22,15 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from numba import njit, prange
+from numba import prange
 
 from fricenv.checks import check_bool, check_int, got
+from fricenv.core import advance_event_ws, advance_exact_ws, advance_ws
 from fricenv.envs import kernels as K
 from fricenv.envs.sensors import actuate, no_actuator
 from fricenv.envs.state import N_PLANT, PL_CTRL, PL_P, PL_S, PL_WORK, PlantState
+from fricenv.envs.steppers import steppers_for_plants
+from fricenv.jit import kernel
 from fricenv.layout import N_STATS, S_V, S_X
 from fricenv.params import P_V
 
@@ -38,16 +42,17 @@ MAX_HORIZON = 1 << 16
 STATUS_LEFT_BOX = -2
 
 
-@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+@kernel(inline=True)
 def _left_box(P, S, cfg) -> bool:
     """The env's termination test (``kernels.write_obs``) on the state alone."""
     return abs(S[S_X]) > cfg[K.C_X_LIM] or abs(S[S_V] - P[P_V]) > cfg[K.C_V_LIM]
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
-def _sample(k, plants, cmds, src, cfg, ucfg, act, actuated, A, table, cmd_rows, stats, res,
-            zero, rewards, stick, length, status) -> None:
-    """Roll sample ``k`` out (the body of ``_rollout``; see its parameters)."""
+@kernel(inline=True)
+def _sample_with(advance_ws, k, plants, cmds, src, cfg, ucfg, act, actuated, A, table,
+                 cmd_rows, stats, res, zero, rewards, stick, length, status) -> None:
+    """Roll sample ``k`` out by the core's entry kernel ``advance_ws`` (the body of the
+    rollout kernels; see ``_rollout_with`` for the other parameters)."""
     row = table[k]
     s = src[k]
     for j in range(row.shape[0]):
@@ -68,9 +73,10 @@ def _sample(k, plants, cmds, src, cfg, ucfg, act, actuated, A, table, cmd_rows, 
     for h in range(H):
         if actuated:
             actuate(ctrl, cmd, ucfg, A[k, h], act)
-            code = K.control_interval(P, S, ctrl, cfg, zero, stats[k], res[k], work)
+            code = K.control_interval(advance_ws, P, S, ctrl, cfg, zero, stats[k], res[k], work)
         else:
-            code = K.control_interval(P, S, ctrl, cfg, A[k, h], stats[k], res[k], work)
+            code = K.control_interval(advance_ws, P, S, ctrl, cfg, A[k, h], stats[k], res[k],
+                                      work)
         if code != 0:
             status[k] = code
             length[k] = h
@@ -83,10 +89,31 @@ def _sample(k, plants, cmds, src, cfg, ucfg, act, actuated, A, table, cmd_rows, 
             return
 
 
-@njit(cache=True, error_model="numpy", _nrt=False, parallel=True)
-def _rollout(plants, cmds, src, cfg, ucfg, act, actuated, A, table, cmd_rows, stats, res,
-             zero, rewards, stick, length, status) -> None:
-    """Roll every sample out, in parallel.
+@kernel
+def _sample_exact(k, plants, cmds, src, cfg, ucfg, act, actuated, A, table, cmd_rows, stats,
+                  res, zero, rewards, stick, length, status) -> None:
+    _sample_with(advance_exact_ws, k, plants, cmds, src, cfg, ucfg, act, actuated, A, table,
+                 cmd_rows, stats, res, zero, rewards, stick, length, status)
+
+
+@kernel
+def _sample_event(k, plants, cmds, src, cfg, ucfg, act, actuated, A, table, cmd_rows, stats,
+                  res, zero, rewards, stick, length, status) -> None:
+    _sample_with(advance_event_ws, k, plants, cmds, src, cfg, ucfg, act, actuated, A, table,
+                 cmd_rows, stats, res, zero, rewards, stick, length, status)
+
+
+@kernel
+def _sample_any(k, plants, cmds, src, cfg, ucfg, act, actuated, A, table, cmd_rows, stats,
+                res, zero, rewards, stick, length, status) -> None:
+    _sample_with(advance_ws, k, plants, cmds, src, cfg, ucfg, act, actuated, A, table,
+                 cmd_rows, stats, res, zero, rewards, stick, length, status)
+
+
+@kernel(inline=True)
+def _rollout_with(sample, plants, cmds, src, cfg, ucfg, act, actuated, A, table, cmd_rows,
+                  stats, res, zero, rewards, stick, length, status) -> None:
+    """Roll every sample out with ``sample`` (one of ``_sample_*``), in parallel.
 
     Parameters: ``plants`` (M, N_PLANT) start plant vectors and ``cmds`` (M, 2) their
     actuator commands; ``src`` (K,) int64, the start row of each sample; ``cfg``, the
@@ -99,8 +126,66 @@ def _rollout(plants, cmds, src, cfg, ucfg, act, actuated, A, table, cmd_rows, st
     ``status`` (K,) int64.
     """
     for k in prange(A.shape[0]):
-        _sample(k, plants, cmds, src, cfg, ucfg, act, actuated, A, table, cmd_rows, stats,
-                res, zero, rewards, stick, length, status)
+        sample(k, plants, cmds, src, cfg, ucfg, act, actuated, A, table, cmd_rows, stats, res,
+               zero, rewards, stick, length, status)
+
+
+@kernel(inline=True)
+def _serial_with(sample, plants, cmds, src, cfg, ucfg, act, actuated, A, table, cmd_rows,
+                 stats, res, zero, rewards, stick, length, status) -> None:
+    """``_rollout_with`` on the calling thread (for callers that run plants in threads of
+    their own, and for timing one core)."""
+    for k in range(A.shape[0]):
+        sample(k, plants, cmds, src, cfg, ucfg, act, actuated, A, table, cmd_rows, stats, res,
+               zero, rewards, stick, length, status)
+
+
+@kernel(parallel=True)
+def _rollout_exact(plants, cmds, src, cfg, ucfg, act, actuated, A, table, cmd_rows, stats, res,
+                   zero, rewards, stick, length, status) -> None:
+    _rollout_with(_sample_exact, plants, cmds, src, cfg, ucfg, act, actuated, A, table,
+                  cmd_rows, stats, res, zero, rewards, stick, length, status)
+
+
+@kernel(parallel=True)
+def _rollout_event(plants, cmds, src, cfg, ucfg, act, actuated, A, table, cmd_rows, stats, res,
+                   zero, rewards, stick, length, status) -> None:
+    _rollout_with(_sample_event, plants, cmds, src, cfg, ucfg, act, actuated, A, table,
+                  cmd_rows, stats, res, zero, rewards, stick, length, status)
+
+
+@kernel(parallel=True)
+def _rollout_any(plants, cmds, src, cfg, ucfg, act, actuated, A, table, cmd_rows, stats, res,
+                 zero, rewards, stick, length, status) -> None:
+    _rollout_with(_sample_any, plants, cmds, src, cfg, ucfg, act, actuated, A, table, cmd_rows,
+                  stats, res, zero, rewards, stick, length, status)
+
+
+@kernel
+def _serial_exact(plants, cmds, src, cfg, ucfg, act, actuated, A, table, cmd_rows, stats, res,
+                  zero, rewards, stick, length, status) -> None:
+    _serial_with(_sample_exact, plants, cmds, src, cfg, ucfg, act, actuated, A, table, cmd_rows,
+                 stats, res, zero, rewards, stick, length, status)
+
+
+@kernel
+def _serial_event(plants, cmds, src, cfg, ucfg, act, actuated, A, table, cmd_rows, stats, res,
+                  zero, rewards, stick, length, status) -> None:
+    _serial_with(_sample_event, plants, cmds, src, cfg, ucfg, act, actuated, A, table, cmd_rows,
+                 stats, res, zero, rewards, stick, length, status)
+
+
+@kernel
+def _serial_any(plants, cmds, src, cfg, ucfg, act, actuated, A, table, cmd_rows, stats, res,
+                zero, rewards, stick, length, status) -> None:
+    _serial_with(_sample_any, plants, cmds, src, cfg, ucfg, act, actuated, A, table, cmd_rows,
+                 stats, res, zero, rewards, stick, length, status)
+
+
+#: (parallel, serial) rollout kernels per set of the environments' entry kernels
+#: (``steppers.Steppers.name``): a rollout of Coulomb plants compiles no Taylor code.
+_KERNELS = {"exact": (_rollout_exact, _serial_exact), "event": (_rollout_event, _serial_event),
+            "any": (_rollout_any, _serial_any)}
 
 
 @dataclass(frozen=True)
@@ -187,7 +272,8 @@ class BatchRollout:
                                  f"{src.min()}..{src.max()}")
             src = np.ascontiguousarray(src, dtype=np.int64)
         A = self._actions(actions)
-        run = _rollout if self.parallel else _rollout_serial
+        name = steppers_for_plants(self.cfg[K.C_METHOD], plants[:, PL_P:PL_S]).name
+        run = _KERNELS[name][0 if self.parallel else 1]
         run(plants, cmds, src, self.cfg, self.ucfg, self.act, self.actuated, A, self._table,
             self._cmd, self._stats, self._res, self._zero, self._rewards, self._stick,
             self._length, self._status)
@@ -216,16 +302,6 @@ class BatchRollout:
         if not np.all(np.isfinite(a)):
             raise ValueError("actions must be finite (no NaN or inf)")
         return a
-
-
-@njit(cache=True, error_model="numpy", _nrt=False)
-def _rollout_serial(plants, cmds, src, cfg, ucfg, act, actuated, A, table, cmd_rows, stats,
-                    res, zero, rewards, stick, length, status) -> None:
-    """``_rollout`` on the calling thread (for callers that run plants in threads of
-    their own, and for timing one core)."""
-    for k in range(A.shape[0]):
-        _sample(k, plants, cmds, src, cfg, ucfg, act, actuated, A, table, cmd_rows, stats,
-                res, zero, rewards, stick, length, status)
 
 
 def rollout_batch(env: Any, state: PlantState, actions: np.ndarray,

@@ -91,6 +91,8 @@ class StickSlipSB3VecEnv(VecEnv):
         self._actions = actions
 
     def step_wait(self) -> VecEnvStepReturn:
+        if self._actions is None:
+            raise RuntimeError("step_wait() called before step_async(actions)")
         obs, rewards, terminated, truncated, info = self.venv.step(self._actions)
         dones = terminated | truncated
         res = self.venv._res  # this step's values, also for plants reset just now
@@ -122,7 +124,8 @@ class StickSlipSB3VecEnv(VecEnv):
     def get_images(self) -> Sequence[np.ndarray | None]:
         if self.venv.render_mode != "rgb_array":
             return [None] * self.num_envs
-        return list(self.venv.render())
+        frames = self.venv.render()
+        return [None] * self.num_envs if frames is None else list(frames)
 
     def _plants(self, indices: VecEnvIndices) -> list[int]:
         """The plants ``indices`` names (SB3's forms: None, an int or an iterable), each

@@ -24,6 +24,18 @@ from fricenv.checks import (
     got,
     real_tuple,
 )
+from fricenv.envs.tables import (  # noqa: F401  (the draws' order and starting vector)
+    I_NU,
+    I_PHI1,
+    I_PHI2,
+    I_U0,
+    I_V0,
+    I_X0,
+    INITIAL,
+    N_DRAWS,
+    N_INIT,
+    RANDOMIZABLE,
+)
 from fricenv.params import (
     N_PARAMS,
     P_B1,
@@ -45,22 +57,9 @@ from fricenv.simulate import check_scan_steps
 #: Action modes: which excitation settings the agent drives.
 ACTION_MODES = ("amplitude", "frequency", "both")
 
-#: Plant parameters that may be randomised per episode or overridden by ``reset(options=...)``,
-#: in the fixed order in which their uniform draws are consumed (determinism depends on it).
-RANDOMIZABLE = ("lam", "eta", "V", "xfk", "xfs", "b1", "b3")
-
-#: Starting-state quantities, drawn after the parameters in this order.
-INITIAL = ("x0", "v0", "phi1", "phi2")
-
-#: Number of uniform draws one episode consumes, whatever the options or settings.
-N_DRAWS = len(RANDOMIZABLE) + len(INITIAL)
-
 #: Keys ``reset(options=...)`` accepts: plant parameters, starting state, starting excitation.
 OPTION_KEYS = (*RANDOMIZABLE, *INITIAL, "u0", "nu")
 
-# Layout of the per-episode starting vector (what a reset needs besides the parameters).
-I_X0, I_V0, I_PHI1, I_PHI2, I_U0, I_NU = range(6)
-N_INIT = 6
 
 TWO_PI = 2.0 * math.pi
 

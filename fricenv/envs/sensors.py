@@ -36,10 +36,10 @@ from typing import Any
 
 import numpy as np
 from gymnasium import spaces
-from numba import njit
 
 from fricenv.checks import check_finite_real, check_int, got, items_of
 from fricenv.envs import kernels as K
+from fricenv.jit import kernel
 
 #: Observation channels in the kernels' order (``kernels.O_*``).
 CHANNELS = ("x", "v_rel", "stick", "cos1", "sin1", "cos2", "sin2", "u0", "nu")
@@ -207,7 +207,7 @@ def no_actuator() -> np.ndarray:
 
 
 # -- actuator kernels -----------------------------------------------------------------------
-@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+@kernel(inline=True)
 def _follow(applied, command, alpha, rate, lo, hi):
     """The applied setting after one interval: the lag's step towards ``command``, then the
     rate limit, then the range (an exact ``command`` when neither holds it back)."""
@@ -219,7 +219,7 @@ def _follow(applied, command, alpha, rate, lo, hi):
     return lo if target < lo else (hi if target > hi else target)
 
 
-@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+@kernel(inline=True)
 def actuate(ctrl, cmd, cfg, a, act) -> None:
     """One interval of the actuator for one plant.
 
@@ -235,7 +235,7 @@ def actuate(ctrl, cmd, cfg, a, act) -> None:
                       cfg[K.C_NU_HI])
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@kernel
 def actuate_batch(ctrl, cmd, cfg, A, act, skip) -> None:
     """``actuate`` for every plant ``i`` of ``ctrl`` (n, 2) and ``cmd`` (n, 2) under its
     action ``A[i]``, except where ``skip[i]`` (a plant the vector kernel resets instead of
@@ -364,7 +364,7 @@ def sequence_of_channels(channels: Sequence[int] | None) -> list[str]:
     return list(CHANNELS) if channels is None else [CHANNELS[c] for c in channels]
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@kernel
 def actuate_one(ctrl, cmd, cfg, a, act) -> None:
     """``actuate`` for the single environment's plant (one dispatch per step)."""
     actuate(ctrl, cmd, cfg, a, act)

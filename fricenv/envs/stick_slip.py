@@ -38,6 +38,7 @@ from fricenv.envs.scenes import (
 )
 from fricenv.envs.sensors import InstrumentBank, Instruments, actuate_one
 from fricenv.envs.state import PlantState, check_state, pack, unpack
+from fricenv.envs.steppers import steppers_for, steppers_for_plants
 from fricenv.layout import (
     METHOD_EVENT,
     METHOD_EXACT,
@@ -518,6 +519,10 @@ class StickSlipEnv(gym.Env):
         self._res = np.zeros(K.N_RES)
         self._work = new_workspace(extrema=False)  # core cache kept across control intervals
         self._P_new, self._init = new_episode_arrays()
+        # the entry kernels of the method this episode's plant needs (set at each reset)
+        self._steppers = steppers_for_plants(
+            self._cfg[K.C_METHOD], self.setup.scene.params.to_array(), self.setup.draw_lo,
+            self.setup.draw_hi)
         self._act_shape = self.action_space.shape
         self._needs_reset = True
         self._steps = 0  # since the episode began (part of the plant's state)
@@ -555,7 +560,7 @@ class StickSlipEnv(gym.Env):
             a = self._actuate(a, action)
         if self._renderer is not None:
             self._record_trace(a)
-        status = K.step_single(
+        status = self._steppers.step_single(
             self._P, self._S, self._ctrl, self._cfg, a, self._stats, self._obs, self._res,
             self._work,
         )
@@ -602,6 +607,7 @@ class StickSlipEnv(gym.Env):
         K.start_episode(
             self._P, self._S, self._ctrl, self._cfg, self._P_new, self._init, self._obs, self._work
         )
+        self._fit_steppers()
         self._needs_reset = False
         self._steps = 0
         if self._bank is not None:
@@ -656,6 +662,7 @@ class StickSlipEnv(gym.Env):
                     bank is not None and bank.normals is not None, self.scene.u0_range,
                     self.scene.nu_range)
         unpack(state.plant, self._P, self._S, self._ctrl, self._work)
+        self._fit_steppers()  # (the state's plant may have another damping or law)
         K.write_obs(self._P, self._S, self._ctrl, self._cfg, self._obs, self._work)
         self._steps = state.episode_steps
         if bank is not None:
@@ -669,6 +676,12 @@ class StickSlipEnv(gym.Env):
         return self._observation()
 
     # -- helpers ------------------------------------------------------------------------------
+    def _fit_steppers(self) -> None:
+        """The entry kernels of the episode's plant (see ``steppers_for``)."""
+        # within an episode only u0 and nu change, which leave the method's choice alone
+        law = self._P[P_B1] != 0.0 or self._P[P_B3] != 0.0  # (scalars: a reset stays cheap)
+        self._steppers = steppers_for(self._cfg[K.C_METHOD], self._P[P_LAM], not law, law)
+
     def _observation(self) -> np.ndarray:
         """What the agent observes now: the exact observation, or the sensors' reading."""
         if self._sensing:
@@ -748,8 +761,8 @@ class StickSlipEnv(gym.Env):
     def _sample_into(self, a: np.ndarray, t: np.ndarray, v: np.ndarray,
                      stuck: np.ndarray, ctrl: np.ndarray | None = None) -> int:
         ctrl = self._ctrl if ctrl is None else ctrl
-        return K.sample_interval(self._P, self._S, ctrl, self._cfg, a, self._stats, t, v,
-                                 stuck)
+        return self._steppers.sample_interval(self._P, self._S, ctrl, self._cfg, a,
+                                              self._stats, t, v, stuck)
 
     def _record_trace(self, a: np.ndarray) -> None:
         r = self._renderer

@@ -26,6 +26,7 @@ from fricenv.envs import kernels as K
 from fricenv.envs.scenes import N_DRAWS, N_INIT, Scene
 from fricenv.envs.sensors import InstrumentBank, actuate_batch
 from fricenv.envs.state import N_PLANT, PlantState, check_state, pack, unpack
+from fricenv.envs.steppers import Steppers, steppers_for_plants
 from fricenv.envs.stick_slip import ACTION_DTYPES, EnvSetup, coerce_action, raise_status
 from fricenv.layout import METHOD_EXACT, S_MODE, S_PHI1, S_PHI2, S_T, S_V, S_X
 from fricenv.params import P_U1, P_U2, P_V, P_XFK
@@ -213,8 +214,6 @@ class StickSlipVectorEnv(VectorEnv):
         self._ivars[K.IV_MAX_STEPS] = max_episode_steps
         self._ivars[K.IV_MODE] = _AUTORESET[self._autoreset_mode]
         self._ivars[K.IV_N_WORKERS] = n_workers
-        # Threads pay off from a few dozen plants; both kernels give identical results.
-        self._step_kernel = K.step_batch_parallel if n >= PARALLEL_MIN_ENVS else K.step_batch
         self._late_steps = 0  # parallel steps in a row that waited for a late worker
         self._serial_left = 0  # steps still to run serially
         self._serial_stretch = SERIAL_STRETCH_MIN
@@ -223,6 +222,9 @@ class StickSlipVectorEnv(VectorEnv):
         self._draws = np.zeros((n, DRAW_ROWS, N_DRAWS))
         self._cursor[:] = DRAW_ROWS
         self._bounds = np.stack([self.setup.draw_lo, self.setup.draw_hi])
+        self._use_steppers(steppers_for_plants(self._cfg[K.C_METHOD],
+                                               self.setup.scene.params.to_array(),
+                                               *self._bounds))
         self._rngs: list[np.random.Generator | None] = [None] * n
         self._seeds: list[int | None] = [None] * n  # each generator's seed, as reported
         # Episodes started in the kernel skip EnvSetup.episode's check: it cannot fail
@@ -261,6 +263,22 @@ class StickSlipVectorEnv(VectorEnv):
         if inst.actuating:
             self._act = inst.actuator_params(self.setup.cfg)
             self._zero_actions = np.zeros((n, *self.setup.action_space.shape))
+
+    def _use_steppers(self, steppers: Steppers) -> None:
+        """Step with the entry kernels ``steppers`` (see ``steppers_for_plants``): threads
+        pay off from a few dozen plants; both kernels give identical results."""
+        self._steppers = steppers
+        self._serial_kernel = steppers.step_batch
+        parallel = self.num_envs >= PARALLEL_MIN_ENVS
+        self._step_kernel = steppers.step_batch_parallel if parallel else steppers.step_batch
+
+    def _fit_steppers(self) -> None:
+        """The entry kernels of the plants now in the table (after resets with options, or
+        a restored state) and of the episodes the draws can start."""
+        steppers = steppers_for_plants(self._cfg[K.C_METHOD], self._table[:, K.T_P:K.T_S],
+                                       *self._bounds)
+        if steppers is not self._steppers:
+            self._use_steppers(steppers)
 
     def _bind_views(self) -> None:
         """Make the per-plant arrays the Python side reads: views of the kernels' batch
@@ -397,6 +415,8 @@ class StickSlipVectorEnv(VectorEnv):
         for i, (_, used) in fresh.items():
             self._seeds[i] = used
         K.start_batch(self._table, self._cfg, mask, self._obs_pair, self._flags, self._counters)
+        # options may have given the plants another law or damping than the draws' bounds
+        self._fit_steppers()
         if self._bank is not None:
             for i in idx.tolist():
                 self._bank.seed_noise(i, self._rngs[i])
@@ -458,7 +478,7 @@ class StickSlipVectorEnv(VectorEnv):
         kernel = self._step_kernel
         if self._serial_left:
             self._serial_left -= 1
-            kernel = K.step_batch
+            kernel = self._serial_kernel
         n_failed = kernel(
             self._table,
             self._cfg,
@@ -479,7 +499,7 @@ class StickSlipVectorEnv(VectorEnv):
             i = int(np.flatnonzero(self._status)[0])
             self._failed_plant = i
             raise_status(int(self._status[i]), None, f" {i}")
-        if kernel is K.step_batch_parallel:
+        if kernel is not self._serial_kernel:
             self._watch_workers()
         # (the sensors first: the infos below carry their readings of ended episodes)
         obs = self._obs.copy() if self._bank is None else self._instruments_after_step()
@@ -559,6 +579,7 @@ class StickSlipVectorEnv(VectorEnv):
                     bank is not None and bank.normals is not None, self.scene.u0_range,
                     self.scene.nu_range)
         unpack(state.plant, self._P[i], self._S[i], self._ctrl[i], self._work[i])
+        self._fit_steppers()  # (the state's plant may have another damping or law)
         K.write_obs(self._P[i], self._S[i], self._ctrl[i], self._cfg, self._obs[i],
                     self._work[i])
         self._steps[i] = state.episode_steps
@@ -671,7 +692,7 @@ class StickSlipVectorEnv(VectorEnv):
                 not K.actions_finite(a[i])
             ):
                 continue
-            status = K.sample_interval(
+            status = self._steppers.sample_interval(
                 self._P[i],
                 self._S[i],
                 self._ctrl[i],

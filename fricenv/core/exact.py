@@ -1,0 +1,405 @@
+"""The exact runner (Coulomb law): closed-form slip steps, exact stick.
+
+The runner is a loop over the output grid's intervals, each split into equal scan steps;
+a step is a slip step (``_slip_step``: trial length, v's extremum, contact search,
+statistics) or a stick step (``_stick_step``), and a switch ends it early.
+"""
+
+import math
+
+from ..jit import kernel
+from ..layout import (
+    EVENT_SLIP,
+    S_MODE,
+    S_PHI1,
+    S_PHI2,
+    S_T,
+    S_V,
+    S_X,
+    ST_DURATION,
+    ST_N_STEPS,
+    ST_STICK_TIME,
+    STATUS_NONFINITE,
+    STATUS_OK,
+)
+from .closed_form import (
+    _forcing,
+    _homog,
+    _jerk,
+    _rotate,
+    _rotate_by,
+    _slip_at,
+    _slip_mid_and_end,
+    _slip_start,
+    _slip_with,
+)
+from .constants import _STATUS_NEAR_RESONANCE, COUNT_SLACK, GRID_REL_TOL
+from .contacts import _contact_outcome, _contact_time, _start_slope, _stick_outcome
+from .context import _scan_cap, _setup_context
+from .proofs import _extremum_matters, _one_extremum_at_most
+from .recording import _log_event, _write_output
+from .roots import K_SLIP_H, K_SLIP_V, _extremum_closed, _root_closed
+from .state import _end_call, _note_v, _note_x
+from .stats import _slip_stats, _x_turn_closed
+from .stick import _stick_exit_time, _stick_start, _stick_trial
+from .trig import _renorm, _sincos, _wrap
+from .whole_interval import _whole_interval
+from .workspace import (
+    C_DV,
+    C_DX,
+    C_LAM,
+    C_P2,
+    C_U1,
+    C_U2,
+    C_V,
+    C_VDD_H,
+    C_VDD_P,
+    C_VDDD_H,
+    C_VDDD_P,
+    C_W1,
+    C_W2,
+    C_XFK,
+    T_NEAR_RES,
+    W_C1,
+    W_C2,
+    W_KEY_H,
+    W_KEY_LAM,
+    W_KEY_W1,
+    W_KEY_W2,
+    W_M11,
+    W_M12,
+    W_M21,
+    W_M22,
+    W_MC1,
+    W_MC2,
+    W_MS1,
+    W_MS2,
+    W_PH1,
+    W_PH2,
+    W_R11,
+    W_R12,
+    W_R21,
+    W_R22,
+    W_RC1,
+    W_RC2,
+    W_RS1,
+    W_RS2,
+    W_S1,
+    W_S2,
+    W_SKIP_EXTREMA,
+    W_T_KEY,
+    W_T_KEY2,
+)
+
+
+@kernel(inline=True)
+def _start_phases(S, cx):
+    """The tones' cos/sin at the call's start: from the workspace's cache when the phase
+    angles are those the last call ended on (four libm calls spared), else computed."""
+    ph1 = S[S_PHI1]
+    ph2 = S[S_PHI2]
+    if ph1 == cx[W_PH1]:
+        c1, s1 = cx[W_C1], cx[W_S1]
+    else:
+        c1, s1 = math.cos(ph1), math.sin(ph1)
+    if ph2 == cx[W_PH2]:
+        c2, s2 = cx[W_C2], cx[W_S2]
+    else:
+        c2, s2 = math.cos(ph2), math.sin(ph2)
+    return c1, s1, c2, s2
+
+
+@kernel(inline=True)
+def _run_exact(P, S, t_span, stats, max_events, rec, cx):
+    """Advance S by t_span with the closed-form solver; see ``advance``. Changes nothing
+    and returns _STATUS_NEAR_RESONANCE when a tone is too close to resonance for it.
+
+    ``rec``: a :class:`~fricenv.core.recording.Recording` to fill, or None (stats only).
+    A stats-only call that reads no extrema is first tried as one whole-call step when
+    the scan would split it into several steps, or when it starts stuck (the stick proof
+    is cheaper than a scan step). A slip call the scan covers in one step gains nothing
+    from it: the (v - V)^2 constants a retuned tone needs cost more than that step.
+    Otherwise, or when its proof fails, the scan runs. Kept small and
+    inlined, so a whole-call step never pays the call into the scan's large function.
+    """
+    _setup_context(P, cx)
+    if cx[W_T_KEY + T_NEAR_RES] != 0.0 or cx[W_T_KEY2 + T_NEAR_RES] != 0.0:
+        return _STATUS_NEAR_RESONANCE
+    c1, s1, c2, s2 = _start_phases(S, cx)
+    cap = _scan_cap(P, cx[W_SKIP_EXTREMA] == 1.0)
+    if (rec is None and cx[W_SKIP_EXTREMA] == 1.0 and (t_span > cap or S[S_MODE] == 0.0)
+            and _whole_interval(cx, S, t_span, stats, c1, s1, c2, s2)):
+        return STATUS_OK
+    return _scan_exact(S, t_span, stats, max_events, rec, cx, cap, c1, s1, c2, s2)
+
+
+@kernel(inline=True)
+def _grid(rec, t_span):
+    """The call's output grid: its origin, number of intervals and regular interval
+    length (a stats-only call is one interval, [0, t_span])."""
+    if rec is None:
+        return 0.0, 1, t_span
+    n_int = rec.out_t.shape[0] - 1
+    return rec.out_t[0], n_int, rec.out_t[1] - rec.out_t[0] if n_int > 0 else t_span
+
+
+@kernel(inline=True)
+def _grid_interval(rec, j, n_int, origin, t_stop):
+    """Output interval ``j`` [ta, tb] in the call's time (the last one ends at t_stop)."""
+    ta = rec.out_t[j] - origin if rec is not None else 0.0
+    tb = t_stop if j == n_int - 1 else (rec.out_t[j + 1] - origin if rec is not None
+                                        else t_stop)
+    return ta, tb
+
+
+@kernel(inline=True)
+def _regular_step(cx, dt_reg, cap):
+    """Number and length of the equal scan steps of a regular output interval, and their
+    transition constants (``reg``: the homogeneous transition and the tones' rotation over
+    a step; the half step's are cached in W_M*).
+
+    Each piece is recomputed only when its own key changed (an agent retuning nu
+    invalidates the second tone's rotation, not the rest).
+    """
+    lam = cx[C_LAM]
+    w1 = cx[C_W1]
+    w2 = cx[C_W2]
+    m_reg = max(1, int(math.ceil(dt_reg / cap - COUNT_SLACK)))
+    h_reg = dt_reg / m_reg
+    same_h = cx[W_KEY_H] == h_reg
+    hm = 0.5 * h_reg
+    if not (same_h and cx[W_KEY_LAM] == lam):
+        cx[W_R11], cx[W_R12], cx[W_R21], cx[W_R22] = _homog(h_reg, lam, cx[C_P2])
+        cx[W_M11], cx[W_M12], cx[W_M21], cx[W_M22] = _homog(hm, lam, cx[C_P2])
+        cx[W_KEY_LAM] = lam
+    if not (same_h and cx[W_KEY_W1] == w1):
+        cm, sm = _sincos(w1 * hm)
+        cx[W_MC1], cx[W_MS1] = cm, sm
+        cx[W_RC1], cx[W_RS1] = cm * cm - sm * sm, 2.0 * sm * cm
+        cx[W_KEY_W1] = w1
+    if not (same_h and cx[W_KEY_W2] == w2):
+        cm, sm = _sincos(w2 * hm)
+        cx[W_MC2], cx[W_MS2] = cm, sm
+        cx[W_RC2], cx[W_RS2] = cm * cm - sm * sm, 2.0 * sm * cm
+        cx[W_KEY_W2] = w2
+    cx[W_KEY_H] = h_reg
+    reg = (cx[W_R11], cx[W_R12], cx[W_R21], cx[W_R22])
+    rot = (cx[W_RC1], cx[W_RS1], cx[W_RC2], cx[W_RS2])
+    return m_reg, reg, rot
+
+
+@kernel(inline=True)
+def _closed_acc(cx, mode, x, v, c1, c2):
+    """Slip acceleration of the Coulomb law in direction ``mode`` (0 in stick)."""
+    if mode == 0.0:
+        return 0.0
+    return -cx[C_LAM] * v - x - mode * cx[C_XFK] + cx[C_U1] * c1 + cx[C_U2] * c2
+
+
+@kernel(inline=True)
+def _slip_trial(cx, L, cap, on_grid, reg, rot, sd, h0, d0, j0, vdd, vddd):
+    """Length of a closed-form slip step from the start in ``cx`` (``_slip_start``): L,
+    halved until the step may go to the contact search (``_one_extremum_at_most``).
+
+    ``on_grid``: a regular scan step, whose transition ``reg`` and rotation ``rot`` are
+    cached; off the grid (and once halved) both are computed, with v at the midpoint for
+    the quadrature (else 0: the caller takes it from the cached half step). Returns (L,
+    halved, on_grid, v_mid and the state, its derivatives and the tones' cos/sin at L).
+    """
+    V = cx[C_V]
+    halved = False
+    v_mid = 0.0
+    while True:
+        if on_grid:
+            nc1, ns1, nc2, ns2 = _rotate(cx, rot[0], rot[1], rot[2], rot[3])
+            nc1, ns1 = _renorm(nc1, ns1)
+            nc2, ns2 = _renorm(nc2, ns2)
+            x1, v1, a1, j1 = _slip_with(cx, L, reg[0], reg[1], reg[2], reg[3], nc1, ns1, nc2,
+                                        ns2)
+        else:
+            v_mid, x1, v1, a1, j1, nc1, ns1, nc2, ns2 = _slip_mid_and_end(cx, L)
+        h1 = sd * (v1 - V)
+        d1 = sd * a1
+        if _one_extremum_at_most(h0, d0, h1, d1, sd * j0, sd * j1, L, vdd, vddd, cap):
+            break
+        L *= 0.5
+        halved = True
+        on_grid = False
+    return L, halved, on_grid, v_mid, x1, v1, a1, j1, nc1, ns1, nc2, ns2
+
+
+@kernel(inline=True)
+def _slip_v_extremum(cx, stats, sd, L, v, v1, acc, a1, j0, j1, h0, h1, vdd, c1, s1, c2, s2,
+                     nc1, ns1, nc2, ns2):
+    """v's interior extremum on a slip step where the contact search or the statistics
+    need it: (t_ext, v_ext, h_ext, h'' there), t_ext = -1 if not searched.
+
+    A caller that reads no extrema needs v's extremum only to tell whether and where h
+    first reaches 0: not when h changes sign over the step, as h (one extremum at most)
+    then crosses 0 once, bracketed by the step.
+    """
+    V = cx[C_V]
+    lam = cx[C_LAM]
+    t_ext = -1.0
+    v_ext = 0.0
+    h_ext = 0.0
+    q_ext = 0.0
+    crossing = h0 > 0.0 and h1 < 0.0 and cx[W_SKIP_EXTREMA] == 1.0
+    if acc * a1 < 0.0 and not crossing and _extremum_matters(cx, stats, sd, v, v1, acc, a1, L,
+                                                             V, vdd):
+        # third derivative of v: -lam v'' - v' + g''
+        _, _, gdd0 = _forcing(cx, c1, s1, c2, s2)
+        _, _, gdd1 = _forcing(cx, nc1, ns1, nc2, ns2)
+        t_ext = _extremum_closed(cx, K_SLIP_V, 0.0, L, acc, a1, j0, j1,
+                                 gdd0 - lam * j0 - acc, gdd1 - lam * j1 - a1)
+        _, v_ext, _, j_ext = _slip_at(cx, t_ext)
+        h_ext = sd * (v_ext - V)
+        q_ext = sd * j_ext
+    return t_ext, v_ext, h_ext, q_ext
+
+
+@kernel(inline=True)
+def _slip_step(cx, stats, fresh, L, cap, on_grid, reg, rot, x, v, acc, c1, s1, c2, s2, sd):
+    """One closed-form slip step of at most L from (x, v) in direction ``sd``, tones at
+    (c_i, s_i), up to a contact if one comes first.
+
+    Returns (tau, halved, on_grid, event kind (0: none), mode, x, v, v', tones' cos/sin)
+    at the step's end, tau its length.
+    """
+    V = cx[C_V]
+    _slip_start(cx, x, v, c1, s1, c2, s2, sd)
+    h0 = sd * (v - V)
+    d0 = _start_slope(cx, fresh, h0, sd * acc, x, v)
+    j0 = _jerk(cx, v, acc, s1, s2)
+    r_h = math.sqrt(cx[C_DX] * cx[C_DX] + cx[C_DV] * cx[C_DV])
+    vdd = cx[C_VDD_P] + cx[C_VDD_H] * r_h  # bounds |v''| on the step
+    vddd = cx[C_VDDD_P] + cx[C_VDDD_H] * r_h  # bounds |v'''|
+    L, halved, on_grid, v_mid, x1, v1, a1, j1, nc1, ns1, nc2, ns2 = _slip_trial(
+        cx, L, cap, on_grid, reg, rot, sd, h0, d0, j0, vdd, vddd)
+    h1 = sd * (v1 - V)
+    d1 = sd * a1
+    t_ext, v_ext, h_ext, q_ext = _slip_v_extremum(cx, stats, sd, L, v, v1, acc, a1, j0, j1,
+                                                  h0, h1, vdd, c1, s1, c2, s2, nc1, ns1, nc2,
+                                                  ns2)
+    te = _contact_time(_root_closed, cx, K_SLIP_H, L, h0, d0, sd * j0, h1, d1, sd * j1, t_ext,
+                       h_ext, q_ext)
+    if te >= 0.0:
+        v_mid, xe, _, ae, je, ec1, es1, ec2, es2 = _slip_mid_and_end(cx, te)
+        _slip_stats(_x_turn_closed, cx, stats, te, t_ext, v_ext, v, acc, j0, V, ae, je, xe,
+                    v_mid, V)
+        new_mode, kind = _contact_outcome(cx, stats, xe, ec1, es1, ec2, es2, sd)
+        return (te, halved, False, kind, new_mode, xe, V,
+                _closed_acc(cx, new_mode, xe, V, ec1, ec2), ec1, es1, ec2, es2)
+    if on_grid:
+        mc1, ms1, mc2, ms2 = _rotate(cx, cx[W_MC1], cx[W_MS1], cx[W_MC2], cx[W_MS2])
+        _, v_mid, _, _ = _slip_with(cx, 0.5 * L, cx[W_M11], cx[W_M12], cx[W_M21], cx[W_M22],
+                                    mc1, ms1, mc2, ms2)
+    _slip_stats(_x_turn_closed, cx, stats, L, t_ext, v_ext, v, acc, j0, v1, a1, j1, x1, v_mid,
+                V)
+    # a slip state has sd (v - V) >= 0; v1 may be a few ulps short of V where
+    # _unresolved_return saw no contact
+    v_end = v1 if sd * (v1 - V) >= 0.0 else V
+    return L, halved, on_grid, 0, sd, x1, v_end, a1, nc1, ns1, nc2, ns2
+
+
+@kernel(inline=True)
+def _stick_step(cx, stats, L, cap, on_grid, rot, x, v, acc, c1, s1, c2, s2, mode):
+    """One exact stick step of at most L from x, tones at (c_i, s_i), up to the stick's
+    end if it comes first; returns as ``_slip_step``."""
+    V = cx[C_V]
+    f0, fd0, gdd0 = _stick_start(cx, x, c1, s1, c2, s2)
+    L, halved, on_grid, held, x1, f1, fd1, gdd1, nc1, ns1, nc2, ns2 = _stick_trial(
+        cx, L, cap, on_grid, rot, True, f0, fd0, gdd0)
+    te = -1.0 if held else _stick_exit_time(cx, L, f0, fd0, gdd0, f1, fd1, gdd1)
+    if te >= 0.0:
+        xe = x + V * te
+        stats[ST_STICK_TIME] += te
+        _note_x(stats, xe)
+        _note_v(stats, V)
+        ec1, es1, ec2, es2 = _rotate_by(cx, te)
+        mode = _stick_outcome(cx, stats, xe, ec1, ec2)
+        return (te, halved, False, EVENT_SLIP, mode, xe, V,
+                _closed_acc(cx, mode, xe, V, ec1, ec2), ec1, es1, ec2, es2)
+    stats[ST_STICK_TIME] += L
+    _note_x(stats, x1)
+    _note_v(stats, V)
+    return L, halved, on_grid, 0, mode, x1, v, acc, nc1, ns1, nc2, ns2
+
+
+@kernel
+def _scan_exact(S, t_span, stats, max_events, rec, cx, cap, c1, s1, c2, s2):
+    """The closed-form scan of ``_run_exact``, from its context (``cx``), the scan cap and
+    the tones' cos/sin at the start.
+
+    Steps are aligned with the output grid (``rec.out_t``, or the single interval [t, t +
+    t_span] when ``rec`` is None), each output interval split into equal scan steps whose
+    transition constants are computed once, so recording costs nothing extra.
+    """
+    ph1 = S[S_PHI1]
+    ph2 = S[S_PHI2]
+    w1 = cx[C_W1]
+    w2 = cx[C_W2]
+    # Time runs from 0 inside the call (see _run_event); S[S_T] is only written at the end.
+    t_start = S[S_T]
+    t_stop = t_span
+    origin, n_int, dt_reg = _grid(rec, t_span)
+    m_reg, reg, rot = _regular_step(cx, dt_reg, cap)
+    x = S[S_X]
+    v = S[S_V]
+    mode = S[S_MODE]
+    t = 0.0
+    n_events = 0
+    status = STATUS_OK
+    fresh = True  # the current phase starts on a switching surface (or at the call start)
+    _note_v(stats, v)
+    _note_x(stats, x)
+    _write_output(rec, 0, x, v, mode)
+    acc = _closed_acc(cx, mode, x, v, c1, c2)  # at the step start (slip), carried
+    for j in range(n_int):
+        ta, tb = _grid_interval(rec, j, n_int, origin, t_stop)
+        length = tb - ta
+        if length <= 0.0:
+            continue
+        regular_interval = abs(length - dt_reg) <= GRID_REL_TOL * dt_reg
+        if regular_interval:
+            m = m_reg
+        else:
+            m = max(1, int(math.ceil(length / cap - COUNT_SLACK)))
+        hk = length / m
+        for k in range(1, m + 1):
+            tk = tb if k == m else ta + k * hk
+            on_grid = regular_interval
+            while t < tk:
+                stats[ST_N_STEPS] += 1.0
+                if mode != 0.0:
+                    tau, halved, on_grid, kind, mode, x, v, acc, c1, s1, c2, s2 = _slip_step(
+                        cx, stats, fresh, tk - t, cap, on_grid, reg, rot, x, v, acc, c1, s1,
+                        c2, s2, mode)
+                else:
+                    tau, halved, on_grid, kind, mode, x, v, acc, c1, s1, c2, s2 = _stick_step(
+                        cx, stats, tk - t, cap, on_grid, rot, x, v, acc, c1, s1, c2, s2, mode)
+                ph1 = _wrap(ph1 + w1 * tau)
+                ph2 = _wrap(ph2 + w2 * tau)
+                if kind != 0:
+                    t = t + tau
+                    fresh = True
+                    n_events += 1
+                    status = _log_event(rec, t_start + t, kind, x, n_events, max_events)
+                    if status != STATUS_OK:
+                        break
+                    continue
+                t = t + tau if halved else tk
+                fresh = False
+                if not (math.isfinite(x) and math.isfinite(v)):
+                    status = STATUS_NONFINITE
+                    break
+            if status != STATUS_OK:
+                break
+        if status != STATUS_OK:
+            break
+        if rec is not None:
+            _write_output(rec, j + 1, x, v, mode)
+            rec.counts[1] = j + 2
+    stats[ST_DURATION] += t
+    _end_call(S, cx, t_start + t, x, v, mode, ph1, c1, s1, ph2, c2, s2)
+    return status

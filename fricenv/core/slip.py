@@ -1,0 +1,86 @@
+"""The slip equation for any friction law: acceleration, step inputs, carried phases.
+
+Shared by the Taylor and the Rosenbrock steps of the event method.
+"""
+
+import math
+
+from ..jit import kernel
+from .trig import _renorm, _wrap
+from .workspace import (
+    C_B1,
+    C_B3,
+    C_CE1,
+    C_CE2,
+    C_CP1,
+    C_CP2,
+    C_LAM,
+    C_SE1,
+    C_SE2,
+    C_SP1,
+    C_SP2,
+    C_U1,
+    C_U2,
+    C_V,
+    C_W1,
+    C_W2,
+    C_XFK,
+)
+
+
+# ----------------------------------------------------------------------------------------
+# Event-driven runner: Taylor steps in slip, exact stick
+# ----------------------------------------------------------------------------------------
+@kernel
+def _rhs_acc(cx, sd, x, v, ph1, ph2):
+    """Slip acceleration for any friction law; tone phases given as angles."""
+    return _acc(cx[C_LAM], cx[C_V], sd * cx[C_XFK], cx[C_B1], cx[C_B3], cx[C_U1], cx[C_U2],
+                x, v, ph1, ph2)
+
+@kernel(inline=True)
+def _acc(lam, V, sxfk, b1, b3, u1, u2, x, v, ph1, ph2):
+    """Slip acceleration from scalars; terms a configuration zeroes are skipped."""
+    a = -lam * v - x - sxfk
+    if u1 != 0.0:
+        a += u1 * math.cos(ph1)
+    if u2 != 0.0:
+        a += u2 * math.cos(ph2)
+    if b1 != 0.0 or b3 != 0.0:
+        vr = v - V
+        a += (b1 - b3 * vr * vr) * vr
+    return a
+
+@kernel
+def _set_phases(cx, ph1, ph2):
+    """cos/sin of the tone phases at a slip step's start, from the angles."""
+    cx[C_CP1] = math.cos(ph1)
+    cx[C_SP1] = math.sin(ph1)
+    cx[C_CP2] = math.cos(ph2)
+    cx[C_SP2] = math.sin(ph2)
+
+@kernel(inline=True)
+def _step_inputs(cx, sd):
+    """What a Taylor or Rosenbrock slip step reads from the context, as scalars (kept
+    in registers: the stages then never reload the array)."""
+    return (cx[C_LAM], cx[C_V], sd * cx[C_XFK], cx[C_B1], cx[C_B3], cx[C_U1], cx[C_U2],
+            cx[C_CP1], cx[C_SP1], cx[C_CP2], cx[C_SP2])
+
+@kernel(inline=True)
+def _end_phases(cx, cp1, sp1, cp2, sp2, ce1, se1, ce2, se2):
+    """Tone phases (cos/sin) at a step's end from its start and the rotations (ce_i, se_i);
+    stored in cx[C_CE1..C_SE2] for the next step. Returns the forcing's cosines there."""
+    c_end1 = cp1 * ce1 - sp1 * se1
+    c_end2 = cp2 * ce2 - sp2 * se2
+    cx[C_CE1] = c_end1
+    cx[C_SE1] = sp1 * ce1 + cp1 * se1
+    cx[C_CE2] = c_end2
+    cx[C_SE2] = sp2 * ce2 + cp2 * se2
+    return c_end1, c_end2
+
+@kernel(inline=True)
+def _carry(cx, t, x1, v1, a1, ph1, ph2, h):
+    """Move to the end of an accepted slip step of length h: its (t, x, v, v', phases);
+    the end's tone cos/sin become the next step's start (renormalised)."""
+    cx[C_CP1], cx[C_SP1] = _renorm(cx[C_CE1], cx[C_SE1])
+    cx[C_CP2], cx[C_SP2] = _renorm(cx[C_CE2], cx[C_SE2])
+    return t + h, x1, v1, a1, _wrap(ph1 + cx[C_W1] * h), _wrap(ph2 + cx[C_W2] * h)

@@ -1,0 +1,91 @@
+"""A Coulomb workload compiles only the closed form: no Taylor or Rosenbrock kernel.
+
+Checked in a fresh process with an empty numba cache, where every kernel a workload needs
+is compiled (with a warm cache the callers load whole and compile nothing).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import fricenv
+
+_SCRIPT = """
+import json
+import gymnasium as gym
+import numpy as np
+import fricenv
+from fricenv.core import event, rosenbrock, roots, taylor
+
+p = fricenv.OscillatorParams.preset("coulomb", u0=1.0, nu=0.5)
+fricenv.simulate(p, 2.0, dt_out=0.5)
+fricenv.run_stats(p, 2.0)
+fricenv.cell_statistics([p], transient_min=1.0, window_min=1.0, n_strobe=2)
+env = gym.make("fricenv/StickSlip-v0")
+env.reset(seed=0)
+env.step(env.action_space.sample())
+kernels = {"taylor._taylor_coeffs": taylor._taylor_coeffs, "taylor._taylor_vr2":
+           taylor._taylor_vr2, "taylor._dense_v": taylor._dense_v, "taylor._dense_x":
+           taylor._dense_x, "rosenbrock._ros4_step": rosenbrock._ros4_step,
+           "event._run_event": event._run_event, "roots._bracket_dense": roots._bracket_dense}
+print(json.dumps({name: len(k.signatures) for name, k in kernels.items()}))
+"""
+
+
+def test_a_coulomb_workload_compiles_no_taylor_or_rosenbrock_kernel(tmp_path: Path) -> None:
+    root = str(Path(fricenv.__file__).resolve().parent.parent)
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "cache"),
+           "PYTHONPATH": root + os.pathsep + os.environ.get("PYTHONPATH", "")}
+    out = subprocess.run([sys.executable, "-c", _SCRIPT], capture_output=True, text=True,
+                         env=env, timeout=900)
+    assert out.returncode == 0, out.stderr[-3000:]
+    compiled = json.loads(out.stdout.strip().splitlines()[-1])
+    assert compiled == dict.fromkeys(compiled, 0)
+
+
+def test_the_closed_form_runs_every_plant_damped_past_lam_conditioned() -> None:
+    """steppers_for and always_conditioned rely on it: from LAM_CONDITIONED on, no tone
+    is too close to resonance for the closed form, whatever its frequency."""
+    import numpy as np
+
+    from fricenv.core import LAM_CONDITIONED, closed_form_conditioned
+    from fricenv.params import OscillatorParams
+
+    rng = np.random.default_rng(0)
+    near = 1.0 + np.concatenate([rng.uniform(-2e-3, 2e-3, 400), [0.0, 1e-16, -1e-16]])
+    for lam in (LAM_CONDITIONED, 1.001 * LAM_CONDITIONED, 0.01, 0.5):
+        for w in near:
+            P = OscillatorParams.preset("coulomb", lam=lam, eta=float(w), u0=1.0,
+                                        nu=1.0).to_array()
+            assert closed_form_conditioned(P), (lam, w)
+    # below it, some tone near w = 1 is not
+    P = OscillatorParams.preset("coulomb", lam=1e-4, eta=1.0 + 1e-4, u0=1.0,
+                                nu=1.0).to_array()
+    assert not closed_form_conditioned(P)
+
+
+def test_each_environment_runs_the_narrowest_kernels_for_its_plants() -> None:
+    import gymnasium as gym
+
+    from fricenv.envs import steppers
+
+    def chosen(**kw) -> str:
+        env = gym.make("fricenv/StickSlip-v0", disable_env_checker=True, **kw).unwrapped
+        env.reset(seed=0)
+        return env._steppers.name
+
+    assert chosen() == "exact"  # Coulomb, lambda = 1/2
+    assert chosen(randomize=True) == "exact"  # lambda in [0.4, 0.6]
+    assert chosen(method="event") == "event"
+    assert chosen(params={"b1": 0.1}) == "event"
+    assert chosen(params={"lam": 0.0}) == "any"  # a tone may meet resonance: both methods
+    vec = gym.make_vec("fricenv/StickSlip-v0", num_envs=2,
+                       vectorization_mode="vector_entry_point")
+    vec.reset(seed=0)
+    assert vec.unwrapped._steppers is steppers.EXACT
+    vec.reset(seed=0, options={"b1": 0.1})  # the plants' law changes: so do the kernels
+    assert vec.unwrapped._steppers is not steppers.EXACT
