@@ -113,10 +113,11 @@ def test_benchmark_writes_its_tables_with_a_tiny_randomised_run(tmp_path):
     from agents import train as T
 
     runs = tmp_path / "runs"
-    T.main(["--algo", "ppo", "--scene", "self_excited", "-n", "64", "--seed", "1",
-            "--run-dir", str(runs / "ppo_rand_self_excited_s1"), "--eval-freq", "0",
-            "--eval-episodes", "1", "--no-progress", "-params", "n_envs:2", "n_steps:32",
-            "batch_size:32", "n_epochs:1", "env_kwargs:{randomize: true}"])
+    for group, extra in (("ppo_rand", ["env_kwargs:{randomize: true}"]), ("ppo", [])):
+        T.main(["--algo", "ppo", "--scene", "self_excited", "-n", "64", "--seed", "1",
+                "--run-dir", str(runs / f"{group}_self_excited_s1"), "--eval-freq", "0",
+                "--eval-episodes", "1", "--no-progress", "-params", "n_envs:2",
+                "n_steps:32", "batch_size:32", "n_epochs:1", *extra])
     out = tmp_path / "out"
     table = BM.main(["--runs", str(runs), "--out", str(out), "--scenes", "self_excited",
                      "--seeds", "1", "--episodes", "2", "--grid", "2",
@@ -124,11 +125,12 @@ def test_benchmark_writes_its_tables_with_a_tiny_randomised_run(tmp_path):
     text = table.read_text()
     for needle in ("### Return", "### Stick-time fraction", "MPC (MPPI, exact model)",
                    "held out below", "noise + delay", "PPO, randomised training",
-                   "control_generalisation.png"):
+                   "control_generalisation.png", "PPO / MPC gap", "PPO over training seeds",
+                   "retention, held out (worst side)"):
         assert needle in text, needle
     res = json.loads((out / "control_benchmark.json").read_text())
     assert set(res["scenes"]["self_excited"]) == {"zero", "random", "best_constant",
-                                                  "feedback", "mpc"}
+                                                  "feedback", "mpc", "ppo"}
     gen = res["generalisation"]["self_excited"]
     assert set(gen) == {"in range", "held out below", "held out above", "noise + delay"}
     assert gen["noise + delay"]["mpc"]["label"].endswith("state from the observation)")
