@@ -275,7 +275,7 @@ def generalisation_lines(gen: dict[str, dict[str, dict[str, Entry]]]) -> list[st
                 f"{100 * c:.1f} %" for c in cuts.values())
                 + f" | {100 * held:.0f} % | {100 * noisy:.0f} % |")
     lines += ["", "Retention: a condition's stick cut over the in-range one (held out: the "
-              "worse of the two boxes).",
+              "worse of the two boxes).", "",
               (f"The randomised PPO keeps less than {100 * RETENTION_BAR:.0f} % of its "
                "in-range cut on " + ", ".join(low) + "." if low else
                f"The randomised PPO keeps at least {100 * RETENTION_BAR:.0f} % of its "
@@ -325,6 +325,10 @@ def plot_returns(results: dict[str, dict[str, Entry]], path: Path) -> None:
     plt.close(fig)
 
 
+GEN_SHORT = {"mpc": "MPC", "ppo_rand": "PPO, randomised training",
+             "ppo": "PPO, nominal training"}
+
+
 def plot_generalisation(gen: dict[str, dict[str, dict[str, Entry]]], path: Path) -> None:
     import matplotlib
 
@@ -340,7 +344,7 @@ def plot_generalisation(gen: dict[str, dict[str, dict[str, Entry]]], path: Path)
         for j, key in enumerate(keys):
             cuts = [100 * _cut(conds[c][key], conds[c]["zero"]) for c in CONDITIONS]
             ax.bar(np.arange(len(CONDITIONS)) + j * width, cuts, width,
-                   label=conds[CONDITIONS[0]][key].label.split(" (")[0][:24])
+                   label=GEN_SHORT.get(key, key))
         ax.set_xticks(np.arange(len(CONDITIONS)) + 0.4 - width / 2,
                       [c.replace(" ", "\n", 1) for c in CONDITIONS], fontsize=7)
         ax.set_ylim(min(0.0, ax.get_ylim()[0]), 105)
