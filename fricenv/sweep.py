@@ -42,7 +42,6 @@ import json
 import math
 import os
 import time
-import zipfile
 from collections.abc import Callable, Iterable
 from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
@@ -51,7 +50,7 @@ import numba
 import numpy as np
 from numba import njit, prange
 
-from . import core
+from . import core, mapfile
 from .atomic import fetch_add
 from .checks import (
     check_bool,
@@ -644,38 +643,27 @@ class RegimeMap:
     @classmethod
     def load(cls, path: str | os.PathLike) -> RegimeMap:
         """Read a map written by :meth:`save` (``ValueError`` naming the file if it is not
-        one, is incomplete or inconsistent; ``FileNotFoundError`` if there is none).
-        ``.npz`` is appended if missing, as by :meth:`save`."""
+        one, is damaged, incomplete or inconsistent, with the cause chained; the
+        ``OSError`` of a path that cannot be opened: ``FileNotFoundError`` if there is
+        none). ``.npz`` is appended if missing, as by :meth:`save`."""
         path = _with_npz(check_path("path", path))
+        z = mapfile.read_npz(path)  # (ValueError for a damaged archive, cause chained)
         try:
-            z = np.load(path, allow_pickle=False)
-        except (FileNotFoundError, IsADirectoryError, PermissionError):
-            raise  # a path to fix, not a file to distrust
-        except (ValueError, OSError, zipfile.BadZipFile) as exc:  # not an npz archive
-            raise ValueError(f"{path} is not a fricenv regime map ({exc})") from None
-        if not isinstance(z, np.lib.npyio.NpzFile):
-            raise ValueError(f"{path} is not a fricenv regime map (a single array)")
-        with z:
-            try:
-                meta = json.loads(str(z["meta"][()]))
-            except (KeyError, ValueError) as exc:
-                raise ValueError(f"{path} is not a fricenv regime map (no metadata)") from exc
-            if not isinstance(meta, dict):
-                raise ValueError(f"{path} is not a fricenv regime map (its metadata is a "
-                                 f"{type(meta).__name__}, not a JSON object)")
-            if meta.get("format") != FORMAT or meta.get("version") != FORMAT_VERSION:
-                raise ValueError(f"{path}: unsupported format {meta.get('format')!r} "
-                                 f"version {meta.get('version')!r}")
-            missing = [k for k in _MAP_ARRAYS if k not in z.files]
-            if missing:
-                raise ValueError(f"{path} is not a complete regime map: no {missing}")
-            names = [f"plan_{f.name}" for f in fields(CellPlan)]
-            try:  # (an object array is refused without pickle: ValueError)
-                arrays = {k: z[k] for k in _MAP_ARRAYS}
-                plan = (CellPlan(*(z[n] for n in names)) if all(n in z.files for n in names)
-                        else None)
-            except (ValueError, OSError, zipfile.BadZipFile) as exc:
-                raise ValueError(f"{path}: unreadable regime map arrays ({exc})") from None
+            meta = json.loads(str(z["meta"][()]))
+        except (KeyError, ValueError, RecursionError) as exc:
+            raise mapfile.not_a_map(path, "no metadata") from exc
+        if not isinstance(meta, dict):
+            raise mapfile.not_a_map(path, f"its metadata is a {type(meta).__name__}, not a "
+                                    "JSON object")
+        if meta.get("format") != FORMAT or meta.get("version") != FORMAT_VERSION:
+            raise ValueError(f"{path}: unsupported format {meta.get('format')!r} "
+                             f"version {meta.get('version')!r}")
+        missing = [k for k in _MAP_ARRAYS if k not in z]
+        if missing:
+            raise ValueError(f"{path} is not a complete regime map: no {missing}")
+        names = [f"plan_{f.name}" for f in fields(CellPlan)]
+        arrays = {k: z[k] for k in _MAP_ARRAYS}
+        plan = CellPlan(*(z[n] for n in names)) if all(n in z for n in names) else None
         try:  # written by save, so anything else is a damaged or foreign file
             params = OscillatorParams(**meta["params"])
             settings = SweepSettings(**meta["settings"])
@@ -684,7 +672,7 @@ class RegimeMap:
             _check_map_arrays(arrays, plan)
         except (KeyError, TypeError, ValueError) as exc:
             what = f"no {exc}" if isinstance(exc, KeyError) else str(exc)
-            raise ValueError(f"{path} is not a valid regime map: {what}") from None
+            raise ValueError(f"{path} is not a valid regime map: {what}") from exc
         extra = {k: v for k, v in meta.items()
                  if k not in ("format", "version", "params", "settings", "stats_layout",
                               "algorithm",
@@ -848,9 +836,10 @@ def regime_map(params: OscillatorParams | str, u0: object, nu: object, *,
     is saved at most every ``SAVE_EVERY_S`` seconds, after its last chunk and when the
     sweep stops on an exception (Ctrl-C, a callback's), and a run with the same
     arguments resumes from the file
-    (``resume=False`` starts over; a file made with other arguments raises ``ValueError``;
-    ``.npz`` is appended if missing; a ``path`` that cannot be written is refused before
-    any cell runs). ``n_threads`` sets numba's thread count for the call; ``progress``
+    (``resume=False`` starts over; a file made with other arguments, or damaged, raises
+    ``ValueError``; ``.npz`` is appended if missing; a ``path`` that cannot be written is
+    refused before any cell runs).
+    ``n_threads`` sets numba's thread count for the call; ``progress``
     shows a tqdm bar (default: when there are more than 2000 cells); ``callback(map,
     n_new)`` is called after each chunk is stored. ``meta`` adds free-form JSON-able
     entries under str keys to the metadata.
