@@ -3,6 +3,7 @@
 # First, before any module with compiled kernels: keys their numba cache on the whole
 # package's source (see _numba_cache).
 from . import _numba_cache  # noqa: F401
+from .mapfile import MapInUseError
 from .params import FRICTION_LAWS, OscillatorParams
 from .regimes import Regime, classify, classify_stats, strobe_period
 from .simulate import (
@@ -19,6 +20,7 @@ from .sweep import RegimeMap, SweepSettings, cell_statistics, regime_map
 __all__ = [
     "EVENT_NAMES",
     "FRICTION_LAWS",
+    "MapInUseError",
     "OscillatorParams",
     "OscillatorState",
     "Regime",

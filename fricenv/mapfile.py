@@ -1,4 +1,4 @@
-"""Regime-map files: reading an archive that may be damaged.
+"""Regime-map files: reading an archive that may be damaged, and one writer at a time.
 
 Reading. ``numpy.load`` trusts the archive: a damaged one fails with whatever its parsers
 meet first (``EOFError`` for an empty file, ``BadZipFile``, ``NotImplementedError``,
@@ -8,19 +8,44 @@ against the bytes actually there before it allocates anything, reads the data th
 zip's CRC check, and turns any failure into ``ValueError: <file> is not a fricenv regime
 map (<cause>)`` with the cause chained. A path that cannot be opened (missing, a folder,
 no permission) keeps its own ``OSError``: it is a path to fix, not a file to distrust.
+
+Writing. A sweep holds an exclusive lock on ``<map>.lock`` while it runs, and
+:meth:`RegimeMap.save` takes it for the moment of its write, so a second sweep (or a save
+from another process) on the same map is refused with :class:`MapInUseError` instead of
+silently overwriting the first one's work. The lock is the operating system's
+(``flock``, or ``msvcrt.locking`` on Windows): it dies with the process that holds it, so
+a crash or a kill never leaves a map locked; the lock file is removed on release.
 """
 
 from __future__ import annotations
 
+import contextlib
 import os
+import socket
+import threading
 import zipfile
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
 
+try:
+    import fcntl
+except ImportError:  # Windows
+    fcntl = None
+    import msvcrt
+
 #: Most bytes a member may inflate to per compressed byte: deflate's own limit is 1032.
 #: A larger claim is damage (and would have the reader allocate for it).
 MAX_INFLATION = 1100
+#: Suffix of the lock file next to a map: ``m.npz`` is locked through ``m.npz.lock``.
+LOCK_SUFFIX = ".lock"
+
+
+class MapInUseError(RuntimeError):
+    """Another sweep or save holds the map's writer lock."""
+
+
 class _Damage(ValueError):
     """What :func:`read_npz` found wrong with an archive (its message is the cause)."""
 
@@ -83,3 +108,86 @@ def _read_member(zf: zipfile.ZipFile, info: zipfile.ZipInfo, size: int) -> np.nd
         return flat.reshape(shape[::-1]).transpose()
     return flat.reshape(shape)
 
+
+# -- the writer lock ---------------------------------------------------------------------
+#: Lock files this process holds, by (resolved path, thread), with how many holders nest
+#: in each: a save inside a sweep shares the sweep's lock, another thread's is refused.
+_HELD: dict[tuple[str, int], int] = {}
+
+
+def lock_path(path: Path) -> Path:
+    """The lock file of the map at ``path``."""
+    return path.with_name(path.name + LOCK_SUFFIX)
+
+
+def _key(lock: Path) -> tuple[str, int]:
+    return os.path.join(os.path.realpath(lock.parent), lock.name), threading.get_ident()
+
+
+def _owner(fd: int) -> str:
+    """Who holds the lock, as its holder wrote it ('' if unreadable)."""
+    try:
+        return os.pread(fd, 200, 0).decode("utf-8", "replace").strip()
+    except (OSError, AttributeError):  # (no pread on Windows)
+        return ""
+
+
+def _try_lock(fd: int) -> bool:
+    """Take the exclusive lock on ``fd`` without waiting; False if another holds it."""
+    try:
+        if fcntl is not None:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        else:
+            msvcrt.locking(fd, msvcrt.LK_NBLCK, 1)
+    except (BlockingIOError, PermissionError):
+        return False
+    return True
+
+
+def _acquire(lock: Path, map_path: Path) -> int:
+    """Open and lock ``lock``; :class:`MapInUseError` if another process holds it."""
+    lock.parent.mkdir(parents=True, exist_ok=True)  # (as a save would make it)
+    while True:
+        fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o644)
+        if not _try_lock(fd):
+            owner = _owner(fd)
+            os.close(fd)
+            raise MapInUseError(
+                f"{map_path} is being written by another sweep ({owner or 'another process'}"
+                f", lock {lock.name}); wait for it to finish, or write to another path")
+        # The holder before us may have removed the file between our open and our lock:
+        # then we hold a lock on a file no one else will find. Start again.
+        try:
+            same = os.path.samestat(os.stat(lock), os.fstat(fd))
+        except FileNotFoundError:
+            same = False
+        if same:
+            os.ftruncate(fd, 0)
+            os.write(fd, f"process {os.getpid()} on {socket.gethostname()}\n".encode())
+            return fd
+        os.close(fd)
+
+
+@contextlib.contextmanager
+def writer_lock(path: Path) -> Iterator[None]:
+    """Hold the writer lock of the map at ``path`` for the ``with`` block (at once, or
+    :class:`MapInUseError`). Nested holders in this process share the one lock."""
+    lock = lock_path(path)
+    key = _key(lock)
+    if key in _HELD:
+        _HELD[key] += 1
+        try:
+            yield
+        finally:
+            _HELD[key] -= 1
+        return
+    fd = _acquire(lock, path)
+    _HELD[key] = 1
+    try:
+        yield
+    finally:
+        del _HELD[key]
+        if fcntl is not None:  # removed while still locked: no one can take it in between
+            with contextlib.suppress(OSError):
+                lock.unlink()
+        os.close(fd)  # (releases the lock)

@@ -38,6 +38,7 @@ parameters, grid, settings, time spans or measurement code (``ALGORITHM``) is re
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import os
@@ -622,12 +623,19 @@ class RegimeMap:
     def save(self, path: str | os.PathLike) -> Path:
         """Write atomically to ``path`` (``.npz`` appended if missing; arrays plus a JSON
         ``meta`` entry). ``TypeError`` / ``ValueError`` naming ``path`` before anything is
-        written if it is not a file name or cannot be one (:func:`_map_path`)."""
+        written if it is not a file name or cannot be one (:func:`_map_path`);
+        :class:`~fricenv.mapfile.MapInUseError` if a sweep in another process (or thread)
+        is writing the map there."""
         path = _map_path(path)
         path.parent.mkdir(parents=True, exist_ok=True)
         tmp = path.with_name(path.name + f".tmp{os.getpid()}")
         plan = {} if self.plan is None else {
             f"plan_{f.name}": getattr(self.plan, f.name) for f in fields(CellPlan)}
+        with mapfile.writer_lock(path):  # (a sweep's own saves share its lock)
+            self._write(path, tmp, plan)
+        return path
+
+    def _write(self, path: Path, tmp: Path, plan: dict) -> None:
         try:
             with open(tmp, "wb") as fh:
                 np.savez(fh, u0=self.u0, nu=self.nu, labels=self.labels, stats=self.stats,
@@ -638,7 +646,6 @@ class RegimeMap:
             os.replace(tmp, path)
         finally:
             tmp.unlink(missing_ok=True)  # a failed write leaves nothing behind
-        return path
 
     @classmethod
     def load(cls, path: str | os.PathLike) -> RegimeMap:
@@ -838,8 +845,10 @@ def regime_map(params: OscillatorParams | str, u0: object, nu: object, *,
     arguments resumes from the file
     (``resume=False`` starts over; a file made with other arguments, or damaged, raises
     ``ValueError``; ``.npz`` is appended if missing; a ``path`` that cannot be written is
-    refused before any cell runs).
-    ``n_threads`` sets numba's thread count for the call; ``progress``
+    refused before any cell runs). While it runs the sweep holds the map's writer lock
+    (``<path>.lock``, released by the system if the process dies): a second sweep on the
+    same path raises :class:`~fricenv.mapfile.MapInUseError` before it reads or writes
+    anything. ``n_threads`` sets numba's thread count for the call; ``progress``
     shows a tqdm bar (default: when there are more than 2000 cells); ``callback(map,
     n_new)`` is called after each chunk is stored. ``meta`` adds free-form JSON-able
     entries under str keys to the metadata.
@@ -879,7 +888,21 @@ def regime_map(params: OscillatorParams | str, u0: object, nu: object, *,
     base = params.to_array()
     fastest = _cell_rows(base, np.full(nu.size, np.max(np.abs(u0))), plan.nu_exact)
     _check_cells(fastest, plan.t_transient, plan.t_segment, plan.n_segment, plan.tries)
+    # One writer at a time: a second sweep on this path is refused while this one runs.
+    with mapfile.writer_lock(path) if path is not None else contextlib.nullcontext():
+        return _fill_map(params, u0, nu, settings, plan, method, path=path, resume=resume,
+                         chunk_size=chunk_size, n_threads=n_threads, progress=progress,
+                         callback=callback, meta=meta)
 
+
+def _fill_map(params: OscillatorParams, u0: np.ndarray, nu: np.ndarray,
+              settings: SweepSettings, plan: CellPlan, method: int, *, path: Path | None,
+              resume: bool, chunk_size: int | None, n_threads: int | None,
+              progress: bool | None, callback: Callable[[RegimeMap, int], None] | None,
+              meta: dict | None) -> RegimeMap:
+    """The sweep of :func:`regime_map` once its arguments are checked (and, with ``path``,
+    its writer lock held): resume or start the map, run the cells not done, save."""
+    base = params.to_array()
     rmap = None
     if path is not None:
         if resume and path.exists():

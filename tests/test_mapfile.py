@@ -1,18 +1,27 @@
-"""Map files: a damaged one is a ValueError naming it, with the cause chained."""
+"""Map files: a damaged one is a ValueError naming it, and a second writer is refused."""
 
 from __future__ import annotations
 
+import os
+import signal
 import struct
+import subprocess
+import sys
+import textwrap
+import threading
 import zipfile
 from pathlib import Path
 
 import numpy as np
 import pytest
 
+from fricenv import mapfile
+from fricenv.mapfile import MapInUseError
 from fricenv.params import OscillatorParams
 from fricenv.sweep import RegimeMap, regime_map
 
 PARAMS = OscillatorParams.preset("coulomb")
+ROOT = Path(__file__).resolve().parents[1]
 
 
 @pytest.fixture(scope="module")
@@ -115,4 +124,77 @@ def test_a_missing_path_keeps_its_os_error(tmp_path) -> None:
     (tmp_path / "folder.npz").mkdir()
     with pytest.raises(IsADirectoryError):
         RegimeMap.load(tmp_path / "folder.npz")
+
+
+# -- one writer at a time -----------------------------------------------------------------
+_WRITER = textwrap.dedent("""
+    import sys
+    import fricenv
+
+    def wait(rmap, n):  # holds the sweep, and so its lock, until stdin closes
+        print("running", flush=True)
+        sys.stdin.read()
+
+    fricenv.regime_map("coulomb", [0.5], [0.5, 1.3], path=sys.argv[1], chunk_size=1,
+                       callback=wait, progress=False)
+""")
+
+
+def _start_writer(path: Path) -> subprocess.Popen:
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    proc = subprocess.Popen([sys.executable, "-c", _WRITER, str(path)], env=env,
+                            stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+    assert proc.stdout.readline() == "running\n"
+    return proc
+
+
+def test_a_second_writer_is_refused_while_the_first_holds_the_map(tmp_path) -> None:
+    """Both writers exited 0 and the last one silently won."""
+    path = tmp_path / "m.npz"
+    proc = _start_writer(path)
+    try:
+        with pytest.raises(MapInUseError, match=r"m\.npz is being written by another sweep "
+                                                rf"\(process {proc.pid} on "):
+            regime_map(PARAMS, [2.0], [0.5], path=path, progress=False)
+        with pytest.raises(MapInUseError):
+            regime_map("coulomb", [0.5], [0.5, 1.3], path=path, progress=False)
+    finally:
+        proc.communicate("", timeout=600)  # let the first writer finish
+    assert proc.returncode == 0
+    m = RegimeMap.load(path)
+    assert m.complete and list(m.u0) == [0.5]  # the first writer's map
+    assert not mapfile.lock_path(path).exists()
+    regime_map(PARAMS, [2.0], [0.5], path=path, resume=False, progress=False)  # free again
+
+
+def test_a_killed_writer_leaves_no_stale_lock(tmp_path) -> None:
+    path = tmp_path / "m.npz"
+    proc = _start_writer(path)
+    proc.send_signal(signal.SIGKILL)
+    proc.wait(timeout=60)
+    proc.stdin.close()
+    proc.stdout.close()
+    assert mapfile.lock_path(path).exists()  # left behind, but no longer held
+    m = regime_map("coulomb", [0.5], [0.5, 1.3], path=path, progress=False)
+    assert m.complete and not mapfile.lock_path(path).exists()
+
+
+def test_a_save_from_another_thread_is_refused_during_a_sweep(tmp_path, small_map) -> None:
+    path = tmp_path / "m.npz"
+    errors: list[BaseException] = []
+
+    def save_elsewhere(rmap: RegimeMap, n: int) -> None:
+        def other() -> None:
+            try:
+                small_map.save(path)
+            except MapInUseError as e:
+                errors.append(e)
+        t = threading.Thread(target=other)
+        t.start()
+        t.join()
+        small_map.save(tmp_path / "other.npz")  # another map: no conflict
+
+    regime_map(PARAMS, [0.5], [0.5], path=path, callback=save_elsewhere, progress=False)
+    assert len(errors) == 1 and "being written by another sweep" in str(errors[0])
+    small_map.save(path)  # after the sweep: free
 
