@@ -130,6 +130,9 @@ MAX_SEGMENTS = 1_000_000
 MAX_PERIOD = 1000
 #: Most repeated windows of a slowly locking cell (each is a full window).
 MAX_LOCK_EXTENSIONS = 100
+#: Most cells a regime map may have: its arrays take about 100 bytes a cell (10 GB at the
+#: cap), allocated before the first cell runs; a larger grid is refused naming its size.
+MAX_CELLS = 10**8
 #: A cell that the kernel never wrote (its outputs start so): not a :mod:`layout` status.
 STATUS_NOT_RUN = -1
 
@@ -873,6 +876,9 @@ def regime_map(params: OscillatorParams | str, u0: object, nu: object, *,
                          f"{sorted(_RESERVED_META & set(meta))}")
     u0 = _check_axis("u0", u0)
     nu = _check_axis("nu", nu)
+    if u0.size * nu.size > MAX_CELLS:
+        raise ValueError(f"a grid of u0 ({u0.size} values) x nu ({nu.size} values) has "
+                         f"{u0.size * nu.size} cells, more than MAX_CELLS = {MAX_CELLS}")
     settings = _settings(settings, overrides)
     method = settings.method_code(params)
     resume = check_bool("resume", resume)

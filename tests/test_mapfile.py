@@ -1,4 +1,5 @@
-"""Map files: a damaged one is a ValueError naming it, and a second writer is refused."""
+"""Map files: a damaged one is a ValueError naming it, a second writer is refused, and a
+grid too large for memory is refused before anything is allocated."""
 
 from __future__ import annotations
 
@@ -18,7 +19,7 @@ import pytest
 from fricenv import mapfile
 from fricenv.mapfile import MapInUseError
 from fricenv.params import OscillatorParams
-from fricenv.sweep import RegimeMap, regime_map
+from fricenv.sweep import MAX_CELLS, RegimeMap, regime_map
 
 PARAMS = OscillatorParams.preset("coulomb")
 ROOT = Path(__file__).resolve().parents[1]
@@ -198,3 +199,12 @@ def test_a_save_from_another_thread_is_refused_during_a_sweep(tmp_path, small_ma
     assert len(errors) == 1 and "being written by another sweep" in str(errors[0])
     small_map.save(path)  # after the sweep: free
 
+
+def test_a_grid_too_large_for_memory_is_refused_before_anything_is_allocated(tmp_path
+                                                                             ) -> None:
+    u0 = np.linspace(0.0, 1.0, 20_000)
+    nu = np.linspace(0.0, 2.0, MAX_CELLS // 20_000 + 1)
+    with pytest.raises(ValueError, match=rf"has {u0.size * nu.size} cells, more than "
+                                         rf"MAX_CELLS = {MAX_CELLS}"):
+        regime_map(PARAMS, u0, nu, path=tmp_path / "m.npz", progress=False)
+    assert not list(tmp_path.iterdir())

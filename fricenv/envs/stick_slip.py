@@ -76,6 +76,9 @@ ATOL = 1e-10
 #: Events (stick/slip/reversal) allowed per control interval before the run is declared
 #: chattering (a Zeno-like plant; it raises rather than silently stalling).
 MAX_EVENTS = 10_000
+#: Most instants ``sample_interval`` returns: 17 MB of arrays and a kernel call each, far
+#: more than any plot of one control interval needs (n_samples = 1e10 asked for 170 GB).
+MAX_SAMPLES = 10**6
 
 
 @dataclass(frozen=True)
@@ -576,10 +579,11 @@ class StickSlipEnv(gym.Env):
         kernels, in ``n_samples`` pieces (so it matches ``step(action)`` to rounding in
         closed form, to the tolerance with the event method), and the environment's state
         is left untouched (for plotting a policy's motion, as the renderer does).
+        ``n_samples`` is an integer from 1 to ``MAX_SAMPLES`` (``ValueError`` beyond).
         """
         if self._needs_reset:
             raise gym.error.ResetNeeded("Cannot call sample_interval() before calling reset()")
-        n = check_int("n_samples", n_samples, 1)
+        n = check_int("n_samples", n_samples, 1, MAX_SAMPLES)
         a = coerce_action(action, self._act_shape)
         if not K.actions_finite(a):
             raise_status(K.STATUS_BAD_ACTION, action)

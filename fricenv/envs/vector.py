@@ -84,6 +84,10 @@ def plant_seeds(seed: Any, n: int) -> list[int | None]:
     return [None if s is None else int(s) for s in seeds]
 
 
+#: Most plants a vector env may hold: about 7 kB each (the kernels' table, buffered draws
+#: and a random generator), 700 MB at the cap and some ten seconds to build and seed them;
+#: num_envs = 10**12 asked for 7 TiB and ended in MemoryError.
+MAX_NUM_ENVS = 10**5
 #: From this many plants on, a step spreads them over threads (numba prange).
 PARALLEL_MIN_ENVS = 64
 #: On a machine busy with other processes, a numba thread may get a CPU only after the
@@ -115,7 +119,8 @@ def _check_max_steps(value: Any) -> int:
 class StickSlipVectorEnv(VectorEnv):
     """``num_envs`` independent ``StickSlipEnv`` plants, stepped in one numba call.
 
-    Arguments are those of ``StickSlipEnv`` plus ``num_envs``, ``max_episode_steps`` (default:
+    Arguments are those of ``StickSlipEnv`` plus ``num_envs`` (1 to ``MAX_NUM_ENVS``),
+    ``max_episode_steps`` (default:
     the scene's horizon; ``gymnasium.make_vec`` passes the registered one) and
     ``autoreset_mode`` (``AutoresetMode`` or its value; default next-step, as Gymnasium's).
     Observations ``(num_envs, 9)`` float32, actions ``(num_envs, n)`` in [-1, 1], rewards
@@ -150,7 +155,7 @@ class StickSlipVectorEnv(VectorEnv):
         # first: close() runs from __del__ even when a check below refuses the arguments
         self._traces = None
         self._painter = None
-        num_envs = check_int("num_envs", num_envs, 1)
+        num_envs = check_int("num_envs", num_envs, 1, MAX_NUM_ENVS)
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(
                 f"render_mode must be one of {self.metadata['render_modes']} or None, "
