@@ -38,6 +38,7 @@ REGIME_COLORS: dict[Regime, str] = {
     Regime.SSM2: "#d9453d",
     Regime.PERIODIC_STICK_SLIP: "#ffd400",
     Regime.PERIODIC_OSCILLATION: "#1f4e9c",
+    Regime.STUCK: "#7b4a12",
 }
 REGIME_SHORT: dict[Regime, str] = {
     Regime.UNRESOLVED: "unresolved",
@@ -47,7 +48,9 @@ REGIME_SHORT: dict[Regime, str] = {
     Regime.SSM2: "SSM2: stick-slip, ν > 1",
     Regime.PERIODIC_STICK_SLIP: "periodic stick-slip (integer ν)",
     Regime.PERIODIC_OSCILLATION: "periodic oscillation (integer ν)",
+    Regime.STUCK: "stuck all window long",
 }
+assert set(REGIME_COLORS) == set(REGIME_SHORT) == set(Regime)
 LAW_TITLES = {"coulomb": "Coulomb", "viscous": "Coulomb + viscosity",
               "stribeck": "complete (Stribeck)"}
 

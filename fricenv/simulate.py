@@ -223,8 +223,11 @@ class RunStats:
 
     @classmethod
     def from_array(cls, st: np.ndarray, state: OscillatorState) -> RunStats:
+        # The kernels sum stick phases step by step and the duration as one time, so a run
+        # stuck throughout could read a stick time some ulps above its duration.
         return cls(
-            duration=float(st[ST_DURATION]), stick_time=float(st[ST_STICK_TIME]),
+            duration=float(st[ST_DURATION]),
+            stick_time=float(min(st[ST_STICK_TIME], st[ST_DURATION])),
             n_stick=int(st[ST_N_STICK]), n_slip=int(st[ST_N_SLIP]),
             n_reversals=int(st[ST_N_REVERSAL]), v_max=float(st[ST_V_MAX]),
             v_min=float(st[ST_V_MIN]), x_max=float(st[ST_X_MAX]), x_min=float(st[ST_X_MIN]),

@@ -75,6 +75,7 @@ from .layout import (
     S_X,
     ST_DURATION,
     ST_N_REVERSAL,
+    ST_N_SLIP,
     ST_N_STICK,
     ST_STICK_TIME,
     ST_V_MAX,
@@ -107,9 +108,10 @@ FORMAT_VERSION = 1
 # 12: time runs from 0 in each core call, and the transient skips the extrema (stats move
 # by rounding); 13: slip excursions below v's rounding (x_fs ~ x_fk) end where their
 # derivatives say, not at their start, and ties |f| = x_fs with |f| falling stick (such
-# cells stopped as chattering)
+# cells stopped as chattering); 14: a cell stuck all window long is STUCK, and a stick
+# time is at most its window
 #: Version of the per-cell measurement; a stored map is resumed only if it matches.
-ALGORITHM = 13
+ALGORITHM = 14
 #: A map in progress is saved at most this often (seconds): each save rewrites the whole
 #: file, and saving after every chunk made a 3 s map take 70 % longer. Its last chunks are
 #: saved when it ends or stops on an exception; a killed process loses at most this much.
@@ -543,6 +545,9 @@ def run_cells(P_cells: np.ndarray, t_transient: np.ndarray, t_segment: np.ndarra
     if missed.size:  # an exception inside prange is lost: say so rather than return them
         raise RuntimeError(f"the cell kernel left {missed.size} cell(s) unrun (first: cell "
                            f"{int(missed[0])}); this is a bug in fricenv.sweep")
+    # A window stuck throughout sums its stick phases a few ulps beyond its duration.
+    np.minimum(out_stats[:, ST_STICK_TIME], out_stats[:, ST_DURATION],
+               out=out_stats[:, ST_STICK_TIME])
     return out_stats, out_status, out_period
 
 
@@ -957,7 +962,7 @@ def _fill_map(params: OscillatorParams, u0: np.ndarray, nu: np.ndarray,
             rmap.period[iu, jn] = period
             rmap.labels[iu, jn] = classify(st[:, ST_N_STICK], st[:, ST_STICK_TIME],
                                            st[:, ST_N_REVERSAL], nu[jn], plan.q[jn], period,
-                                           status)
+                                           status, st[:, ST_N_SLIP])
             rmap.done[iu, jn] = True
             unsaved = path is not None
             if unsaved and time.perf_counter() - last_save >= SAVE_EVERY_S:
@@ -1028,5 +1033,5 @@ def cell_statistics(params: list[OscillatorParams], settings: SweepSettings | No
     st, status, period = run_cells(np.array(rows), np.array(tt), np.array(ts), np.array(ns),
                                    np.array(tr), settings, method, n_threads)
     labels = classify(st[:, ST_N_STICK], st[:, ST_STICK_TIME], st[:, ST_N_REVERSAL],
-                      np.array(nus), qs_a, period, status)
+                      np.array(nus), qs_a, period, status, st[:, ST_N_SLIP])
     return np.asarray(labels), st, period, status
