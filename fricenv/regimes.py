@@ -16,11 +16,15 @@ Measured per run (window only)
 ``period``       smallest ``m <= m_max`` with ``(x, v)(t + m T_c) = (x, v)(t)`` at every
                  stroboscopic sample of the window (0: none found or not tested); see
                  :func:`strobe_period`.
-``status``       kernel status (``layout.STATUS_*``); anything but OK means no label.
+``status``       kernel status (``layout.STATUS_*``); anything but OK means no regime.
 
 Labels (:class:`Regime`), checked in this order
 -----------------------------------------------
-``UNRESOLVED``            the kernel stopped (event cap, non-finite state).
+``DIVERGED``              status ``STATUS_DIVERGED``: the motion ran away (a statistic
+                          non-finite, or ``|x|``, ``|v|`` beyond the bound of
+                          :mod:`fricenv.divergence`), so its statistics are no result.
+``UNRESOLVED``            any other status but OK: the kernel stopped (event cap,
+                          non-finite state, slip too stiff).
 ``STUCK``                 stuck over the whole window: no switch of any kind
                           (``n_stick == n_slip == n_reversal == 0``) and ``stick_time > 0``.
                           With no switch the mode never changes, so a block stuck at any
@@ -70,6 +74,7 @@ from .layout import (
     ST_STICK_TIME,
     ST_V_MAX,
     ST_V_MIN,
+    STATUS_DIVERGED,
     STATUS_OK,
 )
 
@@ -92,6 +97,7 @@ class Regime(IntEnum):
     PERIODIC_STICK_SLIP = 5
     PERIODIC_OSCILLATION = 6
     STUCK = 7
+    DIVERGED = 8
 
     @property
     def description(self) -> str:
@@ -104,7 +110,8 @@ class Regime(IntEnum):
 
 
 _DESCRIPTIONS = {
-    Regime.UNRESOLVED: "unresolved (solver stopped: event cap or non-finite state)",
+    Regime.UNRESOLVED: "unresolved (solver stopped: event cap, slip too stiff or non-finite "
+                       "state)",
     Regime.WM1: "wave modulated 1: pure slip, no contact with v = V",
     Regime.WM2: "wave modulated 2: direct reversals through v = V, no stick",
     Regime.SSM1: "stick-slip modulated 1: stick phases, nu <= 1",
@@ -112,6 +119,7 @@ _DESCRIPTIONS = {
     Regime.PERIODIC_STICK_SLIP: "periodic stick-slip: integer nu, locked response with stick",
     Regime.PERIODIC_OSCILLATION: "periodic oscillation: integer nu, locked response, no stick",
     Regime.STUCK: "stuck: the block stayed stuck on the belt over the whole window",
+    Regime.DIVERGED: "diverged: the motion ran away (negative net damping); no statistics",
 }
 
 
@@ -250,7 +258,7 @@ def classify(n_stick: np.ndarray | float, stick_time: np.ndarray | float,
     checked first (``TypeError``/``ValueError`` naming the argument): ``nu`` finite and
     >= 0, ``q`` consistent with it, integer ``q``/``period``/``status``, and, where
     ``status`` is OK, finite non-negative counts, times and periods (a failed run's
-    statistics are not read: its label is UNRESOLVED).
+    statistics are not read: its label is UNRESOLVED, or DIVERGED for STATUS_DIVERGED).
     """
     names = ("n_stick", "stick_time", "n_reversal", "nu", "n_slip")
     arrays = [real_array(a, f"{k} must be a real number or an array of real numbers")
@@ -285,7 +293,8 @@ def classify(n_stick: np.ndarray | float, stick_time: np.ndarray | float,
     if n_slip is not None:  # no switch at all: the mode seen stuck is the whole window's
         out = np.where((n_stick == 0) & (slips == 0) & (n_reversal == 0) & (stick_time > 0),
                        Regime.STUCK, out)
-    out = np.where(status != STATUS_OK, Regime.UNRESOLVED, out).astype(np.int8)
+    out = np.where(status != STATUS_OK, Regime.UNRESOLVED, out)
+    out = np.where(status == STATUS_DIVERGED, Regime.DIVERGED, out).astype(np.int8)
     return out if out.ndim else out[()]
 
 

@@ -65,6 +65,7 @@ from .checks import (
     got,
     real_array,
 )
+from .divergence import diverged
 from .layout import (
     METHOD_EVENT,
     METHOD_EXACT,
@@ -83,6 +84,7 @@ from .layout import (
     ST_VR2_INT,
     ST_X_MAX,
     ST_X_MIN,
+    STATUS_DIVERGED,
     STATUS_OK,
 )
 from .params import (
@@ -109,9 +111,9 @@ FORMAT_VERSION = 1
 # by rounding); 13: slip excursions below v's rounding (x_fs ~ x_fk) end where their
 # derivatives say, not at their start, and ties |f| = x_fs with |f| falling stick (such
 # cells stopped as chattering); 14: a cell stuck all window long is STUCK, and a stick
-# time is at most its window
+# time is at most its window; 15: a cell whose motion runs away is DIVERGED
 #: Version of the per-cell measurement; a stored map is resumed only if it matches.
-ALGORITHM = 14
+ALGORITHM = 15
 #: A map in progress is saved at most this often (seconds): each save rewrites the whole
 #: file, and saving after every chunk made a 3 s map take 70 % longer. Its last chunks are
 #: saved when it ends or stops on an exception; a killed process loses at most this much.
@@ -477,7 +479,8 @@ def run_cells(P_cells: np.ndarray, t_transient: np.ndarray, t_segment: np.ndarra
     :class:`OscillatorParams`' rules; ``n_segment`` is at most ``MAX_SEGMENTS`` and ``tries``
     at most ``1 + MAX_LOCK_EXTENSIONS``. This is the engine under :func:`regime_map`; it is
     public so that other scans (e.g. amplitude versus eta) reuse the same measured
-    quantities.
+    quantities. A cell the kernel finished whose motion ran away (:mod:`fricenv.divergence`)
+    gets status ``STATUS_DIVERGED``; its statistics are kept, but they are no result.
     """
     if not isinstance(settings, SweepSettings):  # its fields are the kernel's arguments
         raise TypeError(f"settings must be a fricenv.SweepSettings, {got(settings)}")
@@ -548,6 +551,10 @@ def run_cells(P_cells: np.ndarray, t_transient: np.ndarray, t_segment: np.ndarra
     # A window stuck throughout sums its stick phases a few ulps beyond its duration.
     np.minimum(out_stats[:, ST_STICK_TIME], out_stats[:, ST_DURATION],
                out=out_stats[:, ST_STICK_TIME])
+    longest = t_transient + t_segment * n_segment * np.maximum(tries, 1)
+    out_status[(out_status == STATUS_OK) & diverged(
+        P_cells, settings.x0, settings.v0, longest, out_stats, vr2_measured=False)] = (
+        STATUS_DIVERGED)
     return out_stats, out_status, out_period
 
 

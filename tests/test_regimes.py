@@ -18,6 +18,7 @@ from fricenv.layout import (
     ST_STICK_TIME,
     ST_V_MAX,
     ST_V_MIN,
+    STATUS_DIVERGED,
     STATUS_EVENT_CAP,
     STATUS_NONFINITE,
     STATUS_OK,
@@ -87,6 +88,16 @@ def test_a_window_without_any_switch_spent_stuck_is_stuck() -> None:
         assert classify_stats(_stats(stick_time=50.0, **kw), nu=0.5) != Regime.STUCK
     with pytest.raises(ValueError, match="n_slip must be finite and >= 0"):
         classify(0, 1.0, 0, 0.5, n_slip=-1.0)
+
+
+def test_a_diverged_run_is_labelled_diverged_whatever_its_statistics() -> None:
+    s = _stats(n_stick=2, stick_time=1.0)
+    s[ST_V_MAX] = np.inf
+    assert classify_stats(s, 0.3, status=STATUS_DIVERGED) == Regime.DIVERGED
+    assert list(classify(1, 1.0, 0, 0.3, status=np.array([STATUS_DIVERGED, STATUS_EVENT_CAP,
+                                                           STATUS_OK]))) == [
+        Regime.DIVERGED, Regime.UNRESOLVED, Regime.SSM1]
+    assert not Regime.DIVERGED.has_stick
 
 
 def test_summary_stick_fraction_is_at_most_one() -> None:

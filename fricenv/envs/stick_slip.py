@@ -47,6 +47,7 @@ from fricenv.layout import (
     S_T,
     S_V,
     S_X,
+    STATUS_DIVERGED,
     STATUS_EVENT_CAP,
     STATUS_NONFINITE,
     STATUS_TOO_STIFF,
@@ -230,6 +231,11 @@ def raise_status(status: int, action: Any, where: str = "") -> None:
     if status == STATUS_TOO_STIFF:
         raise RuntimeError(f"plant{where}: slip too stiff for the integrator's smallest step "
                            "(check the parameters passed at make/reset); reset the environment")
+    if status == STATUS_DIVERGED:
+        raise RuntimeError(f"plant{where} diverged: the state is finite but the interval's "
+                           "(v - V)^2 integral overflowed, leaving no reward (negative net "
+                           "damping? check the parameters passed at make/reset); reset the "
+                           "environment")
     raise RuntimeError(f"plant{where}: integrator failed with status {status}")
 
 
@@ -359,7 +365,9 @@ class StickSlipEnv(gym.Env):
       400). The environment itself never truncates.
     - Termination: only if `|x| > x_limit` or `|v - V| > v_limit` (a diverging plant, e.g.
       undamped and resonant through ``reset`` options); never in the presets' ranges.
-    - A chattering or non-finite integration raises `RuntimeError` instead of ending silently.
+    - A chattering, too stiff or non-finite integration, or one whose reward overflows
+      (a diverging plant, e.g. negative net damping through ``reset`` options, stepped on
+      after its termination), raises `RuntimeError` instead of ending silently.
 
     ## Arguments
 
@@ -470,17 +478,22 @@ class StickSlipEnv(gym.Env):
             self._P, self._S, self._ctrl, self._cfg, a, self._stats, self._obs, self._res,
             self._work,
         )
-        if status != 0:
+        res = self._res
+        reward = float(res[K.R_REWARD])
+        # NaN exactly when a finite state's (v - V)^2 integral overflowed (the variance is
+        # inf); a mean of v - V beyond float64 makes the variance NaN, a status of its own
+        if status != 0 or reward != reward:
+            if status == 0:
+                status = STATUS_DIVERGED
             if status != K.STATUS_BAD_ACTION:
                 self._needs_reset = True
             raise_status(status, action)
-        res = self._res
         if self.render_mode == "human":
             self.render()
         # truncated=False: the time limit is the TimeLimit wrapper's job (max_episode_steps).
         return (
             self._obs.copy(),
-            float(res[K.R_REWARD]),
+            reward,
             bool(res[K.R_TERM]),
             False,
             {

@@ -11,6 +11,7 @@ only refills a plant's buffer every ``DRAW_ROWS`` episodes.
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import numba
@@ -25,7 +26,7 @@ from fricenv.core import new_workspace
 from fricenv.envs import kernels as K
 from fricenv.envs.scenes import N_DRAWS, N_INIT, Scene
 from fricenv.envs.stick_slip import ACTION_DTYPES, EnvSetup, coerce_action, raise_status
-from fricenv.layout import METHOD_EXACT, S_MODE, S_PHI1, S_PHI2, S_T, S_V, S_X
+from fricenv.layout import METHOD_EXACT, S_MODE, S_PHI1, S_PHI2, S_T, S_V, S_X, STATUS_DIVERGED
 from fricenv.params import P_U1, P_U2, P_V, P_XFK
 
 _AUTORESET = {
@@ -448,6 +449,12 @@ class StickSlipVectorEnv(VectorEnv):
         if kernel is K.step_batch_parallel:
             self._watch_workers()
         out = self._step_out.copy()  # callers may keep what a step returns
+        rewards = out[K.R_REWARD]  # NaN where (v - V)^2 overflowed (see StickSlipEnv.step)
+        if math.isnan(rewards @ rewards):
+            self._needs_reset = True
+            i = int(np.flatnonzero(np.isnan(rewards))[0])
+            self._failed_plant = i
+            raise_status(STATUS_DIVERGED, None, f" {i}")
         if self._ivars[K.IV_N_RESET] == 0:
             # The common case: every plant reports this step's values (_info_dict's layout).
             m = self._all_true
