@@ -33,3 +33,25 @@ def test_sample_interval_beyond_max_samples_is_refused() -> None:
             env.sample_interval(a, n)
     t, v, stuck = env.sample_interval(a, 5)
     assert t.shape == v.shape == stuck.shape == (5,)
+
+
+def test_a_vector_step_too_costly_for_its_plants_is_refused() -> None:
+    """Each plant was held to MAX_INTERVAL_SCAN_STEPS, but 10,000 plants under a tone at
+    eta = 1e5 took minutes a vector step (found by the property suite)."""
+    with pytest.raises(ValueError, match=r"num_envs = 1000 plants, at most "
+                                         r"MAX_VECTOR_SCAN_STEPS = 1e\+07 scan steps in all"):
+        gym.make_vec("fricenv/StickSlip-v0", num_envs=1000,
+                     vectorization_mode="vector_entry_point", params={"eta": 1e5})
+    venv = gym.make_vec("fricenv/StickSlip-v0", num_envs=1000,
+                        vectorization_mode="vector_entry_point")
+    obs, _ = venv.reset(seed=0)
+    with pytest.raises(ValueError, match="change the reset options"):
+        venv.reset(options={"eta": 1e5})
+    # a refused reset loses nothing: the same seedless reset follows as if it never came
+    twin = gym.make_vec("fricenv/StickSlip-v0", num_envs=1000,
+                        vectorization_mode="vector_entry_point")
+    twin.reset(seed=0)
+    np.testing.assert_array_equal(venv.reset()[0], twin.reset()[0])
+    small = gym.make_vec("fricenv/StickSlip-v0", num_envs=4,
+                         vectorization_mode="vector_entry_point")
+    small.reset(seed=0, options={"eta": 1e5})  # 4 plants: within the budget
