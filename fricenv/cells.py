@@ -25,11 +25,16 @@ from .checks import (
     real_array,
 )
 from .core import conditioned_rows
+from .divergence import diverged
 from .layout import (
     METHOD_EVENT,
     METHOD_EXACT,
     METHODS,
     N_STATS,
+    ST_DURATION,
+    ST_STICK_TIME,
+    STATUS_DIVERGED,
+    STATUS_OK,
 )
 from .params import (
     N_PARAMS,
@@ -299,7 +304,8 @@ def run_cells(P_cells: np.ndarray, t_transient: np.ndarray, t_segment: np.ndarra
     :class:`OscillatorParams`' rules; ``n_segment`` is at most ``MAX_SEGMENTS`` and ``tries``
     at most ``1 + MAX_LOCK_EXTENSIONS``. This is the engine under :func:`regime_map`; it is
     public so that other scans (e.g. amplitude versus eta) reuse the same measured
-    quantities.
+    quantities. A cell the kernel finished whose motion ran away (:mod:`fricenv.divergence`)
+    gets status ``STATUS_DIVERGED``; its statistics are kept, but they are no result.
     """
     if not isinstance(settings, SweepSettings):  # its fields are the kernel's arguments
         raise TypeError(f"settings must be a fricenv.SweepSettings, {got(settings)}")
@@ -364,6 +370,13 @@ def run_cells(P_cells: np.ndarray, t_transient: np.ndarray, t_segment: np.ndarra
     if missed.size:  # an exception inside prange is lost: say so rather than return them
         raise RuntimeError(f"the cell kernel left {missed.size} cell(s) unrun (first: cell "
                            f"{int(missed[0])}); this is a bug in fricenv.sweep")
+    # A window stuck throughout sums its stick phases a few ulps beyond its duration.
+    np.minimum(out_stats[:, ST_STICK_TIME], out_stats[:, ST_DURATION],
+               out=out_stats[:, ST_STICK_TIME])
+    longest = t_transient + t_segment * n_segment * np.maximum(tries, 1)
+    out_status[(out_status == STATUS_OK) & diverged(
+        P_cells, settings.x0, settings.v0, longest, out_stats, vr2_measured=False)] = (
+        STATUS_DIVERGED)
     return out_stats, out_status, out_period
 
 

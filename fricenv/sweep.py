@@ -38,16 +38,18 @@ parameters, grid, settings, time spans or measurement code (``ALGORITHM``) is re
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import time
-import zipfile
 from collections.abc import Callable, Iterable
 from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
+
+from . import mapfile
 
 # Cells (settings, plans, the checked parallel run) live in .cells and their kernels in
 # .cell_kernels; their names stay importable from here.
@@ -95,6 +97,7 @@ from .layout import (
     N_STATS,
     ST_DURATION,
     ST_N_REVERSAL,
+    ST_N_SLIP,
     ST_N_STICK,
     ST_STICK_TIME,
     ST_V_MAX,
@@ -120,9 +123,13 @@ FORMAT_VERSION = 1
 # 12: time runs from 0 in each core call, and the transient skips the extrema (stats move
 # by rounding); 13: slip excursions below v's rounding (x_fs ~ x_fk) end where their
 # derivatives say, not at their start, and ties |f| = x_fs with |f| falling stick (such
-# cells stopped as chattering)
+# cells stopped as chattering); 14: a cell stuck all window long is STUCK, and a stick
+# time is at most its window; 15: a cell whose motion runs away is DIVERGED
 #: Version of the per-cell measurement; a stored map is resumed only if it matches.
-ALGORITHM = 13
+ALGORITHM = 15
+#: Most cells a regime map may have: its arrays take about 100 bytes a cell (10 GB at the
+#: cap), allocated before the first cell runs; a larger grid is refused naming its size.
+MAX_CELLS = 10**8
 #: A map in progress is saved at most this often (seconds): each save rewrites the whole
 #: file, and saving after every chunk made a 3 s map take 70 % longer. Its last chunks are
 #: saved when it ends or stops on an exception; a killed process loses at most this much.
@@ -236,12 +243,19 @@ class RegimeMap:
     def save(self, path: str | os.PathLike) -> Path:
         """Write atomically to ``path`` (``.npz`` appended if missing; arrays plus a JSON
         ``meta`` entry). ``TypeError`` / ``ValueError`` naming ``path`` before anything is
-        written if it is not a file name or cannot be one (:func:`_map_path`)."""
+        written if it is not a file name or cannot be one (:func:`_map_path`);
+        :class:`~fricenv.mapfile.MapInUseError` if a sweep in another process (or thread)
+        is writing the map there."""
         path = _map_path(path)
         path.parent.mkdir(parents=True, exist_ok=True)
         tmp = path.with_name(path.name + f".tmp{os.getpid()}")
         plan = {} if self.plan is None else {
             f"plan_{f.name}": getattr(self.plan, f.name) for f in fields(CellPlan)}
+        with mapfile.writer_lock(path):  # (a sweep's own saves share its lock)
+            self._write(path, tmp, plan)
+        return path
+
+    def _write(self, path: Path, tmp: Path, plan: dict) -> None:
         try:
             with open(tmp, "wb") as fh:
                 np.savez(fh, u0=self.u0, nu=self.nu, labels=self.labels, stats=self.stats,
@@ -252,43 +266,31 @@ class RegimeMap:
             os.replace(tmp, path)
         finally:
             tmp.unlink(missing_ok=True)  # a failed write leaves nothing behind
-        return path
 
     @classmethod
     def load(cls, path: str | os.PathLike) -> RegimeMap:
         """Read a map written by :meth:`save` (``ValueError`` naming the file if it is not
-        one, is incomplete or inconsistent; ``FileNotFoundError`` if there is none).
-        ``.npz`` is appended if missing, as by :meth:`save`."""
+        one, is damaged, incomplete or inconsistent, with the cause chained; the
+        ``OSError`` of a path that cannot be opened: ``FileNotFoundError`` if there is
+        none). ``.npz`` is appended if missing, as by :meth:`save`."""
         path = _with_npz(check_path("path", path))
+        z = mapfile.read_npz(path)  # (ValueError for a damaged archive, cause chained)
         try:
-            z = np.load(path, allow_pickle=False)
-        except (FileNotFoundError, IsADirectoryError, PermissionError):
-            raise  # a path to fix, not a file to distrust
-        except (ValueError, OSError, zipfile.BadZipFile) as exc:  # not an npz archive
-            raise ValueError(f"{path} is not a fricenv regime map ({exc})") from None
-        if not isinstance(z, np.lib.npyio.NpzFile):
-            raise ValueError(f"{path} is not a fricenv regime map (a single array)")
-        with z:
-            try:
-                meta = json.loads(str(z["meta"][()]))
-            except (KeyError, ValueError) as exc:
-                raise ValueError(f"{path} is not a fricenv regime map (no metadata)") from exc
-            if not isinstance(meta, dict):
-                raise ValueError(f"{path} is not a fricenv regime map (its metadata is a "
-                                 f"{type(meta).__name__}, not a JSON object)")
-            if meta.get("format") != FORMAT or meta.get("version") != FORMAT_VERSION:
-                raise ValueError(f"{path}: unsupported format {meta.get('format')!r} "
-                                 f"version {meta.get('version')!r}")
-            missing = [k for k in _MAP_ARRAYS if k not in z.files]
-            if missing:
-                raise ValueError(f"{path} is not a complete regime map: no {missing}")
-            names = [f"plan_{f.name}" for f in fields(CellPlan)]
-            try:  # (an object array is refused without pickle: ValueError)
-                arrays = {k: z[k] for k in _MAP_ARRAYS}
-                plan = (CellPlan(*(z[n] for n in names)) if all(n in z.files for n in names)
-                        else None)
-            except (ValueError, OSError, zipfile.BadZipFile) as exc:
-                raise ValueError(f"{path}: unreadable regime map arrays ({exc})") from None
+            meta = json.loads(str(z["meta"][()]))
+        except (KeyError, ValueError, RecursionError) as exc:
+            raise mapfile.not_a_map(path, "no metadata") from exc
+        if not isinstance(meta, dict):
+            raise mapfile.not_a_map(path, f"its metadata is a {type(meta).__name__}, not a "
+                                    "JSON object")
+        if meta.get("format") != FORMAT or meta.get("version") != FORMAT_VERSION:
+            raise ValueError(f"{path}: unsupported format {meta.get('format')!r} "
+                             f"version {meta.get('version')!r}")
+        missing = [k for k in _MAP_ARRAYS if k not in z]
+        if missing:
+            raise ValueError(f"{path} is not a complete regime map: no {missing}")
+        names = [f"plan_{f.name}" for f in fields(CellPlan)]
+        arrays = {k: z[k] for k in _MAP_ARRAYS}
+        plan = CellPlan(*(z[n] for n in names)) if all(n in z for n in names) else None
         try:  # written by save, so anything else is a damaged or foreign file
             params = OscillatorParams(**meta["params"])
             settings = SweepSettings(**meta["settings"])
@@ -297,7 +299,7 @@ class RegimeMap:
             _check_map_arrays(arrays, plan)
         except (KeyError, TypeError, ValueError) as exc:
             what = f"no {exc}" if isinstance(exc, KeyError) else str(exc)
-            raise ValueError(f"{path} is not a valid regime map: {what}") from None
+            raise ValueError(f"{path} is not a valid regime map: {what}") from exc
         extra = {k: v for k, v in meta.items()
                  if k not in ("format", "version", "params", "settings", "stats_layout",
                               "algorithm",
@@ -461,9 +463,12 @@ def regime_map(params: OscillatorParams | str, u0: object, nu: object, *,
     is saved at most every ``SAVE_EVERY_S`` seconds, after its last chunk and when the
     sweep stops on an exception (Ctrl-C, a callback's), and a run with the same
     arguments resumes from the file
-    (``resume=False`` starts over; a file made with other arguments raises ``ValueError``;
-    ``.npz`` is appended if missing; a ``path`` that cannot be written is refused before
-    any cell runs). ``n_threads`` sets numba's thread count for the call; ``progress``
+    (``resume=False`` starts over; a file made with other arguments, or damaged, raises
+    ``ValueError``; ``.npz`` is appended if missing; a ``path`` that cannot be written is
+    refused before any cell runs). While it runs the sweep holds the map's writer lock
+    (``<path>.lock``, released by the system if the process dies): a second sweep on the
+    same path raises :class:`~fricenv.mapfile.MapInUseError` before it reads or writes
+    anything. ``n_threads`` sets numba's thread count for the call; ``progress``
     shows a tqdm bar (default: when there are more than 2000 cells); ``callback(map,
     n_new)`` is called after each chunk is stored. ``meta`` adds free-form JSON-able
     entries under str keys to the metadata.
@@ -488,6 +493,9 @@ def regime_map(params: OscillatorParams | str, u0: object, nu: object, *,
                          f"{sorted(_RESERVED_META & set(meta))}")
     u0 = _check_axis("u0", u0)
     nu = _check_axis("nu", nu)
+    if u0.size * nu.size > MAX_CELLS:
+        raise ValueError(f"a grid of u0 ({u0.size} values) x nu ({nu.size} values) has "
+                         f"{u0.size * nu.size} cells, more than MAX_CELLS = {MAX_CELLS}")
     settings = _settings(settings, overrides)
     method = settings.method_code(params)
     resume = check_bool("resume", resume)
@@ -503,7 +511,21 @@ def regime_map(params: OscillatorParams | str, u0: object, nu: object, *,
     base = params.to_array()
     fastest = _cell_rows(base, np.full(nu.size, np.max(np.abs(u0))), plan.nu_exact)
     _check_cells(fastest, plan.t_transient, plan.t_segment, plan.n_segment, plan.tries)
+    # One writer at a time: a second sweep on this path is refused while this one runs.
+    with mapfile.writer_lock(path) if path is not None else contextlib.nullcontext():
+        return _fill_map(params, u0, nu, settings, plan, method, path=path, resume=resume,
+                         chunk_size=chunk_size, n_threads=n_threads, progress=progress,
+                         callback=callback, meta=meta)
 
+
+def _fill_map(params: OscillatorParams, u0: np.ndarray, nu: np.ndarray,
+              settings: SweepSettings, plan: CellPlan, method: int, *, path: Path | None,
+              resume: bool, chunk_size: int | None, n_threads: int | None,
+              progress: bool | None, callback: Callable[[RegimeMap, int], None] | None,
+              meta: dict | None) -> RegimeMap:
+    """The sweep of :func:`regime_map` once its arguments are checked (and, with ``path``,
+    its writer lock held): resume or start the map, run the cells not done, save."""
+    base = params.to_array()
     rmap = None
     if path is not None:
         if resume and path.exists():
@@ -552,7 +574,7 @@ def regime_map(params: OscillatorParams | str, u0: object, nu: object, *,
             rmap.period[iu, jn] = period
             rmap.labels[iu, jn] = classify(st[:, ST_N_STICK], st[:, ST_STICK_TIME],
                                            st[:, ST_N_REVERSAL], nu[jn], plan.q[jn], period,
-                                           status)
+                                           status, st[:, ST_N_SLIP])
             rmap.done[iu, jn] = True
             unsaved = path is not None
             if unsaved and time.perf_counter() - last_save >= SAVE_EVERY_S:
@@ -623,5 +645,5 @@ def cell_statistics(params: list[OscillatorParams], settings: SweepSettings | No
     st, status, period = run_cells(np.array(rows), np.array(tt), np.array(ts), np.array(ns),
                                    np.array(tr), settings, method, n_threads)
     labels = classify(st[:, ST_N_STICK], st[:, ST_STICK_TIME], st[:, ST_N_REVERSAL],
-                      np.array(nus), qs_a, period, status)
+                      np.array(nus), qs_a, period, status, st[:, ST_N_SLIP])
     return np.asarray(labels), st, period, status
