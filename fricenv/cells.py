@@ -211,8 +211,9 @@ def _count(n: float) -> str:
 def check_n_threads(n: object) -> int:
     """``n`` as a thread count numba can run, else ``TypeError`` / ``ValueError`` naming it."""
     n = check_int("n_threads", n)
-    if not 1 <= n <= numba.config.NUMBA_NUM_THREADS:
-        raise ValueError(f"n_threads must be in [1, {numba.config.NUMBA_NUM_THREADS}], got {n}")
+    most = int(numba.config.NUMBA_NUM_THREADS)  # type: ignore[attr-defined]
+    if not 1 <= n <= most:
+        raise ValueError(f"n_threads must be in [1, {most}], got {n}")
     return n
 
 
@@ -221,7 +222,7 @@ class _Threads:
 
     def __init__(self, n: int | None) -> None:
         self.n = n
-        self.old = None
+        self.old: int | None = None
 
     def __enter__(self) -> None:
         if self.n is not None:
@@ -358,14 +359,14 @@ def run_cells(P_cells: np.ndarray, t_transient: np.ndarray, t_segment: np.ndarra
     if n == 0:
         return out_stats, out_status, out_period
     _check_cells(P_cells, t_transient, t_segment, n_segment, tries)
-    spans = (np.ascontiguousarray(t_transient, dtype=np.float64),
+    kernel_spans = (np.ascontiguousarray(t_transient, dtype=np.float64),
              np.ascontiguousarray(t_segment, dtype=np.float64),
              np.ascontiguousarray(n_segment, dtype=np.int64),
              np.ascontiguousarray(tries, dtype=np.int64))
     with _Threads(n_threads):
         for cell_method, rows in _method_groups(P_cells, method):
-            _run_group(CELL_KERNELS[cell_method], cell_method, rows, P_cells, spans, settings,
-                       out_stats, out_status, out_period)
+            _run_group(CELL_KERNELS[cell_method], cell_method, rows, P_cells, kernel_spans,
+                       settings, out_stats, out_status, out_period)
     missed = np.flatnonzero(out_status == STATUS_NOT_RUN)
     if missed.size:  # an exception inside prange is lost: say so rather than return them
         raise RuntimeError(f"the cell kernel left {missed.size} cell(s) unrun (first: cell "

@@ -38,6 +38,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from .layout import N_STATS, ST_V_MAX, ST_V_MIN, ST_VR2_INT, ST_X_MAX, ST_X_MIN
 from .params import P_B1, P_B3, P_LAM, P_U1, P_U2, P_V, P_XFS
@@ -54,7 +55,7 @@ MOTION_CEILING = 1e100
 _EXTREMA = (ST_V_MAX, ST_V_MIN, ST_X_MAX, ST_X_MIN)
 
 
-def motion_scale(P: np.ndarray, x0: object, v0: object) -> np.ndarray:
+def motion_scale(P: np.ndarray, x0: ArrayLike, v0: ArrayLike) -> np.ndarray:
     """The motion scale (module docstring) of parameter rows ``P`` (layout ``params.P_*``,
     last axis the parameters) started at ``(x0, v0)``; broadcasts over the rows."""
     P = np.asarray(P, dtype=np.float64)
@@ -67,7 +68,7 @@ def motion_scale(P: np.ndarray, x0: object, v0: object) -> np.ndarray:
         return np.maximum.reduce(np.broadcast_arrays(1.0, *terms))
 
 
-def motion_limit(P: np.ndarray, x0: object, v0: object, span: object) -> np.ndarray:
+def motion_limit(P: np.ndarray, x0: ArrayLike, v0: ArrayLike, span: ArrayLike) -> np.ndarray:
     """``min(DIVERGENCE_FACTOR * motion_scale * max(1, span), MOTION_CEILING)``: beyond it
     a run has diverged."""
     with np.errstate(over="ignore"):
@@ -75,8 +76,8 @@ def motion_limit(P: np.ndarray, x0: object, v0: object, span: object) -> np.ndar
                           MOTION_CEILING)
 
 
-def diverged(P: np.ndarray, x0: object, v0: object, span: object, stats: np.ndarray,
-             x_end: object = 0.0, v_end: object = 0.0, vr2_measured: bool = True
+def diverged(P: np.ndarray, x0: ArrayLike, v0: ArrayLike, span: ArrayLike, stats: np.ndarray,
+             x_end: ArrayLike = 0.0, v_end: ArrayLike = 0.0, vr2_measured: bool = True
              ) -> np.ndarray:
     """Where runs (rows of ``P`` and ``stats``, layout ``ST_*``) have diverged: a statistic,
     ``x_end`` or ``v_end`` non-finite, or ``|x|`` or ``|v|`` beyond :func:`motion_limit`.

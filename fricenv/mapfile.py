@@ -32,7 +32,7 @@ import numpy as np
 try:
     import fcntl
 except ImportError:  # Windows
-    fcntl = None
+    fcntl = None  # type: ignore[assignment]
     import msvcrt
 
 #: Most bytes a member may inflate to per compressed byte: deflate's own limit is 1032.
@@ -101,7 +101,7 @@ def _read_member(zf: zipfile.ZipFile, info: zipfile.ZipInfo, size: int) -> np.nd
                              f"data ({dtype}, shape {shape}) but holds "
                              f"{info.file_size - header}")
         flat = np.empty(count, dtype=dtype)
-        got = m.readinto(flat.view(np.uint8)) if flat.nbytes else 0
+        got = m.readinto(flat.view(np.uint8)) if flat.nbytes else 0  # type: ignore[attr-defined]
         if got != flat.nbytes or m.read(1):  # (reading to the end checks the CRC)
             raise _Damage(f"member {name!r} holds {got} bytes of data, not {flat.nbytes}")
     if fortran:

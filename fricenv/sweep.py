@@ -414,14 +414,14 @@ def _settings(settings: SweepSettings | None, overrides: dict) -> SweepSettings:
     if unknown:
         raise ValueError(f"unknown setting(s) {unknown}; expected some of {sorted(known)}")
     if settings is None:
-        return SweepSettings(**overrides)  # type: ignore[arg-type]
+        return SweepSettings(**overrides)
     if not isinstance(settings, SweepSettings):
         raise TypeError(
             "settings must be a fricenv.SweepSettings or None (single settings can also be "
             f"passed as keyword arguments), {got(settings)}"
         )
     if overrides:
-        return SweepSettings(**{**asdict(settings), **overrides})  # type: ignore[arg-type]
+        return SweepSettings(**{**asdict(settings), **overrides})
     return settings
 
 
@@ -577,7 +577,7 @@ def _fill_map(params: OscillatorParams, u0: np.ndarray, nu: np.ndarray,
                                            status, st[:, ST_N_SLIP])
             rmap.done[iu, jn] = True
             unsaved = path is not None
-            if unsaved and time.perf_counter() - last_save >= SAVE_EVERY_S:
+            if path is not None and time.perf_counter() - last_save >= SAVE_EVERY_S:
                 unsaved = False  # (a save that fails is not retried below)
                 rmap.save(path)
                 last_save = time.perf_counter()
@@ -588,7 +588,8 @@ def _fill_map(params: OscillatorParams, u0: np.ndarray, nu: np.ndarray,
     finally:
         if bar is not None:
             bar.close()
-        if unsaved:  # the last chunks, also when a callback or Ctrl-C stops the sweep
+        # the last chunks, also when a callback or Ctrl-C stops the sweep
+        if unsaved and path is not None:
             rmap.labels[~rmap.done] = NOT_COMPUTED  # (a chunk cut off between its writes)
             rmap.save(path)
     if path is not None and todo.size == 0 and not path.exists():
