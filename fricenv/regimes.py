@@ -40,7 +40,7 @@ Labels (:class:`Regime`), checked in this order
 ``WM2``                   no stick but at least one reversal: ``v`` crosses ``V`` only in
                           direct reversals (large forcing, friction a square-wave force).
 
-Choices where the paper is ambiguous (README, Regime definitions)
+Choices where the paper is ambiguous (docs/regimes.md)
 -----------------------------------------------------------------
 * WM1/WM2 follow the *maps* (WM1 below the first boundary in ``u0``, WM2 beyond the
   second), not the waveform names of Fig. 4 ("angular" vs "amplitude" modulation), because

@@ -105,7 +105,8 @@ class Scene:
     nu_range: tuple[float, float]
     action_mode: str = "both"
     tone_gains: tuple[float, float] = (1.0, 1.0)
-    #: control interval in tau: a twelfth of the natural period 2 pi (>= 0.5, see README)
+    #: control interval in tau: a twelfth of the natural period 2 pi (>= 0.5; see
+    #: docs/environments.md)
     control_dt: float = math.pi / 6.0
     max_episode_steps: int = 200
     #: weights of (stick fraction, relative-velocity fluctuation, effort) in the cost
