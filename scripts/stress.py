@@ -2,7 +2,7 @@
 the documented limits, and counts of how the calls end.
 
 Each call runs in a worker process (``tests/callcheck.py``) with a time budget (10 s by
-default, the target of every call); a call over it is a *hang* (then SIGINT is sent, and
+default, the bound on every call); a call over it is a *hang* (then SIGINT is sent, and
 whether the worker answers within a second is recorded: Ctrl-C honoured or not). The
 others end as
 

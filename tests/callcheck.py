@@ -39,7 +39,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-#: Seconds a worker gets to answer SIGINT before it is killed (the Ctrl-C target).
+#: Seconds a worker gets to answer SIGINT before it is killed (the Ctrl-C bound).
 SIGINT_GRACE_S = 1.0
 #: The factor of the motion bound (fricenv.divergence.DIVERGENCE_FACTOR).
 BOUND_FACTOR = 1e8

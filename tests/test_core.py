@@ -286,7 +286,7 @@ def test_a_call_ending_just_after_a_tangential_stick_exit_keeps_slipping(method)
 def test_calls_cut_just_after_every_switch_continue_the_run(law):
     """x_fs = x_fk, random plants: a run continued in pieces, each cut 1e-10 after a switch,
     has the one-call run's switches and end (before the fix, 161 of 368 calls ending just
-    after a stick exit stopped as chattering in a reviewer's sample)."""
+    after a stick exit stopped as chattering in a stress sample)."""
     rng = np.random.default_rng(11)
     method = "exact" if law == "coulomb" else "event"
     for _ in range(3):
