@@ -3,6 +3,7 @@
 # First, before any module with compiled kernels: keys their numba cache on the whole
 # package's source (see _numba_cache).
 from . import _numba_cache  # noqa: F401
+from .mapfile import MapInUseError
 from .params import FRICTION_LAWS, OscillatorParams
 from .regimes import Regime, classify, classify_stats, strobe_period
 from .simulate import (
@@ -20,6 +21,7 @@ from .warmup import warmup
 __all__ = [
     "EVENT_NAMES",
     "FRICTION_LAWS",
+    "MapInUseError",
     "OscillatorParams",
     "OscillatorState",
     "Regime",

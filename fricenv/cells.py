@@ -25,11 +25,16 @@ from .checks import (
     real_array,
 )
 from .core import conditioned_rows
+from .divergence import diverged
 from .layout import (
     METHOD_EVENT,
     METHOD_EXACT,
     METHODS,
     N_STATS,
+    ST_DURATION,
+    ST_STICK_TIME,
+    STATUS_DIVERGED,
+    STATUS_OK,
 )
 from .params import (
     N_PARAMS,
@@ -206,8 +211,9 @@ def _count(n: float) -> str:
 def check_n_threads(n: object) -> int:
     """``n`` as a thread count numba can run, else ``TypeError`` / ``ValueError`` naming it."""
     n = check_int("n_threads", n)
-    if not 1 <= n <= numba.config.NUMBA_NUM_THREADS:
-        raise ValueError(f"n_threads must be in [1, {numba.config.NUMBA_NUM_THREADS}], got {n}")
+    most = int(numba.config.NUMBA_NUM_THREADS)  # type: ignore[attr-defined]
+    if not 1 <= n <= most:
+        raise ValueError(f"n_threads must be in [1, {most}], got {n}")
     return n
 
 
@@ -216,7 +222,7 @@ class _Threads:
 
     def __init__(self, n: int | None) -> None:
         self.n = n
-        self.old = None
+        self.old: int | None = None
 
     def __enter__(self) -> None:
         if self.n is not None:
@@ -299,7 +305,8 @@ def run_cells(P_cells: np.ndarray, t_transient: np.ndarray, t_segment: np.ndarra
     :class:`OscillatorParams`' rules; ``n_segment`` is at most ``MAX_SEGMENTS`` and ``tries``
     at most ``1 + MAX_LOCK_EXTENSIONS``. This is the engine under :func:`regime_map`; it is
     public so that other scans (e.g. amplitude versus eta) reuse the same measured
-    quantities.
+    quantities. A cell the kernel finished whose motion ran away (:mod:`fricenv.divergence`)
+    gets status ``STATUS_DIVERGED``; its statistics are kept, but they are no result.
     """
     if not isinstance(settings, SweepSettings):  # its fields are the kernel's arguments
         raise TypeError(f"settings must be a fricenv.SweepSettings, {got(settings)}")
@@ -352,18 +359,25 @@ def run_cells(P_cells: np.ndarray, t_transient: np.ndarray, t_segment: np.ndarra
     if n == 0:
         return out_stats, out_status, out_period
     _check_cells(P_cells, t_transient, t_segment, n_segment, tries)
-    spans = (np.ascontiguousarray(t_transient, dtype=np.float64),
+    kernel_spans = (np.ascontiguousarray(t_transient, dtype=np.float64),
              np.ascontiguousarray(t_segment, dtype=np.float64),
              np.ascontiguousarray(n_segment, dtype=np.int64),
              np.ascontiguousarray(tries, dtype=np.int64))
     with _Threads(n_threads):
         for cell_method, rows in _method_groups(P_cells, method):
-            _run_group(CELL_KERNELS[cell_method], cell_method, rows, P_cells, spans, settings,
-                       out_stats, out_status, out_period)
+            _run_group(CELL_KERNELS[cell_method], cell_method, rows, P_cells, kernel_spans,
+                       settings, out_stats, out_status, out_period)
     missed = np.flatnonzero(out_status == STATUS_NOT_RUN)
     if missed.size:  # an exception inside prange is lost: say so rather than return them
         raise RuntimeError(f"the cell kernel left {missed.size} cell(s) unrun (first: cell "
                            f"{int(missed[0])}); this is a bug in fricenv.sweep")
+    # A window stuck throughout sums its stick phases a few ulps beyond its duration.
+    np.minimum(out_stats[:, ST_STICK_TIME], out_stats[:, ST_DURATION],
+               out=out_stats[:, ST_STICK_TIME])
+    longest = t_transient + t_segment * n_segment * np.maximum(tries, 1)
+    out_status[(out_status == STATUS_OK) & diverged(
+        P_cells, settings.x0, settings.v0, longest, out_stats, vr2_measured=False)] = (
+        STATUS_DIVERGED)
     return out_stats, out_status, out_period
 
 

@@ -37,6 +37,9 @@ STATUS_EVENT_CAP = 1  # more events than the cap allows: chattering / Zeno-like 
 STATUS_NONFINITE = 2  # the state became NaN or infinite
 STATUS_BUFFER_FULL = 3  # trajectory kernel: event buffer full (the wrapper grows it)
 STATUS_TOO_STIFF = 4  # slip stiffer than the smallest step the time resolution allows can follow
+# Set by the Python wrappers, never by a kernel: the motion ran away (a statistic or the state
+# non-finite, or beyond the bound of fricenv.divergence) while the kernel reported OK.
+STATUS_DIVERGED = 5
 
 # Event kinds in a trajectory.
 EVENT_STICK = 1  # slip -> stick

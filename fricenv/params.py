@@ -74,21 +74,19 @@ class OscillatorParams:
     ``x'' + lam x' + x = -F(v - V) + u1 cos(eta t) + u2 cos(nu eta t)`` with the friction law
     ``F(v_r) = x_f sgn(v_r) - b1 v_r + b3 v_r**3`` (x_f = xfk in slip, up to xfs in stick).
 
-    ======  ==========================================================  ========
-    field   meaning                                                     default
-    ======  ==========================================================  ========
-    lam     damping ratio c / (m w0), lambda                            0.5
-    eta     first tone's frequency over the natural one, w1 / w0        0.6
-    nu      frequency ratio of the two tones, w2 / w1                   1.0
-    u0      amplitude of both tones, p0 / (m w0^2)                      0.0
-    V       belt speed v0 / w0                                          1.0
-    xfk     kinetic friction level mu_k F_N / k                         2.5
-    xfs     static friction level mu_s F_N / k (>= xfk)                 4.0
-    b1      linear (viscous) friction coefficient                       0.0
-    b3      cubic (Stribeck-like) friction coefficient                  0.0
-    u1      amplitude of tone 1 if it differs from u0 (None: u0)        None
-    u2      amplitude of tone 2 if it differs from u0 (None: u0)        None
-    ======  ==========================================================  ========
+    | field | meaning | default |
+    |---|---|---|
+    | lam | damping ratio c / (m w0), lambda | 0.5 |
+    | eta | first tone's frequency over the natural one, w1 / w0 | 0.6 |
+    | nu | frequency ratio of the two tones, w2 / w1 | 1.0 |
+    | u0 | amplitude of both tones, p0 / (m w0^2) | 0.0 |
+    | V | belt speed v0 / w0 | 1.0 |
+    | xfk | kinetic friction level mu_k F_N / k | 2.5 |
+    | xfs | static friction level mu_s F_N / k (>= xfk) | 4.0 |
+    | b1 | linear (viscous) friction coefficient | 0.0 |
+    | b3 | cubic (Stribeck-like) friction coefficient | 0.0 |
+    | u1 | amplitude of tone 1 if it differs from u0 (None: u0) | None |
+    | u2 | amplitude of tone 2 if it differs from u0 (None: u0) | None |
 
     Defaults are the paper's (Sec. 3.2.1). Construction validates every field and raises
     ``TypeError`` (not a real number) or ``ValueError`` (NaN, infinite, beyond

@@ -41,6 +41,8 @@ REGIME_COLORS: dict[Regime, str] = {
     Regime.SSM2: "#d9453d",
     Regime.PERIODIC_STICK_SLIP: "#ffd400",
     Regime.PERIODIC_OSCILLATION: "#1f4e9c",
+    Regime.STUCK: "#7b4a12",
+    Regime.DIVERGED: "#c51b7d",
 }
 REGIME_SHORT: dict[Regime, str] = {
     Regime.UNRESOLVED: "unresolved",
@@ -50,7 +52,10 @@ REGIME_SHORT: dict[Regime, str] = {
     Regime.SSM2: "SSM2: stick-slip, ν > 1",
     Regime.PERIODIC_STICK_SLIP: "periodic stick-slip (integer ν)",
     Regime.PERIODIC_OSCILLATION: "periodic oscillation (integer ν)",
+    Regime.STUCK: "stuck all window long",
+    Regime.DIVERGED: "diverged (motion ran away)",
 }
+assert set(REGIME_COLORS) == set(REGIME_SHORT) == set(Regime)
 LAW_TITLES = {"coulomb": "Coulomb", "viscous": "Coulomb + viscosity",
               "stribeck": "complete (Stribeck)"}
 

@@ -7,6 +7,7 @@ rules can be tested on hand-made inputs.
 Measured per run (window only)
 ------------------------------
 ``n_stick``      slip -> stick transitions (stick phases entered)
+``n_slip``       stick -> slip transitions (optional: without it STUCK is not told apart)
 ``stick_time``   time spent stuck; ``stick_fraction = stick_time / duration``
 ``n_reversal``   slip -> opposite slip through ``v = V`` without sticking
 ``v_min, v_max`` exact velocity extrema
@@ -15,11 +16,21 @@ Measured per run (window only)
 ``period``       smallest ``m <= m_max`` with ``(x, v)(t + m T_c) = (x, v)(t)`` at every
                  stroboscopic sample of the window (0: none found or not tested); see
                  :func:`strobe_period`.
-``status``       kernel status (``layout.STATUS_*``); anything but OK means no label.
+``status``       kernel status (``layout.STATUS_*``); anything but OK means no regime.
 
 Labels (:class:`Regime`), checked in this order
 -----------------------------------------------
-``UNRESOLVED``            the kernel stopped (event cap, non-finite state).
+``DIVERGED``              status ``STATUS_DIVERGED``: the motion ran away (a statistic
+                          non-finite, or ``|x|``, ``|v|`` beyond the bound of
+                          :mod:`fricenv.divergence`), so its statistics are no result.
+``UNRESOLVED``            any other status but OK: the kernel stopped (event cap,
+                          non-finite state, slip too stiff).
+``STUCK``                 stuck over the whole window: no switch of any kind
+                          (``n_stick == n_slip == n_reversal == 0``) and ``stick_time > 0``.
+                          With no switch the mode never changes, so a block stuck at any
+                          instant of the window is stuck in all of it (a belt at ``V = 0``
+                          holding a block whose force never exceeds ``x_fs``, or a stick
+                          phase longer than the window).
 ``PERIODIC_STICK_SLIP``   stick phases, ``nu`` an integer (``q == 1``) and ``period >= 1``.
 ``PERIODIC_OSCILLATION``  no stick, ``nu`` an integer and ``period >= 1``.
 ``SSM1``                  stick phases (``n_stick > 0`` or ``stick_time > 0``), ``nu <= 1``.
@@ -29,7 +40,7 @@ Labels (:class:`Regime`), checked in this order
 ``WM2``                   no stick but at least one reversal: ``v`` crosses ``V`` only in
                           direct reversals (large forcing, friction a square-wave force).
 
-Choices where the paper is ambiguous (README, Regime definitions)
+Choices where the paper is ambiguous (docs/regimes.md)
 -----------------------------------------------------------------
 * WM1/WM2 follow the *maps* (WM1 below the first boundary in ``u0``, WM2 beyond the
   second), not the waveform names of Fig. 4 ("angular" vs "amplitude" modulation), because
@@ -63,6 +74,7 @@ from .layout import (
     ST_STICK_TIME,
     ST_V_MAX,
     ST_V_MIN,
+    STATUS_DIVERGED,
     STATUS_OK,
 )
 
@@ -84,6 +96,8 @@ class Regime(IntEnum):
     SSM2 = 4
     PERIODIC_STICK_SLIP = 5
     PERIODIC_OSCILLATION = 6
+    STUCK = 7
+    DIVERGED = 8
 
     @property
     def description(self) -> str:
@@ -91,17 +105,21 @@ class Regime(IntEnum):
 
     @property
     def has_stick(self) -> bool:
-        return self in (Regime.SSM1, Regime.SSM2, Regime.PERIODIC_STICK_SLIP)
+        """The block is stuck for some of the window (stick-slip, or stuck throughout)."""
+        return self in (Regime.SSM1, Regime.SSM2, Regime.PERIODIC_STICK_SLIP, Regime.STUCK)
 
 
 _DESCRIPTIONS = {
-    Regime.UNRESOLVED: "unresolved (solver stopped: event cap or non-finite state)",
+    Regime.UNRESOLVED: "unresolved (solver stopped: event cap, slip too stiff or non-finite "
+                       "state)",
     Regime.WM1: "wave modulated 1: pure slip, no contact with v = V",
     Regime.WM2: "wave modulated 2: direct reversals through v = V, no stick",
     Regime.SSM1: "stick-slip modulated 1: stick phases, nu <= 1",
     Regime.SSM2: "stick-slip modulated 2: stick phases, nu > 1",
     Regime.PERIODIC_STICK_SLIP: "periodic stick-slip: integer nu, locked response with stick",
     Regime.PERIODIC_OSCILLATION: "periodic oscillation: integer nu, locked response, no stick",
+    Regime.STUCK: "stuck: the block stayed stuck on the belt over the whole window",
+    Regime.DIVERGED: "diverged: the motion ran away (negative net damping); no statistics",
 }
 
 
@@ -229,25 +247,31 @@ def _check_denominators(nu: np.ndarray, q: np.ndarray) -> None:
 def classify(n_stick: np.ndarray | float, stick_time: np.ndarray | float,
              n_reversal: np.ndarray | float, nu: np.ndarray | float,
              q: np.ndarray | int = 0, period: np.ndarray | int = 0,
-             status: np.ndarray | int = STATUS_OK) -> np.ndarray:
+             status: np.ndarray | int = STATUS_OK,
+             n_slip: np.ndarray | float | None = None) -> np.ndarray:
     """Regime label(s) from window statistics (broadcasting; returns int8 array or scalar).
 
     The rules are listed in the module docstring. ``q`` is the tested denominator of ``nu``
-    (0: not tested) and ``period`` the stroboscopic period found (0: none). Inputs are
+    (0: not tested) and ``period`` the stroboscopic period found (0: none). ``n_slip``
+    (stick -> slip switches) tells a block stuck all along (STUCK) from one that broke
+    loose once; without it (None) such windows are labelled as stick-slip. Inputs are
     checked first (``TypeError``/``ValueError`` naming the argument): ``nu`` finite and
     >= 0, ``q`` consistent with it, integer ``q``/``period``/``status``, and, where
     ``status`` is OK, finite non-negative counts, times and periods (a failed run's
-    statistics are not read: its label is UNRESOLVED).
+    statistics are not read: its label is UNRESOLVED, or DIVERGED for STATUS_DIVERGED).
     """
-    names = ("n_stick", "stick_time", "n_reversal", "nu")
+    names = ("n_stick", "stick_time", "n_reversal", "nu", "n_slip")
     arrays = [real_array(a, f"{k} must be a real number or an array of real numbers")
-              for k, a in zip(names, (n_stick, stick_time, n_reversal, nu), strict=True)]
+              for k, a in zip(names, (n_stick, stick_time, n_reversal, nu,
+                                      0.0 if n_slip is None else n_slip), strict=True)]
     arrays += [_int_array(k, a) for k, a in (("q", q), ("period", period), ("status", status))]
     try:
-        n_stick, stick_time, n_reversal, nu, q, period, status = np.broadcast_arrays(*arrays)
+        n_stick, stick_time, n_reversal, nu, slips, q, period, status = np.broadcast_arrays(
+            *arrays)
     except ValueError:
         shapes = ", ".join(f"{k} {a.shape}" for k, a in zip(
-            (*names, "q", "period", "status"), arrays, strict=True))
+            (*names, "q", "period", "status"), arrays, strict=True) if k != "n_slip"
+            or n_slip is not None)
         raise ValueError(f"the arguments must broadcast to one shape, got {shapes}") from None
     if not np.all(np.isfinite(nu)) or np.any(nu < 0.0):
         bad = float(nu[~(np.isfinite(nu) & (nu >= 0.0))].flat[0])
@@ -255,7 +279,7 @@ def classify(n_stick: np.ndarray | float, stick_time: np.ndarray | float,
     _check_denominators(nu, q)
     ok = status == STATUS_OK
     for k, a in (("n_stick", n_stick), ("stick_time", stick_time), ("n_reversal", n_reversal),
-                 ("period", period)):
+                 ("n_slip", slips), ("period", period)):
         bad = ok & ~(np.isfinite(a) & (a >= 0))
         if np.any(bad):
             raise ValueError(f"{k} must be finite and >= 0 where status is OK, got "
@@ -266,7 +290,11 @@ def classify(n_stick: np.ndarray | float, stick_time: np.ndarray | float,
     out = np.where(stick, np.where(nu <= 1.0, Regime.SSM1, Regime.SSM2), out)
     out = np.where(periodic & stick, Regime.PERIODIC_STICK_SLIP, out)
     out = np.where(periodic & ~stick, Regime.PERIODIC_OSCILLATION, out)
-    out = np.where(status != STATUS_OK, Regime.UNRESOLVED, out).astype(np.int8)
+    if n_slip is not None:  # no switch at all: the mode seen stuck is the whole window's
+        out = np.where((n_stick == 0) & (slips == 0) & (n_reversal == 0) & (stick_time > 0),
+                       Regime.STUCK, out)
+    out = np.where(status != STATUS_OK, Regime.UNRESOLVED, out)
+    out = np.where(status == STATUS_DIVERGED, Regime.DIVERGED, out).astype(np.int8)
     return out if out.ndim else out[()]
 
 
@@ -278,7 +306,7 @@ def classify_stats(stats: np.ndarray, nu: np.ndarray | float, q: np.ndarray | in
     if stats.ndim < 1 or stats.shape[-1] != N_STATS:
         raise ValueError(f"stats must have last axis {N_STATS}, got shape {stats.shape}")
     return classify(stats[..., ST_N_STICK], stats[..., ST_STICK_TIME],
-                    stats[..., ST_N_REVERSAL], nu, q, period, status)
+                    stats[..., ST_N_REVERSAL], nu, q, period, status, stats[..., ST_N_SLIP])
 
 
 def summarize(stats: np.ndarray) -> dict[str, float]:
@@ -287,7 +315,8 @@ def summarize(stats: np.ndarray) -> dict[str, float]:
     dur = s[ST_DURATION]
     return {
         "duration": float(dur),
-        "stick_fraction": float(s[ST_STICK_TIME] / dur) if dur > 0 else math.nan,
+        # (at most 1: a run stuck throughout may sum its stick time a few ulps long)
+        "stick_fraction": float(min(s[ST_STICK_TIME] / dur, 1.0)) if dur > 0 else math.nan,
         "n_stick": int(s[ST_N_STICK]),
         "n_slip": int(s[ST_N_SLIP]),
         "n_reversal": int(s[ST_N_REVERSAL]),

@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from . import core
+from . import core, divergence
 from .checks import check_bounded_real, check_finite_real, check_int, check_rtol, got
 from .layout import (
     EVENT_REVERSAL,
@@ -38,12 +38,13 @@ from .layout import (
     ST_X_MAX,
     ST_X_MIN,
     STATUS_BUFFER_FULL,
+    STATUS_DIVERGED,
     STATUS_EVENT_CAP,
     STATUS_NONFINITE,
     STATUS_OK,
     STATUS_TOO_STIFF,
 )
-from .params import P_LAM, P_W1, P_W2, PARAM_LIMIT, OscillatorParams
+from .params import P_B1, P_B3, P_LAM, P_W1, P_W2, PARAM_LIMIT, OscillatorParams
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
@@ -62,7 +63,13 @@ EVENT_DTYPE = np.dtype([("t", "f8"), ("kind", "i1"), ("name", "U8"), ("x", "f8")
 
 
 class SimulationError(RuntimeError):
-    """A run that cannot continue: event cap exceeded or a non-finite state."""
+    """A run that cannot continue or whose result is no result: event cap exceeded, slip
+    too stiff, a non-finite state, or motion that diverged. ``status`` is the reason, a
+    ``layout.STATUS_*`` code (``STATUS_DIVERGED``: see :mod:`fricenv.divergence`)."""
+
+    def __init__(self, message: str, status: int = -1) -> None:
+        super().__init__(message)
+        self.status = status
 
 
 def _positive(name: str, value: float) -> float:
@@ -147,18 +154,36 @@ def _raise_status(status: int, t: float, max_events: int, t_span: float) -> None
         raise SimulationError(
             f"more than {max_events} switching events in a span of {t_span:g} (stopped at "
             f"t = {t:.6g}): the run chatters between stick and slip; raise max_event_rate "
-            "if this is physical"
-        )
+            "if this is physical", status)
     if status == STATUS_NONFINITE:
-        raise SimulationError(f"the state became non-finite at t = {t:.6g}")
+        raise SimulationError(f"the state became non-finite at t = {t:.6g}", status)
     if status == STATUS_TOO_STIFF:
         raise SimulationError(
             f"slip at t = {t:.6g} is stiffer than the smallest step the time resolution allows "
             f"(1e-13 max(1, |t|)) can follow: |v - V| far beyond the model's O(1) scale with "
-            f"the cubic law (about 5e6 at t < 1), or stiff slip continued at a large t"
-        )
+            f"the cubic law (about 5e6 at t < 1), or stiff slip continued at a large t", status)
     if status != STATUS_OK:
-        raise SimulationError(f"kernel returned status {status} at t = {t:.6g}")
+        raise SimulationError(f"kernel returned status {status} at t = {t:.6g}", status)
+
+
+def _raise_if_diverged(P: np.ndarray, x0: float, v0: float, t_span: float,
+                       stats: np.ndarray, S: np.ndarray) -> None:
+    """``SimulationError`` (``STATUS_DIVERGED``) for a run the kernel finished but whose
+    motion ran away (:mod:`fricenv.divergence`): its statistics would be inf, NaN or
+    astronomically large numbers presented as a result."""
+    if not divergence.run_diverged(P, x0, v0, t_span, stats, S[S_X], S[S_V]):
+        return
+    limit = float(divergence.motion_limit(P, x0, v0, t_span))
+    size = max(abs(stats[k]) for k in (ST_V_MAX, ST_V_MIN, ST_X_MAX, ST_X_MIN))
+    why = ""
+    if P[P_B3] < 0.0 or (P[P_B3] == 0.0 and P[P_B1] > P[P_LAM]):
+        why = (f"; slip has negative net damping (lam = {P[P_LAM]:g}, b1 = {P[P_B1]:g}, "
+               f"b3 = {P[P_B3]:g}: b1 > lam with b3 = 0, or b3 < 0)")
+    raise SimulationError(
+        f"the motion diverged by t = {S[S_T]:.6g}: |x| or |v| reached {size:.3g} and the "
+        f"integral of (v - V)^2 {stats[ST_VR2_INT]:.3g}, beyond {limit:.3g} "
+        f"({divergence.DIVERGENCE_FACTOR:g} times the largest motion this plant's parameters "
+        f"and start set, times the span){why}", STATUS_DIVERGED)
 
 
 @dataclass(frozen=True)
@@ -228,8 +253,11 @@ class RunStats:
 
     @classmethod
     def from_array(cls, st: np.ndarray, state: OscillatorState) -> RunStats:
+        # The kernels sum stick phases step by step and the duration as one time, so a run
+        # stuck throughout could read a stick time some ulps above its duration.
         return cls(
-            duration=float(st[ST_DURATION]), stick_time=float(st[ST_STICK_TIME]),
+            duration=float(st[ST_DURATION]),
+            stick_time=float(min(st[ST_STICK_TIME], st[ST_DURATION])),
             n_stick=int(st[ST_N_STICK]), n_slip=int(st[ST_N_SLIP]),
             n_reversals=int(st[ST_N_REVERSAL]), v_max=float(st[ST_V_MAX]),
             v_min=float(st[ST_V_MIN]), x_max=float(st[ST_X_MAX]), x_min=float(st[ST_X_MIN]),
@@ -394,8 +422,10 @@ def simulate(
     though only ``"rk4"`` uses it, so a bad value never passes unseen. Output times are
     ``state.t``, then every ``dt_out`` on, and the end ``state.t + t_span`` (appended when
     off the grid): always at least the start and the end. ``t_span`` and ``state`` mean
-    what they mean in :func:`run_stats`; the older keywords ``t_span``, ``x0``, ``v0``,
-    ``phase1`` and ``phase2`` still work, with a ``DeprecationWarning``.
+    what they mean in :func:`run_stats`; the older keywords ``t_end``, ``x0``, ``v0``,
+    ``phase1`` and ``phase2`` still work, with a ``DeprecationWarning``. A run that
+    cannot go on, or whose motion diverged (:mod:`fricenv.divergence`), raises
+    :class:`SimulationError` with its ``status``.
     """
     _check_params(params)
     t_span, state = _deprecated_start(params, t_span, state, deprecated)
@@ -435,6 +465,7 @@ def simulate(
         status = core.run_rk4(P, S, t_span, min(dt, t_span), out_t, stats, out_x, out_v,
                               out_mode)
         _raise_status(status, S[S_T], 0, t_span)
+        _raise_if_diverged(P, state.x, state.v, t_span, stats, S)
         empty = np.empty(0)
         return Trajectory(params, method, out_t, out_x, out_v, out_mode.astype(np.int8),
                           empty, np.empty(0, np.int8), empty,
@@ -459,6 +490,7 @@ def simulate(
             break
         capacity *= 4
     _raise_status(status, S[S_T], max_events, t_span)
+    _raise_if_diverged(P, state.x, state.v, t_span, stats, S)
     k = int(counts[0])
     return Trajectory(params, method, out_t, out_x, out_v, out_mode.astype(np.int8),
                       ev_t[:k].copy(), ev_kind[:k].copy(), ev_x[:k].copy(),
@@ -479,7 +511,10 @@ def run_stats(
 
     Returns stick time, switch counts, exact extrema, the integral of (v - V)^2 and the
     final state, from which a later call continues (possibly with other u0 or nu: the tone
-    phases carry over, so the force stays continuous).
+    phases carry over, so the force stays continuous). Every statistic returned is finite,
+    and the stick time at most the duration: a run that cannot go on (chattering, too
+    stiff, a non-finite state) or whose motion diverged (:mod:`fricenv.divergence`) raises
+    :class:`SimulationError` with its ``status`` instead.
     """
     _check_params(params)
     t_span = _positive("t_span", t_span)
@@ -504,4 +539,5 @@ def run_stats(
     status = advance(P, S, t_span, stats, code, check_rtol(rtol), _positive("atol", atol),
                      max_events)
     _raise_status(status, S[S_T], max_events, t_span)
+    _raise_if_diverged(P, state.x, state.v, t_span, stats, S)
     return RunStats.from_array(stats, OscillatorState.from_array(S))

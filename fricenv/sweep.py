@@ -29,25 +29,27 @@ Time spans per cell (defaults of :class:`SweepSettings`)
 
 ``dist(nu, Z)`` is the distance from ``nu`` to the nearest integer.
 
-Storage: ``RegimeMap.save`` writes one ``.npz`` holding the arrays and a JSON metadata
-string (parameters, settings, layout, regime names). With ``path=`` a sweep saves after
-every chunk (atomically: temporary file + ``os.replace``) and, when started again with the
-same arguments, computes only the cells not yet marked done. A file made with other
+Storage: ``RegimeMap.save`` (:mod:`fricenv.maps`) writes one ``.npz`` holding the arrays
+and a JSON metadata string (parameters, settings, layout, regime names). With ``path=`` a
+sweep saves at most every ``SAVE_EVERY_S`` seconds and when it ends or stops (atomically:
+temporary file + ``os.replace``) and, when started again with the same arguments,
+computes only the cells not yet marked done. A file made with other
 parameters, grid, settings, time spans or measurement code (``ALGORITHM``) is refused.
 """
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import time
-import zipfile
 from collections.abc import Callable, Iterable
-from dataclasses import asdict, dataclass, field, fields
+from dataclasses import asdict, fields
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import numpy as np
+
+from . import mapfile
 
 # Cells (settings, plans, the checked parallel run) live in .cells and their kernels in
 # .cell_kernels; their names stay importable from here.
@@ -82,328 +84,49 @@ from .cells import (  # noqa: F401
 from .checks import (
     check_bool,
     check_dict,
-    check_finite_real,
     check_int,
-    check_output_dir,
-    check_path,
     got,
-    real_array,
 )
 from .layout import (
     METHOD_EVENT,
     METHOD_EXACT,
     N_STATS,
-    ST_DURATION,
     ST_N_REVERSAL,
+    ST_N_SLIP,
     ST_N_STICK,
     ST_STICK_TIME,
-    ST_V_MAX,
-    ST_V_MIN,
-    ST_X_MAX,
-    ST_X_MIN,
+)
+from .maps import (  # noqa: F401  (the map's names stay importable from here)
+    _MAP_ARRAYS,
+    _MAP_DTYPES,
+    _RESERVED_META,
+    ALGORITHM,
+    FORMAT,
+    FORMAT_VERSION,
+    NOT_COMPUTED,
+    STAT_NAMES,
+    RegimeMap,
+    _check_axis,
+    _check_map_arrays,
+    _map_path,
+    _params_key,
+    _with_npz,
 )
 from .params import (
     P_W1,
     P_W2,
-    PARAM_LIMIT,
     OscillatorParams,
     resolve_law,
 )
-from .regimes import Regime, classify
+from .regimes import classify
 
-if TYPE_CHECKING:
-    import xarray as xr
-    from matplotlib.axes import Axes
-
-FORMAT = "fricenv.regime_map"
-FORMAT_VERSION = 1
-# 12: time runs from 0 in each core call, and the transient skips the extrema (stats move
-# by rounding); 13: slip excursions below v's rounding (x_fs ~ x_fk) end where their
-# derivatives say, not at their start, and ties |f| = x_fs with |f| falling stick (such
-# cells stopped as chattering)
-#: Version of the per-cell measurement; a stored map is resumed only if it matches.
-ALGORITHM = 13
+#: Most cells a regime map may have: its arrays take about 100 bytes a cell (10 GB at the
+#: cap), allocated before the first cell runs; a larger grid is refused naming its size.
+MAX_CELLS = 10**8
 #: A map in progress is saved at most this often (seconds): each save rewrites the whole
 #: file, and saving after every chunk made a 3 s map take 70 % longer. Its last chunks are
 #: saved when it ends or stops on an exception; a killed process loses at most this much.
 SAVE_EVERY_S = 10.0
-#: Label of a cell that has not been computed yet (not a :class:`Regime`).
-NOT_COMPUTED = -1
-
-STAT_NAMES = ("duration", "stick_time", "n_stick", "n_slip", "n_reversal", "v_max", "v_min",
-              "x_max", "x_min", "vr2_int", "n_steps")
-assert len(STAT_NAMES) == N_STATS
-
-
-# ------------------------------------------------------------------------------------------
-@dataclass
-class RegimeMap:
-    """Labels and window statistics on a (u0, nu) grid; axis 0 is u0, axis 1 is nu."""
-
-    params: OscillatorParams
-    u0: np.ndarray
-    nu: np.ndarray
-    settings: SweepSettings
-    labels: np.ndarray  # int8 (n_u0, n_nu), Regime values, NOT_COMPUTED if not done
-    stats: np.ndarray  # float64 (n_u0, n_nu, N_STATS), layout ST_*
-    period: np.ndarray  # int16: response period in common forcing periods, 0 none/untested
-    status: np.ndarray  # int8: kernel status
-    done: np.ndarray  # bool
-    q: np.ndarray  # int16 (n_nu,): tested denominator of nu, 0 if untested
-    elapsed: float = 0.0  # compute time spent so far, seconds (all sessions)
-    meta: dict = field(default_factory=dict)
-    plan: CellPlan | None = None  # per-nu time spans used (checked when resuming)
-
-    # -- derived -----------------------------------------------------------------------
-    @property
-    def shape(self) -> tuple[int, int]:
-        return (self.u0.size, self.nu.size)
-
-    @property
-    def complete(self) -> bool:
-        return bool(self.done.all())
-
-    @property
-    def stick_fraction(self) -> np.ndarray:
-        d = self.stats[..., ST_DURATION]
-        with np.errstate(invalid="ignore", divide="ignore"):
-            return np.where(d > 0, self.stats[..., ST_STICK_TIME] / np.where(d > 0, d, 1),
-                            np.nan)
-
-    @property
-    def n_stick(self) -> np.ndarray:
-        return self.stats[..., ST_N_STICK]
-
-    @property
-    def n_reversal(self) -> np.ndarray:
-        return self.stats[..., ST_N_REVERSAL]
-
-    @property
-    def v_max(self) -> np.ndarray:
-        return self.stats[..., ST_V_MAX]
-
-    @property
-    def v_min(self) -> np.ndarray:
-        return self.stats[..., ST_V_MIN]
-
-    @property
-    def x_amplitude(self) -> np.ndarray:
-        """Half the peak-to-peak displacement in the window."""
-        return 0.5 * (self.stats[..., ST_X_MAX] - self.stats[..., ST_X_MIN])
-
-    def plot(self, ax: Axes | None = None, *, boundaries: bool = True,
-             title: str | None = None) -> Axes:
-        """Draw the map on ``ax`` (u0 on x, nu on y, cells coloured by regime, the stick
-        band's two boundaries) and return it; without ``ax``, on a new pyplot figure, so
-        that a notebook shows it, as ``pandas`` and ``xarray`` plots do."""
-        from . import plotting
-
-        if ax is None:
-            import matplotlib.pyplot as plt
-
-            ax = plt.figure(figsize=(6.5, 4.6), layout="constrained").add_subplot()
-        plotting.draw_regime_map(ax, self, boundaries=boundaries, title=title)
-        return ax
-
-    def counts(self) -> dict[str, int]:
-        """Number of computed cells per regime name."""
-        return {r.name: int(np.sum(self.labels == r)) for r in Regime}
-
-    def to_xarray(self) -> xr.Dataset:
-        """This map as an ``xarray.Dataset`` over ``(u0, nu)``, laid out as an atlas
-        (:func:`fricenv.atlas`); needs the ``scale`` extra."""
-        from .atlas.store import regime_map_dataset
-
-        return regime_map_dataset(self)
-
-    # -- storage -----------------------------------------------------------------------
-    def metadata(self) -> dict:
-        return {
-            "format": FORMAT,
-            "version": FORMAT_VERSION,
-            "algorithm": int(self.meta.get("algorithm", ALGORITHM)),
-            "params": _params_key(self.params),
-            "settings": asdict(self.settings),
-            "stats_layout": list(STAT_NAMES),
-            "regimes": {r.name: int(r) for r in Regime},
-            "not_computed": NOT_COMPUTED,
-            "axes": ["u0", "nu"],
-            "elapsed_s": float(self.elapsed),
-            "n_done": int(self.done.sum()),
-            **{k: v for k, v in self.meta.items() if k not in _RESERVED_META},
-        }
-
-    def save(self, path: str | os.PathLike) -> Path:
-        """Write atomically to ``path`` (``.npz`` appended if missing; arrays plus a JSON
-        ``meta`` entry). ``TypeError`` / ``ValueError`` naming ``path`` before anything is
-        written if it is not a file name or cannot be one (:func:`_map_path`)."""
-        path = _map_path(path)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_name(path.name + f".tmp{os.getpid()}")
-        plan = {} if self.plan is None else {
-            f"plan_{f.name}": getattr(self.plan, f.name) for f in fields(CellPlan)}
-        try:
-            with open(tmp, "wb") as fh:
-                np.savez(fh, u0=self.u0, nu=self.nu, labels=self.labels, stats=self.stats,
-                         period=self.period, status=self.status, done=self.done, q=self.q,
-                         meta=np.array(json.dumps(self.metadata(), sort_keys=True)), **plan)
-                fh.flush()
-                os.fsync(fh.fileno())
-            os.replace(tmp, path)
-        finally:
-            tmp.unlink(missing_ok=True)  # a failed write leaves nothing behind
-        return path
-
-    @classmethod
-    def load(cls, path: str | os.PathLike) -> RegimeMap:
-        """Read a map written by :meth:`save` (``ValueError`` naming the file if it is not
-        one, is incomplete or inconsistent; ``FileNotFoundError`` if there is none).
-        ``.npz`` is appended if missing, as by :meth:`save`."""
-        path = _with_npz(check_path("path", path))
-        try:
-            z = np.load(path, allow_pickle=False)
-        except (FileNotFoundError, IsADirectoryError, PermissionError):
-            raise  # a path to fix, not a file to distrust
-        except (ValueError, OSError, zipfile.BadZipFile) as exc:  # not an npz archive
-            raise ValueError(f"{path} is not a fricenv regime map ({exc})") from None
-        if not isinstance(z, np.lib.npyio.NpzFile):
-            raise ValueError(f"{path} is not a fricenv regime map (a single array)")
-        with z:
-            try:
-                meta = json.loads(str(z["meta"][()]))
-            except (KeyError, ValueError) as exc:
-                raise ValueError(f"{path} is not a fricenv regime map (no metadata)") from exc
-            if not isinstance(meta, dict):
-                raise ValueError(f"{path} is not a fricenv regime map (its metadata is a "
-                                 f"{type(meta).__name__}, not a JSON object)")
-            if meta.get("format") != FORMAT or meta.get("version") != FORMAT_VERSION:
-                raise ValueError(f"{path}: unsupported format {meta.get('format')!r} "
-                                 f"version {meta.get('version')!r}")
-            missing = [k for k in _MAP_ARRAYS if k not in z.files]
-            if missing:
-                raise ValueError(f"{path} is not a complete regime map: no {missing}")
-            names = [f"plan_{f.name}" for f in fields(CellPlan)]
-            try:  # (an object array is refused without pickle: ValueError)
-                arrays = {k: z[k] for k in _MAP_ARRAYS}
-                plan = (CellPlan(*(z[n] for n in names)) if all(n in z.files for n in names)
-                        else None)
-            except (ValueError, OSError, zipfile.BadZipFile) as exc:
-                raise ValueError(f"{path}: unreadable regime map arrays ({exc})") from None
-        try:  # written by save, so anything else is a damaged or foreign file
-            params = OscillatorParams(**meta["params"])
-            settings = SweepSettings(**meta["settings"])
-            elapsed = check_finite_real("elapsed_s", meta["elapsed_s"])
-            algorithm = check_int("algorithm", meta.get("algorithm", 0))
-            _check_map_arrays(arrays, plan)
-        except (KeyError, TypeError, ValueError) as exc:
-            what = f"no {exc}" if isinstance(exc, KeyError) else str(exc)
-            raise ValueError(f"{path} is not a valid regime map: {what}") from None
-        extra = {k: v for k, v in meta.items()
-                 if k not in ("format", "version", "params", "settings", "stats_layout",
-                              "algorithm",
-                              "regimes", "not_computed", "axes", "elapsed_s", "n_done")}
-        extra["algorithm"] = algorithm
-        return cls(params=params, settings=settings, elapsed=elapsed,
-                   meta=extra, plan=plan, **arrays)
-
-
-def _check_map_arrays(arrays: dict[str, np.ndarray], plan: CellPlan | None) -> None:
-    """``ValueError`` unless a loaded map's arrays have the kinds and shapes :func:`_empty_map`
-    gives them (a wrong-shape ``labels`` used to load, then fail a resume mid-sweep)."""
-    u0 = _check_axis("u0", arrays["u0"])
-    nu = _check_axis("nu", arrays["nu"])
-    grid = (u0.size, nu.size)
-    want = {"u0": ((u0.size,), "iuf"), "nu": ((nu.size,), "iuf"), "labels": (grid, "iu"),
-            "stats": (grid + (N_STATS,), "f"), "period": (grid, "iu"),
-            "status": (grid, "iu"), "done": (grid, "b"), "q": ((nu.size,), "iu")}
-    if plan is not None:
-        want.update({f"plan_{f.name}": ((nu.size,), "iuf") for f in fields(CellPlan)})
-    for name, (shape, kinds) in want.items():
-        a = (getattr(plan, name[5:]) if name.startswith("plan_") else arrays[name])
-        if a.shape != shape or a.dtype.kind not in kinds:
-            raise ValueError(f"{name} must be of shape {shape} and kind {kinds!r} for a "
-                             f"{grid[0]} x {grid[1]} grid, got {a.shape} {a.dtype}")
-    # ... and agree with each other, as a sweep leaves them (a resume trusts them: cells
-    # marked done with no label were never recomputed, and the map called itself complete)
-    for name, dtype in _MAP_DTYPES.items():
-        if arrays[name].dtype != dtype:
-            raise ValueError(f"{name} must be {np.dtype(dtype)}, got {arrays[name].dtype}")
-    labels, done = arrays["labels"], arrays["done"]
-    bad = ~np.isin(labels, [NOT_COMPUTED, *(int(r) for r in Regime)])
-    if bad.any():
-        raise ValueError(f"labels holds {int(labels[bad][0])}, neither a Regime value nor "
-                         f"NOT_COMPUTED ({NOT_COMPUTED})")
-    if np.any(done == (labels == NOT_COMPUTED)):
-        raise ValueError("labels and done disagree: a cell is done exactly when it has a "
-                         "Regime label")
-    if plan is not None and not np.array_equal(arrays["q"], plan.q):
-        raise ValueError(f"q {arrays['q'].tolist()} differs from the plan's "
-                         f"{plan.q.tolist()}")
-
-
-def _with_npz(p: Path) -> Path:
-    return p if p.suffix == ".npz" or p.name in ("", ".", "..") else p.with_name(p.name + ".npz")
-
-
-def _map_path(path: object) -> Path:
-    """Where a map is saved: ``path`` with ``.npz`` appended if missing. ``TypeError`` for a
-    non-path, ``ValueError`` naming ``path`` for a name that is no file ('', '.', '..') or
-    a file that cannot be written (a folder there, a file among its parents), so that a
-    sweep fails before its first chunk rather than at the first save."""
-    p = check_path("path", path)
-    if p.name in ("", ".", ".."):
-        raise ValueError(f"path must name a file, got {str(path)!r}")
-    p = _with_npz(p)
-    if p.is_dir():  # (checks.check_output_file, with the file's name in the message)
-        raise ValueError(f"path {str(p)!r} is a folder, not a file")
-    check_output_dir(f"path {str(p)!r} needs the folder", p.parent)
-    return p
-
-
-#: Arrays a saved map holds besides its metadata.
-_MAP_ARRAYS = ("u0", "nu", "labels", "stats", "period", "status", "done", "q")
-#: Their exact types where ``_empty_map`` fixes one.
-_MAP_DTYPES = {"labels": np.int8, "period": np.int16, "status": np.int8, "done": np.bool_,
-               "q": np.int16}
-
-#: Metadata keys written by :meth:`RegimeMap.metadata` itself; user ``meta`` cannot set them.
-_RESERVED_META = frozenset({"format", "version", "algorithm", "params", "settings",
-                            "stats_layout", "regimes", "not_computed", "axes", "elapsed_s",
-                            "n_done"})
-
-
-def _params_key(params: OscillatorParams) -> dict:
-    """Parameters that define a map (the grid replaces u0, u1, u2 and nu)."""
-    d = params.to_dict()
-    d.update(u0=0.0, nu=1.0, u1=None, u2=None)
-    return d
-
-
-def _check_axis(name: str, a: object) -> np.ndarray:
-    """A grid axis as a 1-d float array: ``TypeError`` unless made of real numbers (None
-    would become NaN, strings such as ``"0.5"`` would be parsed), ``ValueError`` for a
-    ragged, 2-d, empty, non-finite or negative one."""
-    arr = real_array(a, f"{name} must be an array of real numbers")
-    if arr.ndim == 0:
-        arr = arr.reshape(1)
-    if arr.ndim != 1:
-        raise ValueError(f"{name} must be 1-d, got shape {arr.shape}")
-    if arr.size == 0:
-        raise ValueError(f"{name} grid is empty")
-    if not np.all(np.isfinite(arr)):
-        raise ValueError(f"{name} grid contains NaN or infinite values")
-    if np.any(arr < 0):
-        raise ValueError(f"{name} grid must be >= 0")
-    if np.any(arr > PARAM_LIMIT):
-        raise ValueError(f"{name} grid must lie within {PARAM_LIMIT:g} (as every parameter), "
-                         f"got {float(arr.max())!r}")
-    values, counts = np.unique(arr, return_counts=True)
-    if np.any(counts > 1):  # a cell computed twice, and a map the plots cannot draw
-        k = int(np.argmax(counts > 1))
-        raise ValueError(f"{name} grid must not repeat a value, got {float(values[k])!r} "
-                         f"{int(counts[k])} times")
-    return arr
-
 
 def _settings(settings: SweepSettings | None, overrides: dict) -> SweepSettings:
     """The settings of a sweep: ``settings`` (default: the defaults) with ``overrides``."""
@@ -412,14 +135,14 @@ def _settings(settings: SweepSettings | None, overrides: dict) -> SweepSettings:
     if unknown:
         raise ValueError(f"unknown setting(s) {unknown}; expected some of {sorted(known)}")
     if settings is None:
-        return SweepSettings(**overrides)  # type: ignore[arg-type]
+        return SweepSettings(**overrides)
     if not isinstance(settings, SweepSettings):
         raise TypeError(
             "settings must be a fricenv.SweepSettings or None (single settings can also be "
             f"passed as keyword arguments), {got(settings)}"
         )
     if overrides:
-        return SweepSettings(**{**asdict(settings), **overrides})  # type: ignore[arg-type]
+        return SweepSettings(**{**asdict(settings), **overrides})
     return settings
 
 
@@ -461,9 +184,12 @@ def regime_map(params: OscillatorParams | str, u0: object, nu: object, *,
     is saved at most every ``SAVE_EVERY_S`` seconds, after its last chunk and when the
     sweep stops on an exception (Ctrl-C, a callback's), and a run with the same
     arguments resumes from the file
-    (``resume=False`` starts over; a file made with other arguments raises ``ValueError``;
-    ``.npz`` is appended if missing; a ``path`` that cannot be written is refused before
-    any cell runs). ``n_threads`` sets numba's thread count for the call; ``progress``
+    (``resume=False`` starts over; a file made with other arguments, or damaged, raises
+    ``ValueError``; ``.npz`` is appended if missing; a ``path`` that cannot be written is
+    refused before any cell runs). While it runs the sweep holds the map's writer lock
+    (``<path>.lock``, released by the system if the process dies): a second sweep on the
+    same path raises :class:`~fricenv.mapfile.MapInUseError` before it reads or writes
+    anything. ``n_threads`` sets numba's thread count for the call; ``progress``
     shows a tqdm bar (default: when there are more than 2000 cells); ``callback(map,
     n_new)`` is called after each chunk is stored. ``meta`` adds free-form JSON-able
     entries under str keys to the metadata.
@@ -488,6 +214,9 @@ def regime_map(params: OscillatorParams | str, u0: object, nu: object, *,
                          f"{sorted(_RESERVED_META & set(meta))}")
     u0 = _check_axis("u0", u0)
     nu = _check_axis("nu", nu)
+    if u0.size * nu.size > MAX_CELLS:
+        raise ValueError(f"a grid of u0 ({u0.size} values) x nu ({nu.size} values) has "
+                         f"{u0.size * nu.size} cells, more than MAX_CELLS = {MAX_CELLS}")
     settings = _settings(settings, overrides)
     method = settings.method_code(params)
     resume = check_bool("resume", resume)
@@ -503,7 +232,21 @@ def regime_map(params: OscillatorParams | str, u0: object, nu: object, *,
     base = params.to_array()
     fastest = _cell_rows(base, np.full(nu.size, np.max(np.abs(u0))), plan.nu_exact)
     _check_cells(fastest, plan.t_transient, plan.t_segment, plan.n_segment, plan.tries)
+    # One writer at a time: a second sweep on this path is refused while this one runs.
+    with mapfile.writer_lock(path) if path is not None else contextlib.nullcontext():
+        return _fill_map(params, u0, nu, settings, plan, method, path=path, resume=resume,
+                         chunk_size=chunk_size, n_threads=n_threads, progress=progress,
+                         callback=callback, meta=meta)
 
+
+def _fill_map(params: OscillatorParams, u0: np.ndarray, nu: np.ndarray,
+              settings: SweepSettings, plan: CellPlan, method: int, *, path: Path | None,
+              resume: bool, chunk_size: int | None, n_threads: int | None,
+              progress: bool | None, callback: Callable[[RegimeMap, int], None] | None,
+              meta: dict | None) -> RegimeMap:
+    """The sweep of :func:`regime_map` once its arguments are checked (and, with ``path``,
+    its writer lock held): resume or start the map, run the cells not done, save."""
+    base = params.to_array()
     rmap = None
     if path is not None:
         if resume and path.exists():
@@ -552,10 +295,10 @@ def regime_map(params: OscillatorParams | str, u0: object, nu: object, *,
             rmap.period[iu, jn] = period
             rmap.labels[iu, jn] = classify(st[:, ST_N_STICK], st[:, ST_STICK_TIME],
                                            st[:, ST_N_REVERSAL], nu[jn], plan.q[jn], period,
-                                           status)
+                                           status, st[:, ST_N_SLIP])
             rmap.done[iu, jn] = True
             unsaved = path is not None
-            if unsaved and time.perf_counter() - last_save >= SAVE_EVERY_S:
+            if path is not None and time.perf_counter() - last_save >= SAVE_EVERY_S:
                 unsaved = False  # (a save that fails is not retried below)
                 rmap.save(path)
                 last_save = time.perf_counter()
@@ -566,7 +309,8 @@ def regime_map(params: OscillatorParams | str, u0: object, nu: object, *,
     finally:
         if bar is not None:
             bar.close()
-        if unsaved:  # the last chunks, also when a callback or Ctrl-C stops the sweep
+        # the last chunks, also when a callback or Ctrl-C stops the sweep
+        if unsaved and path is not None:
             rmap.labels[~rmap.done] = NOT_COMPUTED  # (a chunk cut off between its writes)
             rmap.save(path)
     if path is not None and todo.size == 0 and not path.exists():
@@ -623,5 +367,5 @@ def cell_statistics(params: list[OscillatorParams], settings: SweepSettings | No
     st, status, period = run_cells(np.array(rows), np.array(tt), np.array(ts), np.array(ns),
                                    np.array(tr), settings, method, n_threads)
     labels = classify(st[:, ST_N_STICK], st[:, ST_STICK_TIME], st[:, ST_N_REVERSAL],
-                      np.array(nus), qs_a, period, status)
+                      np.array(nus), qs_a, period, status, st[:, ST_N_SLIP])
     return np.asarray(labels), st, period, status

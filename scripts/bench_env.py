@@ -1,6 +1,7 @@
-"""Benchmark the RL environments against the issue's targets, side by side in one process.
+"""Benchmark the RL environments against Pendulum-v1 and each other, side by side in one
+process.
 
-Targets (ratios, so that machine speed cancels):
+The bounds checked (ratios, so that machine speed cancels):
 
 1. unwrapped ``StickSlipEnv.step`` at the default control interval <= 1.0x the unwrapped
    step of Gymnasium's ``Pendulum-v1``;
@@ -20,8 +21,8 @@ numba call alone, on a twin vector env in the same rounds: the rest of the step 
 Python (action checks, copies of the results, infos, and the switch to one thread while
 workers come late). The same call on one thread, and the machine's thread ceiling (how
 much faster a perfectly balanced numba loop of equal items runs on all threads than on
-one), bound what threads can give: the last line of each env shows the ratio target 2
-would reach if the vector call gained the full ceiling over its one-thread time.
+one), bound what threads can give: the last line of each env shows the ratio of bound 2
+that it would reach if the vector call gained the full ceiling over its one-thread time.
 
 Usage: ``python scripts/bench_env.py [--quick] [--no-ppo] [--json out.json]``
 """
@@ -48,8 +49,8 @@ IDLE_S = 0.02
 
 
 def _shown(ratio: float, ok: bool, at_least: bool) -> str:
-    """``ratio`` to two decimals; a failing one is rounded away from its target, so that
-    a ratio just under 20 (target at least 20) prints 19.99, not "20.00 FAIL"."""
+    """``ratio`` to two decimals; a failing one is rounded away from its bound, so that
+    a ratio just under 20 (bound: at least 20) prints 19.99, not "20.00 FAIL"."""
     if ok:
         return f"{ratio:6.2f}"
     cut = math.floor if at_least else math.ceil
@@ -382,9 +383,9 @@ def main() -> None:
         ok2 = r["single_over_vector_plant"] >= 20.0
         ratio1 = _shown(r["single_over_pendulum"], ok1, at_least=False)
         ratio2 = _shown(r["single_over_vector_plant"], ok2, at_least=True)
-        print(f"    target 1: single / Pendulum  = {ratio1}  (<= 1.0)  {'PASS' if ok1 else 'FAIL'}")
+        print(f"    bound 1: single / Pendulum   = {ratio1}  (<= 1.0)  {'PASS' if ok1 else 'FAIL'}")
         print(
-            f"    target 2: single / vector    = {ratio2}  (>= 20)   {'PASS' if ok2 else 'FAIL'}"
+            f"    bound 2: single / vector      = {ratio2}  (>= 20)   {'PASS' if ok2 else 'FAIL'}"
             f"  [made / vector = {r['made_over_vector_plant']:.1f}; bound single / floor = "
             f"{r['single_over_physics_floor']:.1f}]"
         )
@@ -398,7 +399,7 @@ def main() -> None:
     if not args.no_ppo:
         ppo = bench_ppo(args.quick)
         results["ppo"] = ppo
-        print("PPO training (env share of wall time, target < 10 %)")
+        print("PPO training (env share of wall time, bound < 10 %)")
         for name, r in ppo.items():
             verdict = "PASS" if r["share"] < 0.10 else "FAIL"
             print(

@@ -42,7 +42,7 @@ CASES: dict[str, OscillatorParams] = {
     **{f"fig{name}": C("coulomb", **kw) for name, kw in PAPER_CASES.items()},
     "stribeck": C("stribeck", eta=0.6, nu=0.1, u0=1.15),
 }
-TARGETS = {"exact": (1e-10, 0.5), "event": (1e-8, 1.0)}  # (max error, max time ratio)
+BOUNDS = {"exact": (1e-10, 0.5), "event": (1e-8, 1.0)}  # (max error, max time ratio)
 
 
 # ----------------------------------------------------------------------------------------
@@ -224,8 +224,8 @@ def _uniform_setting(rows: list[Row], fam: str, emax: float, rmax: float) -> str
 
 
 def _targets(rows: list[Row]) -> list[str]:
-    lines = [_uniform_setting(rows, fam, emax, rmax) for fam, (emax, rmax) in TARGETS.items()]
-    for fam, (emax, rmax) in TARGETS.items():
+    lines = [_uniform_setting(rows, fam, emax, rmax) for fam, (emax, rmax) in BOUNDS.items()]
+    for fam, (emax, rmax) in BOUNDS.items():
         ok_all = True
         parts = []
         for case in CASES:
@@ -258,7 +258,7 @@ def report(rows: list[Row], notes: list[str], out_dir: Path) -> None:
         rs = [r for r in rows if r.method == m]
         gm = math.exp(sum(math.log(r.ratio) for r in rs) / len(rs))
         summary.append(f"| {m} | {max(r.err for r in rs):.2e} | {gm:.3f} | {len(rs)} |")
-    tail = ["", "Targets:", "", *_targets(rows), "", "Notes:", "",
+    tail = ["", "Bounds checked:", "", *_targets(rows), "", "Notes:", "",
             "- Coulomb reference: `exact`; its own row is scored against SciPy DOP853 "
             "(rtol = atol = 1e-13). Stribeck reference: `event` at rtol = 1e-13.",
             "- event rows use rtol = atol = tol; times are best of repeats after a warm-up.",

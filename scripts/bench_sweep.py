@@ -1,5 +1,5 @@
 #!/usr/bin/env python
-"""Benchmark of the regime-map sweep (issue "Open-loop mode"); all ratios from one run.
+"""Benchmark of the regime-map sweep; all ratios from one run.
 
 1. Per-cell throughput against an event-driven SciPy ``solve_ivp`` loop
    (``tests/scipy_reference.py``, written independently of the kernels) on the same cells

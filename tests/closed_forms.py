@@ -1,7 +1,7 @@
 """Textbook closed forms of one Coulomb slip phase, written case by case in plain numpy.
 
 ``x'' + lam x' + x = -s xfk + u1 cos(w1 t) + u2 cos(w2 t)`` from ``x(t0) = x0``,
-``x'(t0) = v0`` (the README's Model section, "Closed form in slip"). Every damping case is
+``x'(t0) = v0`` (docs/model.md, "Closed form in slip"). Every damping case is
 its own function, with no shared clever trick, so that a bug in the solver's unified
 formula cannot be mirrored here. The excitation is in absolute time (phase 0 at t = 0), as
 in the model.

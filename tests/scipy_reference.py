@@ -1,13 +1,13 @@
 """Independent event-driven reference solution of the model, with SciPy's ``solve_ivp``.
 
-Written from the README's Model section alone (not from ``fricenv.core``) so that agreement with the
-kernels means something. Slip phases are integrated with DOP853 at tight tolerances and
-terminal events on ``v - V = 0``; a second pair of events on the acceleration locates every
-local extremum of ``v`` so that tangential contacts (grazing) and double crossings hidden
-inside one step are not missed. Stick phases are exact (``x = x_s + V (t - t_s)``); their
-end, ``|f| > x_fs``, is found by a fine scan (including interior extrema of ``f``) and
-``brentq``. SciPy is a test-only dependency; this module is imported lazily by the tests
-and the benchmark script.
+Written from the model as docs/model.md states it, alone (not from ``fricenv.core``), so
+that agreement with the kernels means something. Slip phases are integrated with DOP853 at
+tight tolerances and terminal events on ``v - V = 0``; a second pair of events on the
+acceleration locates every local extremum of ``v`` so that tangential contacts (grazing) and
+double crossings hidden inside one step are not missed. Stick phases are exact (``x = x_s +
+V (t - t_s)``); their end, ``|f| > x_fs``, is found by a fine scan (including interior
+extrema of ``f``) and ``brentq``. SciPy is a test-only dependency; this module is imported
+lazily by the tests and the benchmark script.
 """
 
 from __future__ import annotations

@@ -2,7 +2,7 @@
 
 Run ``pytest -s tests/test_accuracy.py`` to see the measured differences. The reference
 solutions are independent of ``fricenv.core``: ``closed_forms.py`` (textbook formulas per
-damping case) and ``scipy_reference.py`` (DOP853 + events, written from the README's Model section).
+damping case) and ``scipy_reference.py`` (DOP853 + events, written from docs/model.md).
 """
 
 from __future__ import annotations
@@ -322,7 +322,7 @@ def test_event_error_follows_tolerance() -> None:
 @pytest.mark.parametrize("name", ["fig5a", "fig5b", "fig6"])
 def test_rk4_baseline_misses_stick_slip(name: str) -> None:
     """Fixed-step RK4 with sgn cannot stick: an O(0.1-1) error that refining dt does not
-    remove (README, Model). Documents why the exact/event solvers exist."""
+    remove (docs/model.md). Documents why the exact/event solvers exist."""
     simulate = _sim()
     p = PAPER_CASES[name]
     ex = simulate(p, T_END, dt_out=0.1, method="exact")

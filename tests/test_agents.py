@@ -527,7 +527,7 @@ def test_best_constant_search_with_unequal_tone_gains():
 
     single = ALL["self_excited"].replace(name="single_tone", tone_gains=(1.0, 0.0))
     res = B.search_best_constant(single, n_u0=3, n_nu=2, episodes=2)
-    # One tone of amplitude 2 at eta = 6 quenches this plant (README, Model).
+    # One tone of amplitude 2 at eta = 6 quenches this plant (docs/model.md).
     assert res["best"]["u0"] == 2.0 and res["best"]["stationary_stick_fraction"] == 0.0
 
 

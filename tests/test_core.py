@@ -230,7 +230,7 @@ def test_rk4_baseline_cannot_stick():
     assert not np.any(tr.mode == 0) and tr.stick_fraction == 0.0
     exact = simulate(p, 100.0, method="exact")
     assert exact.stick_fraction > 0.3
-    assert np.max(np.abs(tr.x - exact.x)) > 0.1  # README, Model: the paper's scheme is off by O(1)
+    assert np.max(np.abs(tr.x - exact.x)) > 0.1  # docs/model.md: the paper's scheme is off by O(1)
 
 
 def test_grazing_contact_is_found():
@@ -286,7 +286,7 @@ def test_a_call_ending_just_after_a_tangential_stick_exit_keeps_slipping(method)
 def test_calls_cut_just_after_every_switch_continue_the_run(law):
     """x_fs = x_fk, random plants: a run continued in pieces, each cut 1e-10 after a switch,
     has the one-call run's switches and end (before the fix, 161 of 368 calls ending just
-    after a stick exit stopped as chattering in a reviewer's sample)."""
+    after a stick exit stopped as chattering in a stress sample)."""
     rng = np.random.default_rng(11)
     method = "exact" if law == "coulomb" else "event"
     for _ in range(3):
@@ -311,8 +311,8 @@ def test_calls_cut_just_after_every_switch_continue_the_run(law):
 @pytest.mark.parametrize("method", ["exact", "event"])
 def test_a_slip_state_on_v_eq_V_heading_back_sticks_at_once(method):
     """A state slipping backwards on v = V, continued under an excitation for which |f| <=
-    x_fs and v' > 0 (the README's retune-and-continue pattern): h = -(v - V) falls at once,
-    so the block sticks at the start. Its negative h' was clamped to 0 as if it were
+    x_fs and v' > 0 (the retune-and-continue pattern of docs/methods.md): h = -(v - V) falls
+    at once, so the block sticks at the start. Its negative h' was clamped to 0 as if it were
     rounding, and with u0 = 1.1 the dip came back within the first step unseen: slip on
     with v 0.018 past V, status OK (found by a stress review)."""
     start = OscillatorState.start(OscillatorParams(u0=0.0), x0=4.0, v0=1.0)
@@ -694,7 +694,7 @@ def test_vr2_quadrature_against_a_fine_trajectory(kw):
     {"lam": 0.5, "eta": 0.6, "nu": 0.1, "u0": 1.15},
 ])
 def test_vr2_within_1e9_at_default_scan_steps(kw):
-    """The closed form's (v - V)^2 quadrature at the default scan steps keeps the README's
+    """The closed form's (v - V)^2 quadrature at the default scan steps keeps the documented
     1e-9 (relative) against the event method's exact integral of its series; over-damped
     plants missed it (5.9e-9 and 5.3e-9 for the first two) until their step was held to
     the same base in units of the fast exponential's time."""
@@ -794,7 +794,7 @@ def test_whole_call_step_is_sound_and_exact(seed):
         np.testing.assert_allclose(S_fast[:4], S_ref[:4], rtol=0, atol=1e-11)
         assert fast[ST_STICK_TIME] == pytest.approx(ref[ST_STICK_TIME], abs=1e-12)
         # the scan's Hermite quadrature is good to ~1e-9; the event method's integral, exact
-        # on its series, checks the README's 1e-12
+        # on its series, checks the documented 1e-12
         S_ev, ev = S.copy(), np.empty(N_STATS)
         core.reset_stats(ev)
         assert core.advance_ws(P, S_ev, span, ev, fricenv.layout.METHOD_EVENT, 1e-13, 1e-15,

@@ -399,3 +399,17 @@ def test_legend_handles_without_the_boundary_lines() -> None:
     patches = plotting.regime_legend_handles(boundaries=False)
     assert [h.get_label() for h in patches] == [plotting.REGIME_SHORT[r] for r in Regime]
     assert len(plotting.regime_legend_handles()) == len(patches) + 2
+
+
+def test_every_regime_is_drawn_in_its_own_colour() -> None:
+    from matplotlib.colors import to_hex
+
+    cmap, norm = plotting.regime_cmap()
+    assert to_hex(cmap(norm(-1))) == "#ffffff"  # not computed
+    for r in Regime:
+        assert to_hex(cmap(norm(int(r)))) == plotting.REGIME_COLORS[r]
+    assert len(set(plotting.REGIME_COLORS.values())) == len(Regime)
+    labels = np.array([[int(r) for r in Regime]], dtype=np.int8)
+    m = SimpleNamespace(u0=np.array([1.0]), nu=0.1 + 0.2 * np.arange(len(Regime)),
+                        labels=labels)
+    assert np.ravel(_drawn(m)[0]).tolist() == [float(r) for r in Regime]

@@ -13,10 +13,12 @@ from fricenv.layout import (
     N_STATS,
     ST_DURATION,
     ST_N_REVERSAL,
+    ST_N_SLIP,
     ST_N_STICK,
     ST_STICK_TIME,
     ST_V_MAX,
     ST_V_MIN,
+    STATUS_DIVERGED,
     STATUS_EVENT_CAP,
     STATUS_NONFINITE,
     STATUS_OK,
@@ -31,13 +33,17 @@ from fricenv.regimes import (
     strobe_period,
     summarize,
 )
+from fricenv.simulate import OscillatorState, run_stats, simulate
+from fricenv.sweep import cell_statistics, regime_map
 
 
 def _stats(n_stick: int = 0, stick_time: float = 0.0, n_rev: int = 0,
-           v: tuple[float, float] = (0.2, 0.8)) -> np.ndarray:
+           v: tuple[float, float] = (0.2, 0.8), n_slip: int | None = None) -> np.ndarray:
     s = np.zeros(N_STATS)
     s[ST_DURATION] = 100.0
     s[ST_N_STICK] = n_stick
+    # a stick phase entered is left again, but for the last one (the count's floor)
+    s[ST_N_SLIP] = max(n_stick - 1, 0) if n_slip is None else n_slip
     s[ST_STICK_TIME] = stick_time
     s[ST_N_REVERSAL] = n_rev
     s[ST_V_MIN], s[ST_V_MAX] = v
@@ -62,8 +68,41 @@ def test_stick_slip_split_at_nu_one(nu: float, expected: Regime) -> None:
 
 
 def test_stick_counts_even_without_a_new_stick_phase() -> None:
-    # the window may start inside a stick phase that lasts all of it
-    assert classify_stats(_stats(n_stick=0, stick_time=100.0), nu=0.5) == Regime.SSM1
+    # the window may start inside a stick phase and break loose, never to stick again
+    assert classify_stats(_stats(n_stick=0, stick_time=40.0, n_slip=1), nu=0.5) == Regime.SSM1
+
+
+def test_a_window_without_any_switch_spent_stuck_is_stuck() -> None:
+    """A block that never slips (belt at rest, force below x_fs) was labelled SSM1, or
+    PERIODIC_STICK_SLIP at integer nu, with n_stick = n_slip = 0."""
+    for nu, q, period in ((0.5, 0, 0), (1.0, 1, 1), (2.0, 1, 1)):
+        assert classify_stats(_stats(stick_time=100.0), nu=nu, q=q, period=period) == \
+            Regime.STUCK
+    assert Regime.STUCK.has_stick and "stuck" in Regime.STUCK.description
+    # without n_slip, classify cannot tell it from a block that broke loose: as before
+    assert classify(0, 100.0, 0, 0.5) == Regime.SSM1
+    assert classify(0, 100.0, 0, 0.5, n_slip=0) == Regime.STUCK
+    assert classify(0, 100.0, 0, 0.5, n_slip=1) == Regime.SSM1
+    # a switch of any kind: not stuck all along
+    for kw in ({"n_stick": 1}, {"n_rev": 1}, {"n_slip": 1}):
+        assert classify_stats(_stats(stick_time=50.0, **kw), nu=0.5) != Regime.STUCK
+    with pytest.raises(ValueError, match="n_slip must be finite and >= 0"):
+        classify(0, 1.0, 0, 0.5, n_slip=-1.0)
+
+
+def test_a_diverged_run_is_labelled_diverged_whatever_its_statistics() -> None:
+    s = _stats(n_stick=2, stick_time=1.0)
+    s[ST_V_MAX] = np.inf
+    assert classify_stats(s, 0.3, status=STATUS_DIVERGED) == Regime.DIVERGED
+    assert list(classify(1, 1.0, 0, 0.3, status=np.array([STATUS_DIVERGED, STATUS_EVENT_CAP,
+                                                           STATUS_OK]))) == [
+        Regime.DIVERGED, Regime.UNRESOLVED, Regime.SSM1]
+    assert not Regime.DIVERGED.has_stick
+
+
+def test_summary_stick_fraction_is_at_most_one() -> None:
+    s = _stats(stick_time=100.0 + 2e-12)
+    assert summarize(s)["stick_fraction"] == 1.0
 
 
 def test_periodic_only_for_integer_nu() -> None:
@@ -304,3 +343,31 @@ def test_preset_law_must_be_a_string() -> None:
     with pytest.raises(ValueError, match="law: unknown friction law 'x'"):
         OscillatorParams.preset("x")
     assert OscillatorParams.preset("Viscosity").b1 == 0.2
+
+
+# -- a block that never slips ----------------------------------------------------------------
+STILL = OscillatorParams(V=0.0, u0=1.0, nu=0.5)  # |g| <= 2 < x_fs: held from the start
+
+
+@pytest.mark.parametrize("nu", [0.5, 1.0, 2.0])
+def test_a_block_that_never_slips_is_stuck_for_at_most_its_duration(nu: float) -> None:
+    """Its stick time was 251.32741228718538 for a duration of 251.32741228718348, and its
+    label SSM1 (PERIODIC_STICK_SLIP at nu = 1, 2) with n_stick = n_slip = 0."""
+    labels, stats, _, status = cell_statistics([STILL.replace(nu=nu)])
+    s = stats[0]
+    assert status[0] == STATUS_OK and labels[0] == Regime.STUCK
+    # (the kernel sums the phases with rounding: a few ulps short, but never over)
+    assert s[ST_DURATION] * (1 - 1e-12) <= s[ST_STICK_TIME] <= s[ST_DURATION]
+    assert s[ST_N_STICK] == s[ST_N_SLIP] == s[ST_N_REVERSAL] == 0
+    m = regime_map(OscillatorParams(V=0.0), [1.0], [nu], progress=False)
+    assert m.labels[0, 0] == Regime.STUCK
+    assert 1.0 - 1e-12 <= m.stick_fraction[0, 0] <= 1.0
+
+
+def test_run_stats_stick_time_is_at_most_the_duration() -> None:
+    state = OscillatorState.start(STILL)
+    assert state.mode == 0
+    s = run_stats(STILL, 251.32741228718348, state=state)
+    assert s.stick_time <= s.duration and s.stick_fraction <= 1.0
+    tr = simulate(STILL, 251.32741228718348)
+    assert tr.stats.stick_time <= tr.stats.duration

@@ -43,7 +43,7 @@ def test_map_contents(reference: RegimeMap) -> None:
     assert m.labels.shape == (4, 5) and m.stats.shape == (4, 5, N_STATS)
     assert m.complete and np.all(m.status == STATUS_OK)
     assert np.all(m.labels != NOT_COMPUTED)
-    # the u0 pattern of the README's Model section: no contact -> stick phases -> reversals only
+    # the u0 pattern of docs/model.md: no contact -> stick phases -> reversals only
     assert m.labels[0, 0] == Regime.WM1 and m.labels[0, 3] == Regime.WM1
     assert m.labels[2, 0] == Regime.SSM1 and m.labels[2, 3] == Regime.SSM2
     assert m.labels[3, 0] == Regime.WM2

@@ -14,7 +14,8 @@ before the call, for the per-method kernels.
 
 from __future__ import annotations
 
-from typing import NamedTuple
+from collections.abc import Callable
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -138,9 +139,9 @@ class EntryKernels(NamedTuple):
     """A method's entry kernels (same arguments as ``advance_ws``, ``advance``,
     ``record``)."""
 
-    advance_ws: object
-    advance: object
-    record: object
+    advance_ws: Callable[..., Any]
+    advance: Callable[..., Any]
+    record: Callable[..., Any]
 
 
 #: Each method's entry kernels; METHOD_EXACT's need a conditioned plant (``method_for``).

@@ -105,7 +105,8 @@ class Scene:
     nu_range: tuple[float, float]
     action_mode: str = "both"
     tone_gains: tuple[float, float] = (1.0, 1.0)
-    #: control interval in tau: a twelfth of the natural period 2 pi (>= 0.5, see README)
+    #: control interval in tau: a twelfth of the natural period 2 pi (>= 0.5; see
+    #: docs/environments.md)
     control_dt: float = math.pi / 6.0
     max_episode_steps: int = 200
     #: weights of (stick fraction, relative-velocity fluctuation, effort) in the cost
@@ -188,12 +189,14 @@ class Scene:
             if xfs_lo < xfk_hi:
                 raise ValueError("randomization must keep xfs >= xfk: xfs lo < xfk hi")
 
-    def check_interval_cost(self, randomize: bool = True) -> None:
+    def check_interval_cost(self, randomize: bool = True, cap: float = MAX_INTERVAL_SCAN_STEPS,
+                            context: str = "") -> None:
         """``ValueError`` naming the values if the fastest plant an episode of this scene can
         start from its draws (the nominal one, or with ``randomize`` the worst corner of the
         randomisation box: ``lam`` and ``eta`` at the top of their ranges) needs more than
-        ``MAX_INTERVAL_SCAN_STEPS`` scan steps in a control interval, under the fastest
-        excitation its actions can reach (:func:`check_episode_cost`).
+        ``cap`` (default ``MAX_INTERVAL_SCAN_STEPS``) scan steps in a control interval,
+        under the fastest excitation its actions can reach (:func:`check_episode_cost`;
+        ``context`` opens the message's remedy).
 
         Called when an environment is built (not at scene construction, which stays free of
         numba calls): episodes drawn without options, including those the vector env starts
@@ -207,7 +210,8 @@ class Scene:
         else:
             plant = self.params
             why = "the scene's plant is too stiff or too fast: lower lam, eta or nu_range's top"
-        check_episode_cost(self, plant.to_array(), self.params.u0, self.params.nu, why)
+        check_episode_cost(self, plant.to_array(), self.params.u0, self.params.nu,
+                           context + why, cap)
 
     @property
     def ranges(self) -> dict[str, tuple[float, float]]:
@@ -253,25 +257,26 @@ def _randomization_items(value: Any) -> list[tuple[Any, Any]]:
     return list(value.items()) if value is not None else []
 
 
-def check_episode_cost(scene: Scene, P: np.ndarray, u0: float, nu: float, why: str) -> None:
+def check_episode_cost(scene: Scene, P: np.ndarray, u0: float, nu: float, why: str,
+                       cap: float = MAX_INTERVAL_SCAN_STEPS) -> None:
     """``ValueError`` naming the values if an episode of ``scene`` with the plant ``P``
-    (layout ``params.P_*``), started at excitation ``(u0, nu)``, could need more than
-    ``MAX_INTERVAL_SCAN_STEPS`` scan steps in one control interval: the fastest excitation
-    its actions reach is the top of the range of each setting the action mode drives
-    (the other keeps its start). One mechanism with the simulator's cap,
-    ``simulate.check_scan_steps``; ``why`` ends the message."""
+    (layout ``params.P_*``; or one such row per plant), started at excitation ``(u0, nu)``,
+    could need more than ``cap`` (default ``MAX_INTERVAL_SCAN_STEPS``) scan steps in one
+    control interval: the fastest excitation its actions reach is the top of the range of
+    each setting the action mode drives (the other keeps its start). One mechanism with
+    the simulator's cap, ``simulate.check_scan_steps``; ``why`` ends the message."""
     if scene.action_mode in ("amplitude", "both"):
         u0 = scene.u0_range[1]
     if scene.action_mode in ("frequency", "both"):
         nu = scene.nu_range[1]
-    row = np.array(P, dtype=np.float64)
-    row[P_U1] = scene.tone_gains[0] * u0
-    row[P_U2] = scene.tone_gains[1] * u0
-    row[P_W2] = nu * row[P_W1]
+    rows = np.array(P, dtype=np.float64, ndmin=2)
+    rows[:, P_U1] = scene.tone_gains[0] * u0
+    rows[:, P_U2] = scene.tone_gains[1] * u0
+    rows[:, P_W2] = nu * rows[:, P_W1]
     dt = scene.control_dt
-    check_scan_steps(row[None], np.array([dt]),
+    check_scan_steps(rows, np.full(rows.shape[0], dt),
                      f"that span is one control interval (control_dt) at u0 = {u0:.6g}, "
-                     f"nu = {nu:.6g}; {why}", cap=MAX_INTERVAL_SCAN_STEPS)
+                     f"nu = {nu:.6g}; {why}", cap=cap)
 
 
 def episode_from_draws(

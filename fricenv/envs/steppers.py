@@ -11,7 +11,8 @@ names the core's entry kernel it is built on.
 
 from __future__ import annotations
 
-from typing import NamedTuple
+from collections.abc import Callable
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -96,10 +97,10 @@ class Steppers(NamedTuple):
     ``batch.step_batch``, ``batch.step_batch_parallel``, ``kernels.sample_interval``)."""
 
     name: str
-    step_single: object
-    step_batch: object
-    step_batch_parallel: object
-    sample_interval: object
+    step_single: Callable[..., Any]
+    step_batch: Callable[..., Any]
+    step_batch_parallel: Callable[..., Any]
+    sample_interval: Callable[..., Any]
 
 
 #: The closed form alone: every plant Coulomb and conditioned (``steppers_for``).

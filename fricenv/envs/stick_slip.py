@@ -50,6 +50,7 @@ from fricenv.layout import (
     S_T,
     S_V,
     S_X,
+    STATUS_DIVERGED,
     STATUS_EVENT_CAP,
     STATUS_NONFINITE,
     STATUS_TOO_STIFF,
@@ -81,6 +82,9 @@ ATOL = 1e-10
 #: Events (stick/slip/reversal) allowed per control interval before the run is declared
 #: chattering (a Zeno-like plant; it raises rather than silently stalling).
 MAX_EVENTS = 10_000
+#: Most instants ``sample_interval`` returns: 17 MB of arrays and a kernel call each, far
+#: more than any plot of one control interval needs (n_samples = 1e10 asked for 170 GB).
+MAX_SAMPLES = 10**6
 
 
 @dataclass(frozen=True)
@@ -253,6 +257,11 @@ def raise_status(status: int, action: Any, where: str = "") -> None:
     if status == STATUS_TOO_STIFF:
         raise RuntimeError(f"plant{where}: slip too stiff for the integrator's smallest step "
                            "(check the parameters passed at make/reset); reset the environment")
+    if status == STATUS_DIVERGED:
+        raise RuntimeError(f"plant{where} diverged: the state is finite but the interval's "
+                           "(v - V)^2 integral overflowed, leaving no reward (negative net "
+                           "damping? check the parameters passed at make/reset); reset the "
+                           "environment")
     raise RuntimeError(f"plant{where}: integrator failed with status {status}")
 
 
@@ -395,7 +404,9 @@ class StickSlipEnv(gym.Env):
       400; the Stribeck and viscous ids: 300). The environment itself never truncates.
     - Termination: only if `|x| > x_limit` or `|v - V| > v_limit` (a diverging plant, e.g.
       undamped and resonant through ``reset`` options); never in the presets' ranges.
-    - A chattering or non-finite integration raises `RuntimeError` instead of ending silently.
+    - A chattering, too stiff or non-finite integration, or one whose reward overflows
+      (a diverging plant, e.g. negative net damping through ``reset`` options, stepped on
+      after its termination), raises `RuntimeError` instead of ending silently.
 
     ## Arguments
 
@@ -564,11 +575,16 @@ class StickSlipEnv(gym.Env):
             self._P, self._S, self._ctrl, self._cfg, a, self._stats, self._obs, self._res,
             self._work,
         )
-        if status != 0:
+        res = self._res
+        reward = float(res[K.R_REWARD])
+        # NaN exactly when a finite state's (v - V)^2 integral overflowed (the variance is
+        # inf); a mean of v - V beyond float64 makes the variance NaN, a status of its own
+        if status != 0 or reward != reward:
+            if status == 0:
+                status = STATUS_DIVERGED
             if status != K.STATUS_BAD_ACTION:
                 self._needs_reset = True
             raise_status(status, action)
-        res = self._res
         self._steps += 1
         if self._sensing:
             self._bank.push(_PLANT, self._obs[None])
@@ -577,7 +593,7 @@ class StickSlipEnv(gym.Env):
         # truncated=False: the time limit is the TimeLimit wrapper's job (max_episode_steps).
         return (
             self._observation(),
-            float(res[K.R_REWARD]),
+            reward,
             bool(res[K.R_TERM]),
             False,
             {
@@ -739,10 +755,11 @@ class StickSlipEnv(gym.Env):
         kernels, in ``n_samples`` pieces (so it matches ``step(action)`` to rounding in
         closed form, to the tolerance with the event method), and the environment's state
         is left untouched (for plotting a policy's motion, as the renderer does).
+        ``n_samples`` is an integer from 1 to ``MAX_SAMPLES`` (``ValueError`` beyond).
         """
         if self._needs_reset:
             raise gym.error.ResetNeeded("Cannot call sample_interval() before calling reset()")
-        n = check_int("n_samples", n_samples, 1)
+        n = check_int("n_samples", n_samples, 1, MAX_SAMPLES)
         a = coerce_action(action, self._act_shape)
         if not K.actions_finite(a):
             raise_status(K.STATUS_BAD_ACTION, action)

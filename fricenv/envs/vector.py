@@ -11,6 +11,7 @@ only refills a plant's buffer every ``DRAW_ROWS`` episodes.
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import numba
@@ -23,12 +24,12 @@ from gymnasium.vector.utils import batch_space
 from fricenv.checks import check_dict, check_int, got, is_int, items_of
 from fricenv.core import new_workspace
 from fricenv.envs import kernels as K
-from fricenv.envs.scenes import N_DRAWS, N_INIT, Scene
+from fricenv.envs.scenes import N_DRAWS, N_INIT, Scene, check_episode_cost
 from fricenv.envs.sensors import InstrumentBank, actuate_batch
 from fricenv.envs.state import N_PLANT, PlantState, check_state, pack, unpack
 from fricenv.envs.steppers import Steppers, steppers_for_plants
 from fricenv.envs.stick_slip import ACTION_DTYPES, EnvSetup, coerce_action, raise_status
-from fricenv.layout import METHOD_EXACT, S_MODE, S_PHI1, S_PHI2, S_T, S_V, S_X
+from fricenv.layout import METHOD_EXACT, S_MODE, S_PHI1, S_PHI2, S_T, S_V, S_X, STATUS_DIVERGED
 from fricenv.params import P_U1, P_U2, P_V, P_XFK
 
 _AUTORESET = {
@@ -87,6 +88,15 @@ def plant_seeds(seed: Any, n: int) -> list[int | None]:
     return [None if s is None else int(s) for s in seeds]
 
 
+#: Most plants a vector env may hold: about 7 kB each (the kernels' table, buffered draws
+#: and a random generator), 700 MB at the cap and some ten seconds to build and seed them;
+#: num_envs = 10**12 asked for 7 TiB and ended in MemoryError.
+MAX_NUM_ENVS = 10**5
+#: Most scan steps (``core.most_scan_steps``, the kernels' own floor) one vector step may
+#: need over all its plants: about a second at the closed form's ~90 ns a step. Each plant
+#: is held to ``scenes.MAX_INTERVAL_SCAN_STEPS`` already, but 10,000 plants under a tone
+#: at eta = 1e5 took minutes a step.
+MAX_VECTOR_SCAN_STEPS = 1e7
 #: From this many plants on, a step spreads them over threads (numba prange).
 PARALLEL_MIN_ENVS = 64
 #: On a machine busy with other processes, a numba thread may get a CPU only after the
@@ -118,7 +128,9 @@ def _check_max_steps(value: Any) -> int:
 class StickSlipVectorEnv(VectorEnv):
     """``num_envs`` independent ``StickSlipEnv`` plants, stepped in one numba call.
 
-    Arguments are those of ``StickSlipEnv`` plus ``num_envs``, ``max_episode_steps`` (default:
+    Arguments are those of ``StickSlipEnv`` plus ``num_envs`` (1 to ``MAX_NUM_ENVS``, and
+    few enough that a step needs at most ``MAX_VECTOR_SCAN_STEPS`` scan steps in all),
+    ``max_episode_steps`` (default:
     the scene's horizon; ``gymnasium.make_vec`` passes the registered one) and
     ``autoreset_mode`` (``AutoresetMode`` or its value; default next-step, as Gymnasium's).
     Observations ``(num_envs, 9)`` float32, actions ``(num_envs, n)`` in [-1, 1], rewards
@@ -158,7 +170,7 @@ class StickSlipVectorEnv(VectorEnv):
         # first: close() runs from __del__ even when a check below refuses the arguments
         self._traces = None
         self._painter = None
-        num_envs = check_int("num_envs", num_envs, 1)
+        num_envs = check_int("num_envs", num_envs, 1, MAX_NUM_ENVS)
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(
                 f"render_mode must be one of {self.metadata['render_modes']} or None, "
@@ -182,6 +194,8 @@ class StickSlipVectorEnv(VectorEnv):
             actuator_rate,
         )
         self.scene = self.setup.scene
+        self.scene.check_interval_cost(randomize, MAX_VECTOR_SCAN_STEPS / num_envs,
+                                       self._batch_context(num_envs))
         self.num_envs = n = num_envs
         max_episode_steps = _check_max_steps(
             self.scene.max_episode_steps if max_episode_steps is None else max_episode_steps
@@ -279,6 +293,12 @@ class StickSlipVectorEnv(VectorEnv):
                                        *self._bounds)
         if steppers is not self._steppers:
             self._use_steppers(steppers)
+
+    @staticmethod
+    def _batch_context(n: int) -> str:
+        return (f"a vector step runs it for each of num_envs = {n} plants, at most "
+                f"MAX_VECTOR_SCAN_STEPS = {MAX_VECTOR_SCAN_STEPS:g} scan steps in all (use "
+                "fewer plants); ")
 
     def _bind_views(self) -> None:
         """Make the per-plant arrays the Python side reads: views of the kernels' batch
@@ -405,6 +425,8 @@ class StickSlipVectorEnv(VectorEnv):
                 cursor[i] += 1
                 setup.episode(values, opt or None, P_new[i], init[i])
                 mask[i] = True
+            self._check_batch_cost([i for i, o in zip(idx.tolist(), options, strict=True)
+                                    if o])
         except BaseException:
             for i, (rng, row, draws) in saved.items():
                 self._rngs[i] = rng
@@ -430,6 +452,19 @@ class StickSlipVectorEnv(VectorEnv):
         if self._traces is not None:
             for i in idx.tolist():
                 self._traces[i].clear(self._S[i, S_T], self._S[i, S_V], self._S[i, S_MODE] == 0)
+
+    def _check_batch_cost(self, plants: list[int]) -> None:
+        """``ValueError`` unless the new episodes of ``plants`` (started with reset options)
+        keep a vector step within ``MAX_VECTOR_SCAN_STEPS``; episodes drawn without options
+        stay within what the constructor checked."""
+        if not plants:
+            return
+        starts = self._new_init[plants][:, [K.I_U0, K.I_NU]]
+        for u0, nu in np.unique(starts, axis=0).tolist():
+            same = np.array(plants)[np.all(starts == (u0, nu), axis=1)]
+            check_episode_cost(self.scene, self._new_P[same], u0, nu,
+                               self._batch_context(self.num_envs) + "change the reset options",
+                               MAX_VECTOR_SCAN_STEPS / self.num_envs)
 
     def _refill(self, i: int) -> None:
         """Buffer plant ``i``'s next DRAW_ROWS episodes: the numbers as many single-env
@@ -501,6 +536,12 @@ class StickSlipVectorEnv(VectorEnv):
             raise_status(int(self._status[i]), None, f" {i}")
         if kernel is not self._serial_kernel:
             self._watch_workers()
+        rewards = self._step_out[K.R_REWARD]  # NaN where (v - V)^2 overflowed (see
+        if math.isnan(rewards @ rewards):      # StickSlipEnv.step); the sensors stay as they were
+            self._needs_reset = True
+            i = int(np.flatnonzero(np.isnan(rewards))[0])
+            self._failed_plant = i
+            raise_status(STATUS_DIVERGED, None, f" {i}")
         # (the sensors first: the infos below carry their readings of ended episodes)
         obs = self._obs.copy() if self._bank is None else self._instruments_after_step()
         out = self._step_out.copy()  # callers may keep what a step returns

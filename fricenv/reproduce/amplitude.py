@@ -27,7 +27,7 @@ from .common import AMP_PANELS, AMP_U0, LINEAR_MATCH_TOL, Report, Resolution, _v
 # Fig. 3: steady-state amplitude
 def linear_amplitude(eta: np.ndarray, nu: float, lam: float, u0: float,
                      samples_per_period: int = 256) -> np.ndarray:
-    """Half peak-to-peak of the steady slip response ``A1 cos(.) + A2 cos(.)`` (README, Model).
+    """Half peak-to-peak of the steady slip response ``A1 cos(.) + A2 cos(.)`` (docs/model.md).
 
     ``A_i = u0 / sqrt((1 - W_i^2)^2 + (lam W_i)^2)`` with ``W1 = eta``, ``W2 = nu eta`` (the
     paper's Eq. 10 misprints ``(1 - nu^2)^2`` in ``B``). For rational ``nu = p/q`` (``q <= 64``)
