@@ -313,6 +313,27 @@ def test_set_state_refuses_what_does_not_fit():
         vec.get_state(2)
 
 
+def test_set_state_refuses_a_plant_too_costly_to_step():
+    """A restored plant is held to the scan-step caps that reset options are held to."""
+    from fricenv.envs.state import PL_P
+    from fricenv.params import P_W1
+
+    env = StickSlipEnv(scene="paper")
+    env.reset(seed=0)
+    state = env.get_state()
+    plant = state.plant.copy()
+    plant[PL_P + P_W1] = 1e7  # eta: a tone far too fast for one control interval
+    fast = PlantState(plant, state.command)
+    with pytest.raises(ValueError, match="refused state"):
+        env.set_state(fast)
+    assert env.set_state(state) is not None  # the env is unharmed
+    vec = StickSlipVectorEnv(num_envs=1000, scene="paper")
+    vec.reset(seed=0)
+    plant[PL_P + P_W1] = 1e5  # within one plant's cap, beyond a thousand plants' share
+    with pytest.raises(ValueError, match="MAX_VECTOR_SCAN_STEPS"):
+        vec.set_state(3, PlantState(plant, state.command))
+
+
 def test_vector_state_arrays_and_set_state_cancel_a_pending_reset():
     vec = StickSlipVectorEnv(num_envs=3, scene="self_excited", max_episode_steps=4)
     vec.reset(seed=1)

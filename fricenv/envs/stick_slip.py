@@ -32,12 +32,13 @@ from fricenv.envs.scenes import (
     N_DRAWS,
     THREE_WEIGHTS,
     Scene,
+    check_episode_cost,
     episode_from_draws,
     get_scene,
     new_episode_arrays,
 )
 from fricenv.envs.sensors import InstrumentBank, Instruments, actuate_one
-from fricenv.envs.state import PlantState, check_state, pack, unpack
+from fricenv.envs.state import PL_CTRL, PL_P, PL_S, PL_WORK, PlantState, check_state, pack, unpack
 from fricenv.envs.steppers import steppers_for, steppers_for_plants
 from fricenv.layout import (
     METHOD_EVENT,
@@ -672,11 +673,15 @@ class StickSlipEnv(gym.Env):
     def set_state(self, state: PlantState) -> np.ndarray:
         """Put the plant in ``state`` (from ``get_state`` of an environment made with the
         same arguments) and return its observation; the next ``step`` continues from there.
-        The ``TimeLimit`` wrapper's step count is the wrapper's own and is not touched."""
+        The ``TimeLimit`` wrapper's step count is the wrapper's own and is not touched. A
+        plant too costly to step is refused (``ValueError``), as reset options are."""
         bank = self._bank
         check_state(state, None if not self._sensing else bank.delay.shape[1],
                     bank is not None and bank.normals is not None, self.scene.u0_range,
                     self.scene.nu_range)
+        u0, nu = state.plant[PL_CTRL:PL_WORK].tolist()
+        check_episode_cost(self.scene, state.plant[PL_P:PL_S], u0, nu,
+                           "refused state: its plant is too stiff or too fast")
         unpack(state.plant, self._P, self._S, self._ctrl, self._work)
         self._fit_steppers()  # (the state's plant may have another damping or law)
         K.write_obs(self._P, self._S, self._ctrl, self._cfg, self._obs, self._work)

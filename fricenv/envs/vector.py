@@ -26,7 +26,17 @@ from fricenv.core import new_workspace
 from fricenv.envs import kernels as K
 from fricenv.envs.scenes import N_DRAWS, N_INIT, Scene, check_episode_cost
 from fricenv.envs.sensors import InstrumentBank, actuate_batch
-from fricenv.envs.state import N_PLANT, PlantState, check_state, pack, unpack
+from fricenv.envs.state import (
+    N_PLANT,
+    PL_CTRL,
+    PL_P,
+    PL_S,
+    PL_WORK,
+    PlantState,
+    check_state,
+    pack,
+    unpack,
+)
 from fricenv.envs.steppers import Steppers, steppers_for_plants
 from fricenv.envs.stick_slip import ACTION_DTYPES, EnvSetup, coerce_action, raise_status
 from fricenv.layout import METHOD_EXACT, S_MODE, S_PHI1, S_PHI2, S_T, S_V, S_X, STATUS_DIVERGED
@@ -613,12 +623,17 @@ class StickSlipVectorEnv(VectorEnv):
         """Put plant ``i`` in ``state`` (from ``get_state`` of an environment made with the
         same arguments, single or vector) and return its observation. Its episode goes on
         from there: an ending pending for the next step is cancelled, and its step count
-        (for truncation) is the state's."""
+        (for truncation) is the state's. A plant too costly to step among ``num_envs`` is
+        refused (``ValueError``), as reset options are."""
         i = self._plant_index(i)
         bank = self._bank
         check_state(state, None if not self._sensing else bank.delay.shape[1],
                     bank is not None and bank.normals is not None, self.scene.u0_range,
                     self.scene.nu_range)
+        u0, nu = state.plant[PL_CTRL:PL_WORK].tolist()
+        check_episode_cost(self.scene, state.plant[PL_P:PL_S], u0, nu,
+                           self._batch_context(self.num_envs) + "refused state: its plant is "
+                           "too stiff or too fast", MAX_VECTOR_SCAN_STEPS / self.num_envs)
         unpack(state.plant, self._P[i], self._S[i], self._ctrl[i], self._work[i])
         self._fit_steppers()  # (the state's plant may have another damping or law)
         K.write_obs(self._P[i], self._S[i], self._ctrl[i], self._cfg, self._obs[i],
