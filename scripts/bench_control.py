@@ -1,6 +1,6 @@
 """Benchmark the control-study pieces, side by side in one process.
 
-What it measures and checks (ratios and times on this machine):
+The bounds checked (ratios and times on this machine):
 
 1. the unwrapped ``StickSlipEnv.step`` of the Stribeck and viscous scenes (event method)
    <= 1.0x the unwrapped step of Gymnasium's ``Pendulum-v1``;
@@ -42,7 +42,7 @@ SCENE_IDS = {"stribeck": "fricenv/StickSlipStribeck-v0",
              "viscous": "fricenv/StickSlipViscous-v0",
              "paper": "fricenv/StickSlip-v0",
              "self_excited": "fricenv/StickSlipSelfExcited-v0"}
-#: Scenes held to check 1 (the others are shown for comparison).
+#: Scenes held to bound 1 (the others are shown for comparison).
 EVENT_SCENES = ("stribeck", "viscous")
 VECTOR_PLANTS = 256
 
@@ -151,11 +151,11 @@ def report(r: dict) -> None:
           "plant-step; default: the default MPC's decision, two iterations)")
     for scene in EVENT_SCENES:
         ratio = r["scenes"][scene]["single_over_pendulum"]
-        print(f"check 1 ({scene}): step / Pendulum = {ratio:.2f} (<= 1.0) "
+        print(f"bound 1 ({scene}): step / Pendulum = {ratio:.2f} (<= 1.0) "
               f"{'PASS' if ratio <= 1.0 else 'FAIL'}")
     for scene, s in r["scenes"].items():
         ms = s["mpc_decision_ms"]
-        print(f"check 2 ({scene}): MPC decision {MPC_SAMPLES} x {MPC_HORIZON} = {ms:.2f} ms "
+        print(f"bound 2 ({scene}): MPC decision {MPC_SAMPLES} x {MPC_HORIZON} = {ms:.2f} ms "
               f"(<= {DECISION_LIMIT_MS:g}) {'PASS' if ms <= DECISION_LIMIT_MS else 'FAIL'}")
 
 
