@@ -23,6 +23,7 @@ from ..layout import (
     ST_VR2_INT,
     STATUS_NONFINITE,
     STATUS_OK,
+    STATUS_STEP_BUDGET,
     STATUS_TOO_STIFF,
 )
 from .closed_form import _stick_at
@@ -73,6 +74,7 @@ from .workspace import (
     C_XA,
     C_XFK,
     W_SKIP_VR2,
+    _count_step,
 )
 
 
@@ -355,6 +357,9 @@ def _run_event(P, S, t_span, stats, max_events, rtol, atol, rec, cx):
     ros_skip = 0.0  # ... and those taken so far
     phases_stale = True
     n_carried = 0
+    t_win = 0.0  # the step budget's current unit window and its steps, the call's steps
+    n_win = 0.0
+    n_call = 0.0
     j_out = 1
     if rec is not None:
         _write_output(rec, 0, x, v, mode)
@@ -365,6 +370,10 @@ def _run_event(P, S, t_span, stats, max_events, rtol, atol, rec, cx):
     while t < t_stop and status == STATUS_OK:
         if t_stop - t <= TIME_REL_TOL * max(1.0, abs(t_stop)):
             t = t_stop
+            break
+        over, t_win, n_win, n_call = _count_step(cx, t, t_win, n_win, n_call)
+        if over:
+            status = STATUS_STEP_BUDGET
             break
         kind = 0
         if mode != 0.0:

@@ -21,6 +21,7 @@ from ..layout import (
     ST_STICK_TIME,
     STATUS_NONFINITE,
     STATUS_OK,
+    STATUS_STEP_BUDGET,
 )
 from .closed_form import (
     _forcing,
@@ -89,6 +90,7 @@ from .workspace import (
     W_SKIP_EXTREMA,
     W_T_KEY,
     W_T_KEY2,
+    _count_step,
 )
 
 
@@ -351,6 +353,9 @@ def _scan_exact(S, t_span, stats, max_events, rec, cx, cap, c1, s1, c2, s2):
     n_events = 0
     status = STATUS_OK
     fresh = True  # the current phase starts on a switching surface (or at the call start)
+    t_win = 0.0  # the step budget's current unit window and its steps, the call's steps
+    n_win = 0.0
+    n_call = 0.0
     _note_v(stats, v)
     _note_x(stats, x)
     _write_output(rec, 0, x, v, mode)
@@ -370,6 +375,10 @@ def _scan_exact(S, t_span, stats, max_events, rec, cx, cap, c1, s1, c2, s2):
             tk = tb if k == m else ta + k * hk
             on_grid = regular_interval
             while t < tk:
+                over, t_win, n_win, n_call = _count_step(cx, t, t_win, n_win, n_call)
+                if over:
+                    status = STATUS_STEP_BUDGET
+                    break
                 stats[ST_N_STEPS] += 1.0
                 if mode != 0.0:
                     tau, halved, on_grid, kind, mode, x, v, acc, c1, s1, c2, s2 = _slip_step(
