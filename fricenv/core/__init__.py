@@ -138,6 +138,7 @@ from .constants import (  # noqa: F401
     ROS_GROW_MAX,
     ROS_SAFETY,
     ROS_SHRINK_MIN,
+    SCAN_ALLOWANCE,
     STIFF_HK,
     TAYLOR_EPS_FLOOR,
     TAYLOR_FIRST_STEP,

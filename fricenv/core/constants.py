@@ -55,9 +55,14 @@ ROS_BACKOFF_MAX = 64.0
 # consecutive windows from the call's start, and MAX_STEPS_PER_CALL in the call, else the call
 # ends with STATUS_STEP_BUDGET. Ordinary runs take at most ~1e4 steps in a unit of tau (stiff
 # cubic slip with b1 = b3 = 1e6 included), and a step costs 0.3-3 us, so a call over budget ends
-# within about a second; the per-call cap admits any span ``check_scan_steps`` admits.
+# within about a second (u0 = 1e10 with Taylor steps throughout, at ~2e6 steps in a unit of
+# tau, is over it); the per-call cap admits any span ``check_scan_steps`` admits.
 MAX_STEPS_PER_TAU = 1e6
 MAX_STEPS_PER_CALL = 1e9
+# A unit window may also take this many times the scan's own steps (1 / scan cap), so that
+# a plant whose fast tone or damping alone needs more steps than MAX_STEPS_PER_TAU (which
+# check_scan_steps admits) is not over budget: slip steps are at most twice the scan cap.
+SCAN_ALLOWANCE = 2.0
 # Time resolution of a call, relative to max(1, |t|) (t runs from 0 in each call): a call
 # whose remaining span is below it ends, a Taylor step is never shorter than it, and an
 # output instant this close past a step's end belongs to that step.

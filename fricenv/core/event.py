@@ -35,6 +35,7 @@ from .constants import (
     ROS_GROW_MAX,
     ROS_SAFETY,
     ROS_SHRINK_MIN,
+    SCAN_ALLOWANCE,
     STIFF_HK,
     TAYLOR_FIRST_STEP,
     TIME_REL_TOL,
@@ -360,6 +361,7 @@ def _run_event(P, S, t_span, stats, max_events, rtol, atol, rec, cx):
     t_win = 0.0  # the step budget's current unit window and its steps, the call's steps
     n_win = 0.0
     n_call = 0.0
+    n_scan = SCAN_ALLOWANCE / cap
     j_out = 1
     if rec is not None:
         _write_output(rec, 0, x, v, mode)
@@ -371,7 +373,7 @@ def _run_event(P, S, t_span, stats, max_events, rtol, atol, rec, cx):
         if t_stop - t <= TIME_REL_TOL * max(1.0, abs(t_stop)):
             t = t_stop
             break
-        over, t_win, n_win, n_call = _count_step(cx, t, t_win, n_win, n_call)
+        over, t_win, n_win, n_call = _count_step(cx, t, t_win, n_win, n_call, n_scan)
         if over:
             status = STATUS_STEP_BUDGET
             break

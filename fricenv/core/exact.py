@@ -34,7 +34,7 @@ from .closed_form import (
     _slip_start,
     _slip_with,
 )
-from .constants import _STATUS_NEAR_RESONANCE, COUNT_SLACK, GRID_REL_TOL
+from .constants import _STATUS_NEAR_RESONANCE, COUNT_SLACK, GRID_REL_TOL, SCAN_ALLOWANCE
 from .contacts import _contact_outcome, _contact_time, _start_slope, _stick_outcome
 from .context import _scan_cap, _setup_context
 from .proofs import _extremum_matters, _one_extremum_at_most
@@ -356,6 +356,7 @@ def _scan_exact(S, t_span, stats, max_events, rec, cx, cap, c1, s1, c2, s2):
     t_win = 0.0  # the step budget's current unit window and its steps, the call's steps
     n_win = 0.0
     n_call = 0.0
+    n_scan = SCAN_ALLOWANCE / cap
     _note_v(stats, v)
     _note_x(stats, x)
     _write_output(rec, 0, x, v, mode)
@@ -375,7 +376,7 @@ def _scan_exact(S, t_span, stats, max_events, rec, cx, cap, c1, s1, c2, s2):
             tk = tb if k == m else ta + k * hk
             on_grid = regular_interval
             while t < tk:
-                over, t_win, n_win, n_call = _count_step(cx, t, t_win, n_win, n_call)
+                over, t_win, n_win, n_call = _count_step(cx, t, t_win, n_win, n_call, n_scan)
                 if over:
                     status = STATUS_STEP_BUDGET
                     break

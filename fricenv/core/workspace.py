@@ -130,15 +130,17 @@ def fresh_workspace(extrema=True, vr2=True):
 
 
 @kernel(inline=True)
-def _count_step(cx, t, t_win, n_win, n_call):
+def _count_step(cx, t, t_win, n_win, n_call, n_scan):
     """Count a runner's step taken from call time ``t`` against the budget in ``cx``:
     (over budget, t_win, n_win, n_call), the last three carried by the runner (the current
-    unit window's start and its steps, the call's steps; start at 0). Read anew each step,
+    unit window's start and its steps, the call's steps; start at 0). ``n_scan``: the
+    steps a unit of tau may take on top of W_MAX_STEPS_TAU, for the scan (SCAN_ALLOWANCE /
+    scan cap: a fast tone's scan is never over budget). The budget is read anew each step,
     so a budget lowered from another thread ends the call at its next step."""
     n_call += 1.0
     if t - t_win >= 1.0:
         t_win = t
         n_win = 0.0
     n_win += 1.0
-    over = n_win > cx[W_MAX_STEPS_TAU] or n_call > cx[W_MAX_STEPS_CALL]
+    over = n_win > cx[W_MAX_STEPS_TAU] + n_scan or n_call > cx[W_MAX_STEPS_CALL]
     return over, t_win, n_win, n_call
