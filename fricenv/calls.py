@@ -3,9 +3,10 @@
 A kernel holds the interpreter while it runs, so a SIGINT would wait for it to return. A
 call that may be long therefore runs its kernel (compiled with ``nogil``) in a worker
 thread while the calling thread waits in short joins, where ``KeyboardInterrupt`` arrives.
-The kernel reads its budget slot ``W_MAX_STEPS_CALL`` at every step: on Ctrl-C the waiting
-thread sets it below 0, the kernel returns at its next step, and ``KeyboardInterrupt``
-propagates with nothing half-written in the caller's objects.
+The kernel reads its budget slot ``W_MAX_STEPS_CALL`` every ``BUDGET_CHECK_STEPS`` steps at
+most: on Ctrl-C the waiting thread sets it below 0, the kernel returns within that many
+steps, and ``KeyboardInterrupt`` propagates with nothing half-written in the caller's
+objects.
 
 Starting a thread costs ~0.1 ms, more than a short call itself. A call first runs in the
 calling thread with at most ``DIRECT_STEPS`` steps (~0.05-0.3 s, the Ctrl-C latency there);

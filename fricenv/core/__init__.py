@@ -111,6 +111,7 @@ from .closed_form import (  # noqa: F401
 from .constants import (  # noqa: F401
     _D2_MIN,
     _STATUS_NEAR_RESONANCE,
+    BUDGET_CHECK_STEPS,
     CLOSED_FORM_MAX_GAIN,
     COUNT_SLACK,
     DELTA_MAX,

@@ -63,6 +63,10 @@ MAX_STEPS_PER_CALL = 1e9
 # a plant whose fast tone or damping alone needs more steps than MAX_STEPS_PER_TAU (which
 # check_scan_steps admits) is not over budget: slip steps are at most twice the scan cap.
 SCAN_ALLOWANCE = 2.0
+# The runners compare their step count with the budget at most this many steps apart (one
+# compare a step in between): a call lowered to a budget of 0 from another thread ends
+# within that many steps (well under a millisecond).
+BUDGET_CHECK_STEPS = 256.0
 # Time resolution of a call, relative to max(1, |t|) (t runs from 0 in each call): a call
 # whose remaining span is below it ends, a Taylor step is never shorter than it, and an
 # output instant this close past a step's end belongs to that step.

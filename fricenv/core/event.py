@@ -75,7 +75,7 @@ from .workspace import (
     C_XA,
     C_XFK,
     W_SKIP_VR2,
-    _count_step,
+    _budget_check,
 )
 
 
@@ -358,9 +358,10 @@ def _run_event(P, S, t_span, stats, max_events, rtol, atol, rec, cx):
     ros_skip = 0.0  # ... and those taken so far
     phases_stale = True
     n_carried = 0
-    t_win = 0.0  # the step budget's current unit window and its steps, the call's steps
-    n_win = 0.0
-    n_call = 0.0
+    n_call = 0.0  # steps so far, and the step budget's state (see _budget_check)
+    n_check = 0.0
+    t_win = 0.0
+    n_win0 = 0.0
     n_scan = SCAN_ALLOWANCE / cap
     j_out = 1
     if rec is not None:
@@ -373,10 +374,12 @@ def _run_event(P, S, t_span, stats, max_events, rtol, atol, rec, cx):
         if t_stop - t <= TIME_REL_TOL * max(1.0, abs(t_stop)):
             t = t_stop
             break
-        over, t_win, n_win, n_call = _count_step(cx, t, t_win, n_win, n_call, n_scan)
-        if over:
-            status = STATUS_STEP_BUDGET
-            break
+        n_call += 1.0
+        if n_call >= n_check:
+            over, t_win, n_win0, n_check = _budget_check(cx, t, n_call, t_win, n_win0, n_scan)
+            if over:
+                status = STATUS_STEP_BUDGET
+                break
         kind = 0
         if mode != 0.0:
             if phases_stale or n_carried >= PHASE_RESYNC_STEPS:

@@ -90,7 +90,7 @@ from .workspace import (
     W_SKIP_EXTREMA,
     W_T_KEY,
     W_T_KEY2,
-    _count_step,
+    _budget_check,
 )
 
 
@@ -353,9 +353,10 @@ def _scan_exact(S, t_span, stats, max_events, rec, cx, cap, c1, s1, c2, s2):
     n_events = 0
     status = STATUS_OK
     fresh = True  # the current phase starts on a switching surface (or at the call start)
-    t_win = 0.0  # the step budget's current unit window and its steps, the call's steps
-    n_win = 0.0
-    n_call = 0.0
+    n_call = 0.0  # steps so far, and the step budget's state (see _budget_check)
+    n_check = 0.0
+    t_win = 0.0
+    n_win0 = 0.0
     n_scan = SCAN_ALLOWANCE / cap
     _note_v(stats, v)
     _note_x(stats, x)
@@ -376,10 +377,13 @@ def _scan_exact(S, t_span, stats, max_events, rec, cx, cap, c1, s1, c2, s2):
             tk = tb if k == m else ta + k * hk
             on_grid = regular_interval
             while t < tk:
-                over, t_win, n_win, n_call = _count_step(cx, t, t_win, n_win, n_call, n_scan)
-                if over:
-                    status = STATUS_STEP_BUDGET
-                    break
+                n_call += 1.0
+                if n_call >= n_check:
+                    over, t_win, n_win0, n_check = _budget_check(cx, t, n_call, t_win, n_win0,
+                                                                 n_scan)
+                    if over:
+                        status = STATUS_STEP_BUDGET
+                        break
                 stats[ST_N_STEPS] += 1.0
                 if mode != 0.0:
                     tau, halved, on_grid, kind, mode, x, v, acc, c1, s1, c2, s2 = _slip_step(

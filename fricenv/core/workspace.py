@@ -12,7 +12,7 @@ import numpy as np
 
 from ..jit import kernel
 from ..slots import Layout
-from .constants import MAX_STEPS_PER_CALL, MAX_STEPS_PER_TAU
+from .constants import BUDGET_CHECK_STEPS, MAX_STEPS_PER_CALL, MAX_STEPS_PER_TAU
 
 WORKSPACE = Layout("workspace")
 _take = WORKSPACE.take
@@ -130,17 +130,20 @@ def fresh_workspace(extrema=True, vr2=True):
 
 
 @kernel(inline=True)
-def _count_step(cx, t, t_win, n_win, n_call, n_scan):
-    """Count a runner's step taken from call time ``t`` against the budget in ``cx``:
-    (over budget, t_win, n_win, n_call), the last three carried by the runner (the current
-    unit window's start and its steps, the call's steps; start at 0). ``n_scan``: the
-    steps a unit of tau may take on top of W_MAX_STEPS_TAU, for the scan (SCAN_ALLOWANCE /
-    scan cap: a fast tone's scan is never over budget). The budget is read anew each step,
-    so a budget lowered from another thread ends the call at its next step."""
-    n_call += 1.0
+def _budget_check(cx, t, n_call, t_win, n_win0, n_scan):
+    """Check a runner's step budget (in ``cx``) before its step number ``n_call`` (from
+    1), taken from call time ``t``: (over budget, t_win, n_win0, n_check). The runner
+    carries the current unit window's start ``t_win`` and the steps before it ``n_win0``
+    (both start at 0) and checks again at step ``n_check``: at most BUDGET_CHECK_STEPS
+    steps on and never past a budget's end, so the hot loop pays one compare a step.
+    ``n_scan``: the steps a unit of tau may take on top of W_MAX_STEPS_TAU, for the scan
+    (SCAN_ALLOWANCE / scan cap: a fast tone's scan is never over budget). A budget lowered
+    from another thread ends the call within BUDGET_CHECK_STEPS steps."""
     if t - t_win >= 1.0:
         t_win = t
-        n_win = 0.0
-    n_win += 1.0
-    over = n_win > cx[W_MAX_STEPS_TAU] + n_scan or n_call > cx[W_MAX_STEPS_CALL]
-    return over, t_win, n_win, n_call
+        n_win0 = n_call - 1.0
+    left_win = cx[W_MAX_STEPS_TAU] + n_scan - (n_call - n_win0)
+    left_call = cx[W_MAX_STEPS_CALL] - n_call
+    over = left_win < 0.0 or left_call < 0.0
+    n_check = n_call + max(1.0, min(BUDGET_CHECK_STEPS, left_win, left_call))
+    return over, t_win, n_win0, n_check
