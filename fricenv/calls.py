@@ -52,11 +52,15 @@ def step_budget(max_steps_per_tau: float | None, max_steps: float | None
     return out[0], out[1]
 
 
-def new_workspace(budget: tuple[float, float], **options: bool) -> np.ndarray:
+_FRESH = _new_workspace()  # copied: cheaper than filling a new array on every call
+
+
+def new_workspace(budget: tuple[float, float]) -> np.ndarray:
     """A fresh workspace for one call (see ``core.new_workspace``) with the step budget
     ``budget`` = (steps per unit tau, steps per call)."""
-    work = _new_workspace(**options)
-    work[W_MAX_STEPS_TAU], work[W_MAX_STEPS_CALL] = budget
+    work = _FRESH.copy()
+    work[W_MAX_STEPS_TAU] = budget[0]
+    work[W_MAX_STEPS_CALL] = budget[1]
     return work
 
 

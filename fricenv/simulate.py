@@ -202,8 +202,7 @@ def _raise_if_diverged(P: np.ndarray, x0: float, v0: float, t_span: float,
 
 
 def _check_rk4_budget(t_span: float, dt: float, budget: tuple[float, float]) -> None:
-    """``SimulationError`` (STATUS_STEP_BUDGET) before an RK4 run whose fixed steps,
-    known in advance, exceed the budget."""
+    """``SimulationError`` (STATUS_STEP_BUDGET) before an RK4 run over budget."""
     per_tau = 1.0 / dt if t_span >= 1.0 else t_span / dt
     if per_tau > budget[0] or t_span / dt > budget[1]:
         raise SimulationError(
@@ -510,7 +509,8 @@ def simulate(
     capacity = int(min(max_events + 1, 64 + 8 * t_span * w / (2 * math.pi)))
     counts = np.zeros(2, np.int64)
     record = core.kernels_for(code, P).record  # compiles this method's kernels only
-    S = state.to_array()
+    S0 = state.to_array()
+    S = S0.copy()
     while True:
         ev_t = np.empty(capacity)
         ev_kind = np.empty(capacity, np.int8)
@@ -518,7 +518,7 @@ def simulate(
 
         def run(work: np.ndarray, ev_t: np.ndarray = ev_t, ev_kind: np.ndarray = ev_kind,
                 ev_x: np.ndarray = ev_x) -> int:
-            S[:] = state.to_array()
+            S[:] = S0
             core.reset_stats(stats)
             counts[:] = 0
             return record(P, S, out_t, stats, code, rtol, atol, max_events, out_x, out_v,
@@ -583,13 +583,14 @@ def run_stats(
     atol = _positive("atol", atol)
     P = params.to_array()
     scan_steps = check_scan_steps(P[None], np.array([t_span]))
-    S = state.to_array()
+    S0 = state.to_array()
+    S = S0.copy()
     stats = np.empty(N_STATS)
     code = METHOD_EXACT if method == "exact" else METHOD_EVENT
     advance = core.kernels_for(code, P).advance  # compiles this method's kernels only
 
     def run(work: np.ndarray) -> int:
-        S[:] = state.to_array()
+        S[:] = S0
         core.reset_stats(stats)
         return advance(P, S, t_span, stats, code, rtol, atol, max_events, work)
 
