@@ -8,6 +8,8 @@ from .params import FRICTION_LAWS, OscillatorParams
 from .regimes import Regime, classify, classify_stats, strobe_period
 from .simulate import (
     EVENT_NAMES,
+    MAX_STEPS_PER_CALL,
+    MAX_STEPS_PER_TAU,
     OscillatorState,
     RunStats,
     SimulationError,
@@ -21,6 +23,8 @@ from .warmup import warmup
 __all__ = [
     "EVENT_NAMES",
     "FRICTION_LAWS",
+    "MAX_STEPS_PER_CALL",
+    "MAX_STEPS_PER_TAU",
     "MapInUseError",
     "OscillatorParams",
     "OscillatorState",

@@ -76,14 +76,17 @@ THREADING_LAYER = choose_threading_layer()  # on import, before any kernel can r
 
 
 def kernel(fn: Callable | None = None, *, inline: bool = False, allocates: bool = False,
-           parallel: bool = False, fastmath: set[str] | None = None) -> Any:
+           parallel: bool = False, fastmath: set[str] | None = None,
+           nogil: bool = False) -> Any:
     """Compile ``fn`` as a fricenv kernel; usable bare (``@kernel``) or with options.
 
     ``inline``: numba inlines the function into each caller at its IR level (small hot
     helpers, and generic bodies that take another kernel as an argument). ``allocates``:
     keep numba's reference-counting runtime (see the module docstring). ``parallel``: the
     function holds a ``prange`` loop. ``fastmath``: LLVM fast-math flags for this function
-    only (e.g. ``{"reassoc", "contract"}`` for sums whose order may change).
+    only (e.g. ``{"reassoc", "contract"}`` for sums whose order may change). ``nogil``:
+    release the GIL while the kernel runs when called from Python (the public entry
+    kernels, which ``fricenv.calls`` runs in a worker thread so that Ctrl-C stays live).
     """
     options: dict[str, Any] = {"cache": True, "error_model": "numpy"}
     if not allocates:
@@ -94,5 +97,7 @@ def kernel(fn: Callable | None = None, *, inline: bool = False, allocates: bool 
         options["parallel"] = True
     if fastmath:
         options["fastmath"] = fastmath
+    if nogil:
+        options["nogil"] = True
     decorate = njit(**options)
     return decorate if fn is None else decorate(fn)

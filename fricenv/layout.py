@@ -40,6 +40,10 @@ STATUS_TOO_STIFF = 4  # slip stiffer than the smallest step the time resolution 
 # Set by the Python wrappers, never by a kernel: the motion ran away (a statistic or the state
 # non-finite, or beyond the bound of fricenv.divergence) while the kernel reported OK.
 STATUS_DIVERGED = 5
+# The call took more steps than its budget allows (the workspace's W_MAX_STEPS_TAU steps in a
+# unit of tau, or W_MAX_STEPS_CALL in the call): slip far stiffer than the model's O(1) scale,
+# or a state far from it. The Python wrappers also use it when a call is stopped on request.
+STATUS_STEP_BUDGET = 6
 
 # Event kinds in a trajectory.
 EVENT_STICK = 1  # slip -> stick

@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from . import core, divergence
+from . import calls, core, divergence
 from .checks import check_bounded_real, check_finite_real, check_int, check_rtol, got
 from .layout import (
     EVENT_REVERSAL,
@@ -42,6 +42,7 @@ from .layout import (
     STATUS_EVENT_CAP,
     STATUS_NONFINITE,
     STATUS_OK,
+    STATUS_STEP_BUDGET,
     STATUS_TOO_STIFF,
 )
 from .params import P_B1, P_B3, P_LAM, P_W1, P_W2, PARAM_LIMIT, OscillatorParams
@@ -55,6 +56,10 @@ MAX_EVENT_RATE = 1000.0
 #: Most scan steps a run may need (the RK4 step count shares it). Beyond it a run takes
 #: many minutes, and a fast tone or stiff damping asking for it is more likely a typo.
 MAX_SCAN_STEPS = 1e9
+#: Default step budget of a call (``max_steps_per_tau`` and ``max_steps`` of ``simulate``
+#: and ``run_stats``): steps in each unit of dimensionless time, and in the whole call.
+MAX_STEPS_PER_TAU = core.MAX_STEPS_PER_TAU
+MAX_STEPS_PER_CALL = core.MAX_STEPS_PER_CALL
 #: Most output instants ``simulate`` records (three float64 arrays and a mode each: 2.5 GB
 #: at the cap); a finer grid over a long run is refused before anything is allocated.
 MAX_OUTPUTS = 1e8
@@ -105,14 +110,14 @@ def _check_state(state: OscillatorState, params: OscillatorParams, t_span: float
 
 def check_scan_steps(P_rows: np.ndarray, spans: np.ndarray,
                      remedy: str = "shorten the span or check these values",
-                     cap: float = MAX_SCAN_STEPS) -> None:
+                     cap: float = MAX_SCAN_STEPS) -> float:
     """``ValueError`` if a run (row ``i`` of ``P_rows`` over ``spans[i]``) needs more than
     ``cap`` scan steps (default ``MAX_SCAN_STEPS``; the environments cap one control
     interval far lower, see ``fricenv.envs.scenes.MAX_INTERVAL_SCAN_STEPS``).
 
     Event-driven runs step at most half a radian of the fastest active tone (and 1 / rate
     when over-damped), so a very fast tone or stiff damping would otherwise run for hours
-    without a word.
+    without a word. Returns the most scan steps a row needs.
     """
     most, i = core.most_scan_steps(P_rows, spans)
     if most > cap:
@@ -123,6 +128,7 @@ def check_scan_steps(P_rows: np.ndarray, spans: np.ndarray,
             f"tone (eta = {P[P_W1]:.6g}, nu * eta = {P[P_W2]:.6g}) and the damping "
             f"(lam = {P[P_LAM]:.6g}); {remedy}"
         )
+    return float(most)
 
 
 def resolve_method(params: OscillatorParams, method: str) -> str:
@@ -149,7 +155,16 @@ def resolve_method(params: OscillatorParams, method: str) -> str:
     return method
 
 
-def _raise_status(status: int, t: float, max_events: int, t_span: float) -> None:
+def _raise_status(status: int, t: float, max_events: int, t_span: float,
+                  budget: tuple[float, float] = (MAX_STEPS_PER_TAU, MAX_STEPS_PER_CALL)
+                  ) -> None:
+    if status == STATUS_STEP_BUDGET:
+        raise SimulationError(
+            f"stopped at t = {t:.6g} after more steps than the budget allows "
+            f"({budget[0]:g} in a unit of tau, {budget[1]:g} in the call): slip far stiffer "
+            "than the model's O(1) scale (|df/dv| of b1, b3 huge) or a state far from it "
+            "needs too many steps; if this run is meant, raise max_steps_per_tau / "
+            "max_steps", status)
     if status == STATUS_EVENT_CAP:
         raise SimulationError(
             f"more than {max_events} switching events in a span of {t_span:g} (stopped at "
@@ -184,6 +199,17 @@ def _raise_if_diverged(P: np.ndarray, x0: float, v0: float, t_span: float,
         f"integral of (v - V)^2 {stats[ST_VR2_INT]:.3g}, beyond {limit:.3g} "
         f"({divergence.DIVERGENCE_FACTOR:g} times the largest motion this plant's parameters "
         f"and start set, times the span){why}", STATUS_DIVERGED)
+
+
+def _check_rk4_budget(t_span: float, dt: float, budget: tuple[float, float]) -> None:
+    """``SimulationError`` (STATUS_STEP_BUDGET) before an RK4 run over budget."""
+    per_tau = 1.0 / dt if t_span >= 1.0 else t_span / dt
+    if per_tau > budget[0] or t_span / dt > budget[1]:
+        raise SimulationError(
+            f"dt = {dt!r} needs {t_span / dt:.3g} RK4 steps ({1.0 / dt:.3g} in a unit of "
+            f"tau), beyond the budget ({budget[0]:g} in a unit of tau, {budget[1]:g} in the "
+            "call); raise max_steps_per_tau / max_steps if this run is meant",
+            STATUS_STEP_BUDGET)
 
 
 @dataclass(frozen=True)
@@ -410,6 +436,8 @@ def simulate(
     atol: float = 1e-12,
     dt: float = 0.04,
     max_event_rate: float = MAX_EVENT_RATE,
+    max_steps_per_tau: float | None = None,
+    max_steps: float | None = None,
     **deprecated: Any,
 ) -> Trajectory:
     """Simulate for ``t_span`` from ``state`` (default: rest at t = 0), recording the state
@@ -425,7 +453,8 @@ def simulate(
     what they mean in :func:`run_stats`; the older keywords ``t_end``, ``x0``, ``v0``,
     ``phase1`` and ``phase2`` still work, with a ``DeprecationWarning``. A run that
     cannot go on, or whose motion diverged (:mod:`fricenv.divergence`), raises
-    :class:`SimulationError` with its ``status``.
+    :class:`SimulationError` with its ``status``. ``max_steps_per_tau`` and ``max_steps``
+    bound the work (see :func:`run_stats`); Ctrl-C stops the call within about a second.
     """
     _check_params(params)
     t_span, state = _deprecated_start(params, t_span, state, deprecated)
@@ -438,14 +467,16 @@ def simulate(
     rtol = check_rtol(rtol)
     atol = _positive("atol", atol)
     max_event_rate = _positive("max_event_rate", max_event_rate)
+    budget = calls.step_budget(max_steps_per_tau, max_steps)
     method = resolve_method(params, method)
     if t_span / dt_out > MAX_OUTPUTS:
         raise ValueError(f"dt_out = {dt_out!r} asks for {t_span / dt_out:.3g} output instants up "
                          f"to t_span = {t_span!r} (at most {MAX_OUTPUTS:g}); use a larger dt_out, "
                          "or run_stats, which keeps no trajectory")
     P = params.to_array()
+    scan_steps = 0.0
     if method != "rk4":  # before the output arrays are allocated
-        check_scan_steps(P[None], np.array([t_span]))
+        scan_steps = check_scan_steps(P[None], np.array([t_span]))
     out_t = output_times(0.0, t_span, dt_out)
     if state.t != 0.0:  # the grid counts from the start, as the kernels' time does
         out_t = state.t + out_t
@@ -458,6 +489,7 @@ def simulate(
         if t_span / dt > MAX_SCAN_STEPS:
             raise ValueError(f"dt = {dt!r} needs {t_span / dt:.3g} RK4 steps to reach "
                              f"t_span = {t_span!r} (at most {MAX_SCAN_STEPS:g})")
+        _check_rk4_budget(t_span, min(dt, t_span), budget)
         S = state.to_array()
         core.reset_stats(stats)
         # a span under 1e-9 dt would take no step (and fill no output); over (1e-9 dt, dt]
@@ -477,19 +509,26 @@ def simulate(
     capacity = int(min(max_events + 1, 64 + 8 * t_span * w / (2 * math.pi)))
     counts = np.zeros(2, np.int64)
     record = core.kernels_for(code, P).record  # compiles this method's kernels only
+    S0 = state.to_array()
+    S = S0.copy()
     while True:
-        S = state.to_array()
-        core.reset_stats(stats)
-        counts[:] = 0
         ev_t = np.empty(capacity)
         ev_kind = np.empty(capacity, np.int8)
         ev_x = np.empty(capacity)
-        status = record(P, S, out_t, stats, code, rtol, atol, max_events, out_x, out_v,
-                        out_mode, ev_t, ev_kind, ev_x, counts)
+
+        def run(work: np.ndarray, ev_t: np.ndarray = ev_t, ev_kind: np.ndarray = ev_kind,
+                ev_x: np.ndarray = ev_x) -> int:
+            S[:] = S0
+            core.reset_stats(stats)
+            counts[:] = 0
+            return record(P, S, out_t, stats, code, rtol, atol, max_events, out_x, out_v,
+                          out_mode, ev_t, ev_kind, ev_x, counts, work)
+
+        status = calls.run_call(run, lambda: calls.new_workspace(budget), scan_steps)
         if status != STATUS_BUFFER_FULL:
             break
         capacity *= 4
-    _raise_status(status, S[S_T], max_events, t_span)
+    _raise_status(status, S[S_T], max_events, t_span, budget)
     _raise_if_diverged(P, state.x, state.v, t_span, stats, S)
     k = int(counts[0])
     return Trajectory(params, method, out_t, out_x, out_v, out_mode.astype(np.int8),
@@ -506,6 +545,8 @@ def run_stats(
     rtol: float = 1e-10,
     atol: float = 1e-12,
     max_event_rate: float = MAX_EVENT_RATE,
+    max_steps_per_tau: float | None = None,
+    max_steps: float | None = None,
 ) -> RunStats:
     """Advance by ``t_span`` from ``state`` (default: rest at t = 0) storing no trajectory.
 
@@ -515,6 +556,14 @@ def run_stats(
     and the stick time at most the duration: a run that cannot go on (chattering, too
     stiff, a non-finite state) or whose motion diverged (:mod:`fricenv.divergence`) raises
     :class:`SimulationError` with its ``status`` instead.
+
+    The call's work is bounded: at most ``max_steps_per_tau`` integrator steps in each unit
+    of tau (counted window by window from the call's start) and ``max_steps`` in the call
+    (None: ``MAX_STEPS_PER_TAU`` = 1e6 and ``MAX_STEPS_PER_CALL`` = 1e9, which no ordinary
+    run reaches). Beyond either it raises :class:`SimulationError` with ``status``
+    ``STATUS_STEP_BUDGET`` within about a second (slip far stiffer than the model's scale,
+    or a start far from it). Ctrl-C stops the call within about a second, raising
+    ``KeyboardInterrupt`` and leaving ``state`` as it was.
     """
     _check_params(params)
     t_span = _positive("t_span", t_span)
@@ -529,15 +578,23 @@ def run_stats(
         _check_state(state, params, t_span)
     max_event_rate = _positive("max_event_rate", max_event_rate)
     max_events = int(min(max_event_rate * max(t_span, 1.0), 2**62))
+    budget = calls.step_budget(max_steps_per_tau, max_steps)
+    rtol = check_rtol(rtol)
+    atol = _positive("atol", atol)
     P = params.to_array()
-    check_scan_steps(P[None], np.array([t_span]))
-    S = state.to_array()
+    scan_steps = check_scan_steps(P[None], np.array([t_span]))
+    S0 = state.to_array()
+    S = S0.copy()
     stats = np.empty(N_STATS)
-    core.reset_stats(stats)
     code = METHOD_EXACT if method == "exact" else METHOD_EVENT
     advance = core.kernels_for(code, P).advance  # compiles this method's kernels only
-    status = advance(P, S, t_span, stats, code, check_rtol(rtol), _positive("atol", atol),
-                     max_events)
-    _raise_status(status, S[S_T], max_events, t_span)
+
+    def run(work: np.ndarray) -> int:
+        S[:] = S0
+        core.reset_stats(stats)
+        return advance(P, S, t_span, stats, code, rtol, atol, max_events, work)
+
+    status = calls.run_call(run, lambda: calls.new_workspace(budget), scan_steps)
+    _raise_status(status, S[S_T], max_events, t_span, budget)
     _raise_if_diverged(P, state.x, state.v, t_span, stats, S)
     return RunStats.from_array(stats, OscillatorState.from_array(S))

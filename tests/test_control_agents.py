@@ -11,6 +11,7 @@ import pytest
 import fricenv  # noqa: F401  (registers the environments)
 from agents.common import rollout
 from agents.mpc import MPPIController
+from fricenv.core import new_workspace
 from fricenv.envs.state import PL_CTRL, PL_S, PL_WORK, plants_from_observations
 from fricenv.envs.stick_slip import StickSlipEnv
 from fricenv.envs.vector import StickSlipVectorEnv
@@ -87,7 +88,8 @@ def test_state_estimate_from_a_full_observation():
     for k in (S_X, S_V, S_PHI1, S_PHI2):
         assert S[k] == pytest.approx(T[k], abs=1e-5)
     assert np.array_equal(cmds[0], plants[0, PL_CTRL:PL_WORK])
-    assert np.isnan(plants[0, PL_WORK:]).sum() >= plants.shape[1] - PL_WORK - 2  # empty caches
+    # a fresh workspace: empty caches, its flags and step budget
+    assert np.array_equal(plants[0, PL_WORK:], new_workspace(extrema=False), equal_nan=True)
 
 
 def test_held_out_boxes_lie_beyond_the_training_ranges():

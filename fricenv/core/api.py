@@ -58,22 +58,26 @@ def advance_ws(P, S, t_span, stats, method, rtol, atol, max_events, work):
     return advance_event_ws(P, S, t_span, stats, method, rtol, atol, max_events, work)
 
 
-@kernel(allocates=True)
-def advance_exact(P, S, t_span, stats, method, rtol, atol, max_events):
+@kernel(allocates=True, nogil=True)
+def advance_exact(P, S, t_span, stats, method, rtol, atol, max_events, work=None):
     """``advance`` with the closed form alone (see ``advance_exact_ws``)."""
-    return advance_exact_ws(P, S, t_span, stats, method, rtol, atol, max_events,
-                            fresh_workspace())
+    if work is None:
+        return advance_exact_ws(P, S, t_span, stats, method, rtol, atol, max_events,
+                                fresh_workspace())
+    return advance_exact_ws(P, S, t_span, stats, method, rtol, atol, max_events, work)
 
 
-@kernel(allocates=True)
-def advance_event(P, S, t_span, stats, method, rtol, atol, max_events):
+@kernel(allocates=True, nogil=True)
+def advance_event(P, S, t_span, stats, method, rtol, atol, max_events, work=None):
     """``advance`` with the event method alone."""
-    return advance_event_ws(P, S, t_span, stats, method, rtol, atol, max_events,
-                            fresh_workspace())
+    if work is None:
+        return advance_event_ws(P, S, t_span, stats, method, rtol, atol, max_events,
+                                fresh_workspace())
+    return advance_event_ws(P, S, t_span, stats, method, rtol, atol, max_events, work)
 
 
-@kernel(allocates=True)
-def advance(P, S, t_span, stats, method, rtol, atol, max_events):
+@kernel(allocates=True, nogil=True)
+def advance(P, S, t_span, stats, method, rtol, atol, max_events, work=None):
     """Advance the state ``S`` in place by ``t_span``, accumulating ``stats``; no trajectory.
 
     ``method`` is METHOD_EXACT (Coulomb law only; the caller checks; a call with a tone
@@ -81,42 +85,60 @@ def advance(P, S, t_span, stats, method, rtol, atol, max_events):
     METHOD_EVENT.
     Tone phases are carried in ``S``, so P's amplitudes and frequencies may change between
     calls without a jump in the force. Returns a STATUS_* code; at most ``max_events``
-    switches are allowed in the call (STATUS_EVENT_CAP beyond).
+    switches are allowed in the call (STATUS_EVENT_CAP beyond), and at most the step
+    budget of the workspace (STATUS_STEP_BUDGET beyond, see MAX_STEPS_PER_TAU). ``work``:
+    a fresh workspace (``new_workspace``) to run in, e.g. with a budget of its own; default
+    one with the default budget. The GIL is released while it runs.
     """
-    return advance_ws(P, S, t_span, stats, method, rtol, atol, max_events, fresh_workspace())
+    if work is None:
+        return advance_ws(P, S, t_span, stats, method, rtol, atol, max_events,
+                          fresh_workspace())
+    return advance_ws(P, S, t_span, stats, method, rtol, atol, max_events, work)
 
 
-@kernel(allocates=True)
+@kernel(allocates=True, nogil=True)
 def record_exact(P, S, out_t, stats, method, rtol, atol, max_events, out_x, out_v, out_mode,
-                 ev_t, ev_kind, ev_x, counts):
+                 ev_t, ev_kind, ev_x, counts, work=None):
     """``record`` with the closed form alone (see ``advance_exact_ws``)."""
     rec = Recording(out_t, out_x, out_v, out_mode, ev_t, ev_kind, ev_x, counts)
     t_span = out_t[out_t.shape[0] - 1] - out_t[0]
-    return _run_exact(P, S, t_span, stats, max_events, rec, fresh_workspace())
+    if work is None:
+        return _run_exact(P, S, t_span, stats, max_events, rec, fresh_workspace())
+    return _run_exact(P, S, t_span, stats, max_events, rec, work)
 
 
-@kernel(allocates=True)
+@kernel(allocates=True, nogil=True)
 def record_event(P, S, out_t, stats, method, rtol, atol, max_events, out_x, out_v, out_mode,
-                 ev_t, ev_kind, ev_x, counts):
+                 ev_t, ev_kind, ev_x, counts, work=None):
     """``record`` with the event method alone."""
     rec = Recording(out_t, out_x, out_v, out_mode, ev_t, ev_kind, ev_x, counts)
     t_span = out_t[out_t.shape[0] - 1] - out_t[0]
-    return _run_event(P, S, t_span, stats, max_events, rtol, atol, rec, fresh_workspace())
+    if work is None:
+        return _run_event(P, S, t_span, stats, max_events, rtol, atol, rec, fresh_workspace())
+    return _run_event(P, S, t_span, stats, max_events, rtol, atol, rec, work)
 
 
-@kernel(allocates=True)
-def record(P, S, out_t, stats, method, rtol, atol, max_events, out_x, out_v, out_mode, ev_t,
-           ev_kind, ev_x, counts):
-    """Like ``advance`` over [out_t[0], out_t[-1]], recording the state at ``out_t`` and the
-    events (time, kind, x); ``counts`` returns (events recorded, outputs written)."""
-    rec = Recording(out_t, out_x, out_v, out_mode, ev_t, ev_kind, ev_x, counts)
-    t_span = out_t[out_t.shape[0] - 1] - out_t[0]
-    work = fresh_workspace()
+@kernel(inline=True)
+def _record_ws(P, S, stats, method, rtol, atol, max_events, rec, work):
+    """``record``'s body, in the workspace ``work``."""
+    t_span = rec.out_t[rec.out_t.shape[0] - 1] - rec.out_t[0]
     if method == METHOD_EXACT:
         status = _run_exact(P, S, t_span, stats, max_events, rec, work)
         if status != _STATUS_NEAR_RESONANCE:
             return status
     return _run_event(P, S, t_span, stats, max_events, rtol, atol, rec, work)
+
+
+@kernel(allocates=True, nogil=True)
+def record(P, S, out_t, stats, method, rtol, atol, max_events, out_x, out_v, out_mode, ev_t,
+           ev_kind, ev_x, counts, work=None):
+    """Like ``advance`` over [out_t[0], out_t[-1]], recording the state at ``out_t`` and the
+    events (time, kind, x); ``counts`` returns (events recorded, outputs written). ``work``
+    as in ``advance``."""
+    rec = Recording(out_t, out_x, out_v, out_mode, ev_t, ev_kind, ev_x, counts)
+    if work is None:
+        return _record_ws(P, S, stats, method, rtol, atol, max_events, rec, fresh_workspace())
+    return _record_ws(P, S, stats, method, rtol, atol, max_events, rec, work)
 
 
 def method_for(method: int, P: np.ndarray) -> int:

@@ -50,6 +50,23 @@ STIFF_HK = 2.5
 # Most Taylor steps between Rosenbrock retries in a stiff stretch where they keep failing
 ROS_BACKOFF_MAX = 64.0
 
+# Step budget of a call (the workspace's W_MAX_STEPS_TAU and W_MAX_STEPS_CALL start at these;
+# callers may set their own): at most MAX_STEPS_PER_TAU steps in each unit of tau, counted in
+# consecutive windows from the call's start, and MAX_STEPS_PER_CALL in the call, else the call
+# ends with STATUS_STEP_BUDGET. Ordinary runs take at most ~1e4 steps in a unit of tau (stiff
+# cubic slip with b1 = b3 = 1e6 included), and a step costs 0.3-3 us, so a call over budget ends
+# within about a second (u0 = 1e10 with Taylor steps throughout, at ~2e6 steps in a unit of
+# tau, is over it); the per-call cap admits any span ``check_scan_steps`` admits.
+MAX_STEPS_PER_TAU = 1e6
+MAX_STEPS_PER_CALL = 1e9
+# A unit window may also take this many times the scan's own steps (1 / scan cap), so that
+# a plant whose fast tone or damping alone needs more steps than MAX_STEPS_PER_TAU (which
+# check_scan_steps admits) is not over budget: slip steps are at most twice the scan cap.
+SCAN_ALLOWANCE = 2.0
+# The runners compare their step count with the budget at most this many steps apart (one
+# compare a step in between): a call lowered to a budget of 0 from another thread ends
+# within that many steps (well under a millisecond).
+BUDGET_CHECK_STEPS = 256.0
 # Time resolution of a call, relative to max(1, |t|) (t runs from 0 in each call): a call
 # whose remaining span is below it ends, a Taylor step is never shorter than it, and an
 # output instant this close past a step's end belongs to that step.

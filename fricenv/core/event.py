@@ -23,6 +23,7 @@ from ..layout import (
     ST_VR2_INT,
     STATUS_NONFINITE,
     STATUS_OK,
+    STATUS_STEP_BUDGET,
     STATUS_TOO_STIFF,
 )
 from .closed_form import _stick_at
@@ -34,6 +35,7 @@ from .constants import (
     ROS_GROW_MAX,
     ROS_SAFETY,
     ROS_SHRINK_MIN,
+    SCAN_ALLOWANCE,
     STIFF_HK,
     TAYLOR_FIRST_STEP,
     TIME_REL_TOL,
@@ -73,6 +75,7 @@ from .workspace import (
     C_XA,
     C_XFK,
     W_SKIP_VR2,
+    _budget_check,
 )
 
 
@@ -355,6 +358,11 @@ def _run_event(P, S, t_span, stats, max_events, rtol, atol, rec, cx):
     ros_skip = 0.0  # ... and those taken so far
     phases_stale = True
     n_carried = 0
+    n_call = 0.0  # steps so far, and the step budget's state (see _budget_check)
+    n_check = 0.0
+    t_win = 0.0
+    n_win0 = 0.0
+    n_scan = SCAN_ALLOWANCE / cap
     j_out = 1
     if rec is not None:
         _write_output(rec, 0, x, v, mode)
@@ -366,6 +374,12 @@ def _run_event(P, S, t_span, stats, max_events, rtol, atol, rec, cx):
         if t_stop - t <= TIME_REL_TOL * max(1.0, abs(t_stop)):
             t = t_stop
             break
+        n_call += 1.0
+        if n_call >= n_check:
+            over, t_win, n_win0, n_check = _budget_check(cx, t, n_call, t_win, n_win0, n_scan)
+            if over:
+                status = STATUS_STEP_BUDGET
+                break
         kind = 0
         if mode != 0.0:
             if phases_stale or n_carried >= PHASE_RESYNC_STEPS:

@@ -21,6 +21,7 @@ from ..layout import (
     ST_STICK_TIME,
     STATUS_NONFINITE,
     STATUS_OK,
+    STATUS_STEP_BUDGET,
 )
 from .closed_form import (
     _forcing,
@@ -33,7 +34,7 @@ from .closed_form import (
     _slip_start,
     _slip_with,
 )
-from .constants import _STATUS_NEAR_RESONANCE, COUNT_SLACK, GRID_REL_TOL
+from .constants import _STATUS_NEAR_RESONANCE, COUNT_SLACK, GRID_REL_TOL, SCAN_ALLOWANCE
 from .contacts import _contact_outcome, _contact_time, _start_slope, _stick_outcome
 from .context import _scan_cap, _setup_context
 from .proofs import _extremum_matters, _one_extremum_at_most
@@ -89,6 +90,7 @@ from .workspace import (
     W_SKIP_EXTREMA,
     W_T_KEY,
     W_T_KEY2,
+    _budget_check,
 )
 
 
@@ -351,6 +353,11 @@ def _scan_exact(S, t_span, stats, max_events, rec, cx, cap, c1, s1, c2, s2):
     n_events = 0
     status = STATUS_OK
     fresh = True  # the current phase starts on a switching surface (or at the call start)
+    n_call = 0.0  # steps so far, and the step budget's state (see _budget_check)
+    n_check = 0.0
+    t_win = 0.0
+    n_win0 = 0.0
+    n_scan = SCAN_ALLOWANCE / cap
     _note_v(stats, v)
     _note_x(stats, x)
     _write_output(rec, 0, x, v, mode)
@@ -370,6 +377,13 @@ def _scan_exact(S, t_span, stats, max_events, rec, cx, cap, c1, s1, c2, s2):
             tk = tb if k == m else ta + k * hk
             on_grid = regular_interval
             while t < tk:
+                n_call += 1.0
+                if n_call >= n_check:
+                    over, t_win, n_win0, n_check = _budget_check(cx, t, n_call, t_win, n_win0,
+                                                                 n_scan)
+                    if over:
+                        status = STATUS_STEP_BUDGET
+                        break
                 stats[ST_N_STEPS] += 1.0
                 if mode != 0.0:
                     tau, halved, on_grid, kind, mode, x, v, acc, c1, s1, c2, s2 = _slip_step(

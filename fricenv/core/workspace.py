@@ -12,6 +12,7 @@ import numpy as np
 
 from ..jit import kernel
 from ..slots import Layout
+from .constants import BUDGET_CHECK_STEPS, MAX_STEPS_PER_CALL, MAX_STEPS_PER_TAU
 
 WORKSPACE = Layout("workspace")
 _take = WORKSPACE.take
@@ -91,6 +92,9 @@ T_U, T_W, T_VDD_P, T_VDDD_P, T_GDD, T_GDDD, T_NEAR_RES = TONE_KEYS.group(
 N_T = TONE_KEYS.size
 W_T_KEY = _take("W_T_KEY", N_T)
 W_T_KEY2 = _take("W_T_KEY2", N_T)
+# The call's step budget (see MAX_STEPS_PER_TAU), read at every step, so that another thread
+# can end a running call by lowering W_MAX_STEPS_CALL below 0.
+W_MAX_STEPS_TAU, W_MAX_STEPS_CALL = WORKSPACE.group("W_MAX_STEPS_TAU", "W_MAX_STEPS_CALL")
 N_CX = WORKSPACE.size
 N_WORK = N_CX
 
@@ -101,12 +105,15 @@ def new_workspace(n: int | None = None, *, extrema: bool = True, vr2: bool = Tru
 
     ``extrema=False`` skips locating the extrema of v and x (ST_V_MAX ... ST_X_MIN then
     only see step ends), and ``vr2=False`` the (v - V)^2 integral (ST_VR2_INT), for
-    callers that do not read them.
+    callers that do not read them. The step budget starts at MAX_STEPS_PER_TAU and
+    MAX_STEPS_PER_CALL (slots W_MAX_STEPS_TAU, W_MAX_STEPS_CALL).
     """
     shape = N_WORK if n is None else (n, N_WORK)
     work = np.full(shape, np.nan)
     work[..., W_SKIP_EXTREMA] = 0.0 if extrema else 1.0
     work[..., W_SKIP_VR2] = 0.0 if vr2 else 1.0
+    work[..., W_MAX_STEPS_TAU] = MAX_STEPS_PER_TAU
+    work[..., W_MAX_STEPS_CALL] = MAX_STEPS_PER_CALL
     return work
 
 
@@ -117,4 +124,26 @@ def fresh_workspace(extrema=True, vr2=True):
     work = np.full(N_WORK, np.nan)
     work[W_SKIP_EXTREMA] = 0.0 if extrema else 1.0
     work[W_SKIP_VR2] = 0.0 if vr2 else 1.0
+    work[W_MAX_STEPS_TAU] = MAX_STEPS_PER_TAU
+    work[W_MAX_STEPS_CALL] = MAX_STEPS_PER_CALL
     return work
+
+
+@kernel(inline=True)
+def _budget_check(cx, t, n_call, t_win, n_win0, n_scan):
+    """Check a runner's step budget (in ``cx``) before its step number ``n_call`` (from
+    1), taken from call time ``t``: (over budget, t_win, n_win0, n_check). The runner
+    carries the current unit window's start ``t_win`` and the steps before it ``n_win0``
+    (both start at 0) and checks again at step ``n_check``: at most BUDGET_CHECK_STEPS
+    steps on and never past a budget's end, so the hot loop pays one compare a step.
+    ``n_scan``: the steps a unit of tau may take on top of W_MAX_STEPS_TAU, for the scan
+    (SCAN_ALLOWANCE / scan cap: a fast tone's scan is never over budget). A budget lowered
+    from another thread ends the call within BUDGET_CHECK_STEPS steps."""
+    if t - t_win >= 1.0:
+        t_win = t
+        n_win0 = n_call - 1.0
+    left_win = cx[W_MAX_STEPS_TAU] + n_scan - (n_call - n_win0)
+    left_call = cx[W_MAX_STEPS_CALL] - n_call
+    over = left_win < 0.0 or left_call < 0.0
+    n_check = n_call + max(1.0, min(BUDGET_CHECK_STEPS, left_win, left_call))
+    return over, t_win, n_win0, n_check

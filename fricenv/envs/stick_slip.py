@@ -25,7 +25,7 @@ from fricenv.checks import (
     real_array,
     real_tuple,
 )
-from fricenv.core import new_workspace
+from fricenv.core import MAX_STEPS_PER_TAU, new_workspace
 from fricenv.envs import kernels as K
 from fricenv.envs.scenes import (
     ACTION_MODES,
@@ -54,6 +54,7 @@ from fricenv.layout import (
     STATUS_DIVERGED,
     STATUS_EVENT_CAP,
     STATUS_NONFINITE,
+    STATUS_STEP_BUDGET,
     STATUS_TOO_STIFF,
 )
 from fricenv.params import (
@@ -258,6 +259,12 @@ def raise_status(status: int, action: Any, where: str = "") -> None:
     if status == STATUS_TOO_STIFF:
         raise RuntimeError(f"plant{where}: slip too stiff for the integrator's smallest step "
                            "(check the parameters passed at make/reset); reset the environment")
+    if status == STATUS_STEP_BUDGET:
+        raise RuntimeError(
+            f"plant{where}: the control interval needed more integrator steps than the budget "
+            f"allows ({MAX_STEPS_PER_TAU:g} in a unit of tau): slip far stiffer than the "
+            "model's scale (b1, b3 huge) or a state far from it (check the parameters "
+            "passed at make/reset); reset the environment")
     if status == STATUS_DIVERGED:
         raise RuntimeError(f"plant{where} diverged: the state is finite but the interval's "
                            "(v - V)^2 integral overflowed, leaving no reward (negative net "

@@ -1,0 +1,111 @@
+"""How the public calls run their kernels: within a step budget, and stoppable by Ctrl-C.
+
+A kernel holds the interpreter while it runs, so a SIGINT would wait for it to return. A
+call that may be long therefore runs its kernel (compiled with ``nogil``) in a worker
+thread while the calling thread waits in short joins, where ``KeyboardInterrupt`` arrives.
+The kernel reads its budget slot ``W_MAX_STEPS_CALL`` every ``BUDGET_CHECK_STEPS`` steps at
+most: on Ctrl-C the waiting thread sets it below 0, the kernel returns within that many
+steps, and ``KeyboardInterrupt`` propagates with nothing half-written in the caller's
+objects.
+
+Starting a thread costs ~0.1 ms, more than a short call itself. A call first runs in the
+calling thread with at most ``DIRECT_STEPS`` steps (~0.05-0.3 s, the Ctrl-C latency there);
+one that needs more is run again from its start in the worker, so its result is the one
+the kernel computes in one piece. Calls whose scan alone needs more than ``DIRECT_STEPS``
+go to the worker at once.
+"""
+
+from __future__ import annotations
+
+import threading
+from collections.abc import Callable
+
+import numpy as np
+
+from .checks import check_finite_real
+from .core import MAX_STEPS_PER_CALL, MAX_STEPS_PER_TAU, W_MAX_STEPS_CALL, W_MAX_STEPS_TAU
+from .core import new_workspace as _new_workspace
+from .layout import STATUS_STEP_BUDGET
+
+#: Steps a call runs in the calling thread before it is moved to a worker thread.
+DIRECT_STEPS = 1e5
+#: How often (s) the waiting thread wakes to take a pending KeyboardInterrupt.
+JOIN_POLL = 0.1
+#: Budget value that ends a running kernel at its next step.
+ABORT = -1.0
+
+
+def step_budget(max_steps_per_tau: float | None, max_steps: float | None
+                ) -> tuple[float, float]:
+    """The budget a call runs with: each value as given (a number > 0) or, for None, the
+    default (``MAX_STEPS_PER_TAU``, ``MAX_STEPS_PER_CALL``)."""
+    out = []
+    for name, value, default in (("max_steps_per_tau", max_steps_per_tau, MAX_STEPS_PER_TAU),
+                                 ("max_steps", max_steps, MAX_STEPS_PER_CALL)):
+        if value is None:
+            out.append(default)
+            continue
+        value = check_finite_real(name, value)
+        if value <= 0.0:
+            raise ValueError(f"{name} must be > 0, got {value!r}")
+        out.append(value)
+    return out[0], out[1]
+
+
+_FRESH = _new_workspace()  # copied: cheaper than filling a new array on every call
+
+
+def new_workspace(budget: tuple[float, float]) -> np.ndarray:
+    """A fresh workspace for one call (see ``core.new_workspace``) with the step budget
+    ``budget`` = (steps per unit tau, steps per call)."""
+    work = _FRESH.copy()
+    work[W_MAX_STEPS_TAU] = budget[0]
+    work[W_MAX_STEPS_CALL] = budget[1]
+    return work
+
+
+def _in_worker(run: Callable[[np.ndarray], int], work: np.ndarray) -> int:
+    """``run(work)`` in a worker thread, the calling thread waiting where Ctrl-C reaches
+    it; on KeyboardInterrupt the kernel is told to stop, joined, and the interrupt
+    re-raised."""
+    box: dict[str, object] = {}
+
+    def target() -> None:
+        try:
+            box["status"] = run(work)
+        except BaseException as error:  # handed to the calling thread
+            box["error"] = error
+
+    worker = threading.Thread(target=target, name="fricenv-kernel", daemon=True)
+    worker.start()
+    try:
+        while worker.is_alive():
+            worker.join(JOIN_POLL)
+    except KeyboardInterrupt:
+        work[W_MAX_STEPS_CALL] = ABORT
+        worker.join()
+        raise
+    if "error" in box:
+        raise box["error"]  # type: ignore[misc]
+    return int(box["status"])  # type: ignore[call-overload]
+
+
+def run_call(run: Callable[[np.ndarray], int], make_work: Callable[[], np.ndarray],
+             expected_steps: float) -> int:
+    """Run a kernel call: ``run(work)`` starts the call from its inputs (resetting the
+    state and statistics it writes) in the workspace ``work`` from ``make_work()`` and
+    returns its status. ``expected_steps``: the steps the call needs at least (its scan)."""
+    work = make_work()
+    budget = float(work[W_MAX_STEPS_CALL])
+    if expected_steps <= DIRECT_STEPS and budget > DIRECT_STEPS:
+        work[W_MAX_STEPS_CALL] = DIRECT_STEPS
+        status = run(work)
+        if status != STATUS_STEP_BUDGET or work[W_MAX_STEPS_CALL] != DIRECT_STEPS:
+            return status
+        # over DIRECT_STEPS, or over its own per-tau budget: which is not told apart, and
+        # the worker finds out at a cost of DIRECT_STEPS steps at most
+        work = make_work()  # the caches of the first try are never reused
+    elif budget <= DIRECT_STEPS:
+        return run(work)
+    return _in_worker(run, work)
+

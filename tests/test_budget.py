@@ -1,0 +1,200 @@
+"""Every public call returns or raises within its step budget, and Ctrl-C stops it.
+
+The runs that used to hang (slip far stiffer than the model's scale, a start far from it)
+go in a subprocess with a timeout, so that a regression fails the test instead of hanging
+the suite; each child times its call after a warm-up call of the same kernels (so numba
+compilation is not counted) and prints the seconds taken.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from fricenv import (
+    MAX_STEPS_PER_CALL,
+    MAX_STEPS_PER_TAU,
+    OscillatorParams,
+    SimulationError,
+    cell_statistics,
+    run_stats,
+    simulate,
+)
+from fricenv.layout import STATUS_STEP_BUDGET
+from fricenv.regimes import Regime
+
+ROOT = Path(__file__).resolve().parents[1]
+#: Longest a call over budget may take to raise (seconds, on a busy machine).
+RAISE_S = 10.0
+#: Longest Ctrl-C may take to end a running call.
+INTERRUPT_S = 1.0
+#: Time allowed a child process, numba compilation from a cold cache included.
+CHILD_TIMEOUT_S = 600.0
+STIFF = "OscillatorParams(b1=1e12, b3=1e12, u0=5.0, nu=1.0)"
+
+
+def _child(code: str) -> str:
+    """Run ``code`` in a fresh interpreter (the repository on its path); its stdout."""
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          timeout=CHILD_TIMEOUT_S, env=env, cwd=ROOT)
+    assert done.returncode == 0, done.stderr[-2000:]
+    return done.stdout
+
+
+def _seconds(out: str, tag: str) -> float:
+    for line in out.splitlines():
+        if line.startswith(tag + " "):
+            return float(line.split()[1])
+    raise AssertionError(f"no {tag!r} line in {out!r}")
+
+
+def test_budget_defaults_are_exported() -> None:
+    assert MAX_STEPS_PER_TAU == 1e6 and MAX_STEPS_PER_CALL == 1e9
+
+
+@pytest.mark.parametrize("call", [run_stats, simulate])
+def test_a_low_budget_raises_with_its_status(call) -> None:
+    p = OscillatorParams.preset("stribeck")
+    with pytest.raises(SimulationError, match="max_steps_per_tau") as e:
+        call(p, 10.0, max_steps=5)
+    assert e.value.status == STATUS_STEP_BUDGET
+    with pytest.raises(SimulationError) as e:
+        call(p, 10.0, max_steps_per_tau=3)
+    assert e.value.status == STATUS_STEP_BUDGET
+    call(p, 10.0, max_steps_per_tau=1e4, max_steps=1e4)  # enough: it runs
+
+
+def test_rk4_steps_over_budget_are_refused_before_the_run() -> None:
+    p = OscillatorParams.preset("coulomb")
+    with pytest.raises(SimulationError, match="RK4 steps") as e:
+        simulate(p, 10.0, method="rk4", dt=0.04, max_steps_per_tau=10)
+    assert e.value.status == STATUS_STEP_BUDGET
+
+
+@pytest.mark.parametrize("bad", [0, -1.0, float("nan"), float("inf"), "1e6"])
+def test_budget_values_are_checked(bad) -> None:
+    p = OscillatorParams.preset("coulomb")
+    with pytest.raises((ValueError, TypeError), match="max_steps"):
+        run_stats(p, 1.0, max_steps=bad)
+    with pytest.raises((ValueError, TypeError), match="max_steps_per_tau"):
+        simulate(p, 1.0, max_steps_per_tau=bad)
+
+
+def test_a_budget_that_is_not_reached_changes_nothing() -> None:
+    p = OscillatorParams.preset("stribeck", u0=1.15, eta=0.6, nu=0.1)
+    a = run_stats(p, 50.0)
+    b = run_stats(p, 50.0, max_steps_per_tau=1e4, max_steps=1e5)
+    assert a == b
+    ta = simulate(p, 50.0)
+    tb = simulate(p, 50.0, max_steps_per_tau=1e4)
+    assert np.array_equal(ta.x, tb.x) and np.array_equal(ta.v, tb.v)
+
+
+def test_stiff_slip_raises_the_step_budget_within_seconds() -> None:
+    """b1 = b3 = 1e12: from v's sign change near t = 3.04 the slip took ~|df/dv| steps in
+    a unit of tau (run_stats over 3.8 did not return in an hour)."""
+    out = _child(f"""
+import time
+from fricenv import OscillatorParams, SimulationError, run_stats, simulate
+p = {STIFF}
+run_stats(p, 3.03)  # warm-up: same kernels, within budget (the recording path's
+simulate(OscillatorParams(b1=1.0, b3=1.0), 1.0)  # Taylor steps are stiff from the start)
+for name, call in (("run_stats", run_stats), ("simulate", simulate)):
+    t = time.perf_counter()
+    try:
+        call(p, 3.8)
+    except SimulationError as e:
+        assert e.status == {STATUS_STEP_BUDGET}, e
+        print(name, time.perf_counter() - t)
+""")
+    assert _seconds(out, "run_stats") <= RAISE_S
+    assert _seconds(out, "simulate") <= RAISE_S
+
+
+@pytest.mark.parametrize("options", [
+    {"b1": 1e12, "b3": 1e12},
+    {"x0": 1e12, "b1": 0.2, "b3": 0.16},
+])
+def test_env_steps_over_budget_raise_within_seconds(options: dict) -> None:
+    """Stiff slip, or a start at x0 = 1e12 (~3e7 steps in a unit of tau), took 10-38 s
+    per env.step."""
+    env_id = ("fricenv/StickSlipSelfExcited-v0" if "x0" not in options
+              else "fricenv/StickSlip-v0")
+    out = _child(f"""
+import time
+import gymnasium as gym
+import numpy as np
+import fricenv
+env = gym.make({env_id!r})
+env.reset(seed=0)
+a = np.zeros(env.action_space.shape, np.float32)
+env.step(a)  # warm-up
+env.reset(seed=0, options={options!r})
+worst = 0.0
+for _ in range(3):
+    t = time.perf_counter()
+    try:
+        env.step(a)
+    except RuntimeError as e:
+        assert "budget" in str(e), e
+        worst = max(worst, time.perf_counter() - t)
+        break
+    worst = max(worst, time.perf_counter() - t)
+print("step", worst)
+""")
+    assert _seconds(out, "step") <= RAISE_S
+
+
+def test_a_sweep_cell_over_budget_is_unresolved_with_its_status() -> None:
+    p = OscillatorParams.preset("stribeck", u0=1.15, eta=0.6, nu=0.1)
+    labels, _, _, status = cell_statistics([p], x0=1e12, transient_min=1.0, window_min=1.0)
+    assert status[0] == STATUS_STEP_BUDGET
+    assert labels[0] == Regime.UNRESOLVED
+
+
+_INTERRUPTED = """
+import sys, time
+from fricenv import OscillatorParams, run_stats, simulate
+p = {params}
+{call}(OscillatorParams(b1=1.0, b3=1.0), 0.5)  # warm-up
+print("ready", flush=True)
+try:
+    {call}(p, {span}, max_steps_per_tau=1e15, max_steps=1e15)
+except KeyboardInterrupt:
+    print("interrupted", time.perf_counter(), flush=True)
+    sys.exit(0)
+print("finished", flush=True)
+"""
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("call", ["run_stats", "simulate"])
+def test_ctrl_c_stops_a_running_call_within_a_second(call: str) -> None:
+    """SIGINT 2 s into a call that would run for minutes: KeyboardInterrupt in the caller
+    within INTERRUPT_S."""
+    code = _INTERRUPTED.format(params=STIFF, call=call, span=3.8)
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    child = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE,
+                             stderr=subprocess.PIPE, text=True, env=env, cwd=ROOT)
+    try:
+        assert child.stdout is not None
+        assert child.stdout.readline().strip() == "ready", child.stderr.read()
+        time.sleep(2.0)
+        sent = time.perf_counter()
+        child.send_signal(signal.SIGINT)
+        line = child.stdout.readline().split()
+        child.wait(timeout=60)
+    finally:
+        child.kill()
+    assert line and line[0] == "interrupted", line
+    latency = float(line[1]) - sent  # perf_counter is system-wide on Linux
+    print(f"\n[{call}] Ctrl-C latency {latency:.3f} s")
+    assert latency <= INTERRUPT_S
