@@ -108,6 +108,11 @@ def _check_state(state: OscillatorState, params: OscillatorParams, t_span: float
                          f"{state.v - params.V!r}; build the state with OscillatorState.start")
 
 
+#: What a call whose scan alone is over its step budget may do (``check_scan_steps``).
+_SCAN_REMEDY = ("shorten the span, check these values, or raise max_steps (up to "
+                f"{MAX_SCAN_STEPS:g}) if the wait is intended")
+
+
 def check_scan_steps(P_rows: np.ndarray, spans: np.ndarray,
                      remedy: str = "shorten the span or check these values",
                      cap: float = MAX_SCAN_STEPS) -> float:
@@ -476,7 +481,8 @@ def simulate(
     P = params.to_array()
     scan_steps = 0.0
     if method != "rk4":  # before the output arrays are allocated
-        scan_steps = check_scan_steps(P[None], np.array([t_span]))
+        scan_steps = check_scan_steps(P[None], np.array([t_span]), _SCAN_REMEDY,
+                                      min(MAX_SCAN_STEPS, budget[1]))
     out_t = output_times(0.0, t_span, dt_out)
     if state.t != 0.0:  # the grid counts from the start, as the kernels' time does
         out_t = state.t + out_t
@@ -559,7 +565,7 @@ def run_stats(
 
     The call's work is bounded: at most ``max_steps_per_tau`` integrator steps in each unit
     of tau (counted window by window from the call's start) and ``max_steps`` in the call
-    (None: ``MAX_STEPS_PER_TAU`` = 1e6 and ``MAX_STEPS_PER_CALL`` = 1e9, which no ordinary
+    (None: ``MAX_STEPS_PER_TAU`` = 1e6 and ``MAX_STEPS_PER_CALL`` = 1e7, which no ordinary
     run reaches). Beyond either it raises :class:`SimulationError` with ``status``
     ``STATUS_STEP_BUDGET`` within about a second (slip far stiffer than the model's scale,
     or a start far from it). Ctrl-C stops the call within about a second, raising
@@ -582,7 +588,8 @@ def run_stats(
     rtol = check_rtol(rtol)
     atol = _positive("atol", atol)
     P = params.to_array()
-    scan_steps = check_scan_steps(P[None], np.array([t_span]))
+    scan_steps = check_scan_steps(P[None], np.array([t_span]), _SCAN_REMEDY,
+                                  min(MAX_SCAN_STEPS, budget[1]))
     S0 = state.to_array()
     S = S0.copy()
     stats = np.empty(N_STATS)

@@ -57,7 +57,7 @@ def _seconds(out: str, tag: str) -> float:
 
 
 def test_budget_defaults_are_exported() -> None:
-    assert MAX_STEPS_PER_TAU == 1e6 and MAX_STEPS_PER_CALL == 1e9
+    assert MAX_STEPS_PER_TAU == 1e6 and MAX_STEPS_PER_CALL == 1e7
 
 
 @pytest.mark.parametrize("call", [run_stats, simulate])

@@ -54,11 +54,13 @@ ROS_BACKOFF_MAX = 64.0
 # callers may set their own): at most MAX_STEPS_PER_TAU steps in each unit of tau, counted in
 # consecutive windows from the call's start, and MAX_STEPS_PER_CALL in the call, else the call
 # ends with STATUS_STEP_BUDGET. Ordinary runs take at most ~1e4 steps in a unit of tau (stiff
-# cubic slip with b1 = b3 = 1e6 included), and a step costs 0.3-3 us, so a call over budget ends
-# within about a second (u0 = 1e10 with Taylor steps throughout, at ~2e6 steps in a unit of
-# tau, is over it); the per-call cap admits any span ``check_scan_steps`` admits.
+# cubic slip with b1 = b3 = 1e6 included), and a step costs 0.1-3 us, so a call over budget
+# ends within about a second (u0 = 1e10 with Taylor steps throughout, at ~2e6 steps in a unit
+# of tau, is over it). A call takes at most 1e7 steps, a few seconds at the slowest step
+# measured (stiff slip with lam = 1e6: 1e7 steps in 3-4 s), and more only when its caller
+# raises the budget: the paper's runs take ~1e4 steps, a regime-map cell ~1e5.
 MAX_STEPS_PER_TAU = 1e6
-MAX_STEPS_PER_CALL = 1e9
+MAX_STEPS_PER_CALL = 1e7
 # A unit window may also take this many times the scan's own steps (1 / scan cap), so that
 # a plant whose fast tone or damping alone needs more steps than MAX_STEPS_PER_TAU (which
 # check_scan_steps admits) is not over budget: slip steps are at most twice the scan cap.
