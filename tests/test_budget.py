@@ -64,8 +64,10 @@ def test_budget_defaults_are_exported() -> None:
 def test_a_low_budget_raises_with_its_status(call) -> None:
     p = OscillatorParams.preset("stribeck")
     with pytest.raises(SimulationError, match="max_steps_per_tau") as e:
-        call(p, 10.0, max_steps=5)
+        call(p, 10.0, max_steps=25)  # the scan's own 20 steps pass; the run needs more
     assert e.value.status == STATUS_STEP_BUDGET
+    with pytest.raises(ValueError, match="raise max_steps"):  # the scan alone is over it
+        call(p, 10.0, max_steps=5)
     with pytest.raises(SimulationError) as e:
         call(p, 10.0, max_steps_per_tau=3)
     assert e.value.status == STATUS_STEP_BUDGET
