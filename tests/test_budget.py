@@ -27,7 +27,7 @@ from fricenv import (
     run_stats,
     simulate,
 )
-from fricenv.layout import STATUS_STEP_BUDGET
+from fricenv.layout import ST_N_STEPS, STATUS_STEP_BUDGET
 from fricenv.regimes import Regime
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -160,6 +160,17 @@ def test_a_sweep_cell_over_budget_is_unresolved_with_its_status() -> None:
     labels, _, _, status = cell_statistics([p], x0=1e12, transient_min=1.0, window_min=1.0)
     assert status[0] == STATUS_STEP_BUDGET
     assert labels[0] == Regime.UNRESOLVED
+
+
+def test_a_cell_of_many_calls_is_held_to_one_budget() -> None:
+    """Each of this cell's ~50 calls stays within the per-call budget (about 1e6 steps of
+    slip at |v - V| ~ 1e12 per window segment); the cell as a whole would take 5e7 steps
+    and ~17 s, and is stopped at MAX_STEPS_PER_CALL instead."""
+    p = OscillatorParams(lam=0.05, eta=0.6, nu=1e12, u0=0.0, V=1e12, b1=0.2, b3=1e-12)
+    labels, stats, _, status = cell_statistics([p])
+    assert status[0] == STATUS_STEP_BUDGET
+    assert labels[0] == Regime.UNRESOLVED
+    assert stats[0, ST_N_STEPS] <= MAX_STEPS_PER_CALL
 
 
 _INTERRUPTED = """
