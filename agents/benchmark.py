@@ -120,8 +120,8 @@ def evaluate_scene(scene: str, root: Path, out: Path, n_seeds: int, episodes: in
         t = time.perf_counter()
         run_entry(e, scene, base, n_seeds, episodes)
         e.info["eval_seconds"] = round(time.perf_counter() - t, 2)
-        print(f"  {scene:13s} {e.label[:40]:40s} return {e.metrics.ret.mean():9.2f}  "
-              f"stick {e.metrics.stick_fraction.mean():.4f}", flush=True)
+        print(f"  {scene:13s} {e.label[:40]:40s} return {e.scores.ret.mean():9.2f}  "
+              f"stick {e.scores.stick_fraction.mean():.4f}", flush=True)
     return {e.key: e for e in entries}
 
 
@@ -156,8 +156,8 @@ def _fresh(entries: list[Entry]) -> list[Entry]:
 
 
 def _cut(entry: Entry, zero: Entry) -> float:
-    z = float(zero.metrics.stick_fraction.mean())
-    return 1.0 - float(entry.metrics.stick_fraction.mean()) / z if z > 0 else float("nan")
+    z = float(zero.scores.stick_fraction.mean())
+    return 1.0 - float(entry.scores.stick_fraction.mean()) / z if z > 0 else float("nan")
 
 
 # -- writing ----------------------------------------------------------------------------------
@@ -212,11 +212,11 @@ def gap_lines(results: dict[str, dict[str, Entry]]) -> list[str]:
         mpc, ppo, sac = r.get("mpc"), r.get("ppo"), r.get("sac")
         if mpc is None or ppo is None:
             continue
-        m, p = float(mpc.metrics.ret.mean()), float(ppo.metrics.ret.mean())
+        m, p = float(mpc.scores.ret.mean()), float(ppo.scores.ret.mean())
         gap = (m - p) / abs(m)
         if gap > GAP_BAR:
             behind.append(f"`{scene}` ({100 * gap:.0f} %)")
-        s_ret = f"{sac.metrics.ret.mean():.2f}" if sac else "—"
+        s_ret = f"{sac.scores.ret.mean():.2f}" if sac else "—"
         lines.append(f"| `{scene}` | {m:.2f} | {p:.2f} | {_over_models(ppo)} | "
                      f"{100 * gap:+.1f} % | {'yes' if gap <= GAP_BAR else 'no'} | "
                      f"{_seconds(ppo)} | {s_ret} | {_over_models(sac)} | {_seconds(sac)} |")
@@ -310,7 +310,7 @@ def plot_returns(results: dict[str, dict[str, Entry]], path: Path) -> None:
             e = results[scene].get(key)
             if e is None:
                 continue
-            cost = -e.metrics.ret
+            cost = -e.scores.ret
             mean, sd = float(cost.mean()), float(cost.std(ddof=1))
             lo = min(sd, 0.9 * mean)  # (a log axis has no room below zero)
             ax.errorbar(mean, y, xerr=[[lo], [sd]], fmt="o", color=f"C{y}", ms=5, capsize=2)
@@ -358,7 +358,7 @@ def plot_generalisation(gen: dict[str, dict[str, dict[str, Entry]]], path: Path)
 
 def to_json(results: dict, gen: dict, meta: dict) -> dict:
     def pack(e: Entry) -> dict:
-        return {**_summary(e), "info": e.info, "per_episode": e.metrics.as_dict()}
+        return {**_summary(e), "info": e.info, "per_episode": e.scores.as_dict()}
 
     return {**meta,
             "scenes": {s: {k: pack(e) for k, e in r.items()} for s, r in results.items()},

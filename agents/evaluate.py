@@ -60,6 +60,7 @@ from agents.common import (
 )
 from fricenv.checks import check_output_dir
 from fricenv.envs import kernels as K
+from fricenv.envs.scenes import Scene
 
 LABELS = {"ppo": "PPO", "sac": "SAC"}
 OBS_SHAPE = (K.N_OBS,)  #: every scene's observation
@@ -207,7 +208,8 @@ def baseline_entries(names: list[str], scene: str, env_kwargs: dict, out: Path,
 
 
 # -- running ----------------------------------------------------------------------------------
-def run_entry(entry: Entry, scene: str, env_kwargs: dict, n_seeds: int, episodes: int) -> None:
+def run_entry(entry: Entry, scene: str | Scene, env_kwargs: dict, n_seeds: int,
+              episodes: int) -> None:
     parts = []
     per_seed: dict[str, list[float]] = {f: [] for f, _, _ in COLUMNS}
     for factory in entry.factories:

@@ -166,11 +166,14 @@ class MPPIController:
         first actions (n, n_act) and keeps the shifted plans for the next call."""
         n, k, h, a = self._n, self.samples, self.horizon, self.n_act
         sigma = self.noise_std
+        roll = self._roll
+        if roll is None:
+            raise RuntimeError("plan() needs the buffers that a first predict() makes")
         for _ in range(self.iterations):
             eps = self.rng.standard_normal((n, k, h, a)) * sigma
             eps[:, 0] = 0.0  # the current plan is a sample
             cand = np.clip(self._plan[:, None] + eps, -1.0, 1.0)
-            res = self._roll.run((plants, cmds), cand.reshape(n * k, h, a), self._sources)
+            res = roll.run((plants, cmds), cand.reshape(n * k, h, a), self._sources)
             ret = res.rewards.sum(axis=1).reshape(n, k)
             ret = np.where(res.status.reshape(n, k) > 0, -np.inf, ret)
             if not np.all(np.isfinite(ret.max(axis=1))):

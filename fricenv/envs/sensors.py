@@ -74,8 +74,7 @@ def _noise_vector(value: Any) -> np.ndarray | None:
                 raise ValueError(f"obs_noise: unknown channel {key!r}; expected some of "
                                  f"{CHANNELS}")
             std[CHANNELS.index(key)] = check_finite_real(f"obs_noise[{key!r}]", sd)
-    elif items_of(value) is not None:
-        items = items_of(value)
+    elif (items := items_of(value)) is not None:
         if len(items) != K.N_OBS:
             raise ValueError(f"{what}, got {len(items)} values: {value!r}")
         for i, sd in enumerate(items):
@@ -279,13 +278,15 @@ class InstrumentBank:
 
     def _normals(self, idx: np.ndarray) -> np.ndarray:
         """One observation's normals for each plant of ``idx`` (refilling spent buffers)."""
+        normals = self.normals
+        assert normals is not None  # (drawn from only by a noisy bank)
         for i in idx[self.next_row[idx] >= NOISE_ROWS].tolist():
             rng = self.rngs[i]
             if rng is None:  # (set_state before any reset: a stream of its own)
                 rng = self.rngs[i] = np.random.default_rng()
-            rng.standard_normal(out=self.normals[i])
+            rng.standard_normal(out=normals[i])
             self.next_row[i] = 0
-        z = self.normals[idx, self.next_row[idx]]
+        z = normals[idx, self.next_row[idx]]
         self.next_row[idx] += 1
         return z
 
@@ -316,11 +317,12 @@ class InstrumentBank:
 
     def output(self, idx: np.ndarray | slice = slice(None)) -> np.ndarray:
         """The observations the agent gets for plants ``idx`` (a copy)."""
+        assert self.delay is not None  # (read only from a sensing bank)
         out = self.delay[idx, 0]
         return out[..., self.channels] if self.channels is not None else out.copy()
 
     # -- state -----------------------------------------------------------------------------
-    def noise_state(self, i: int) -> tuple[dict, np.ndarray] | None:
+    def noise_state(self, i: int) -> tuple[Mapping[str, Any] | None, np.ndarray] | None:
         """Plant ``i``'s noise stream: its generator's state and its unread normals."""
         if self.normals is None:
             return None
@@ -328,9 +330,11 @@ class InstrumentBank:
         rows = self.normals[i, self.next_row[i]:].copy()
         return (None if rng is None else rng.bit_generator.state, rows)
 
-    def set_noise_state(self, i: int, noise: tuple[dict | None, np.ndarray] | None) -> None:
+    def set_noise_state(self, i: int,
+                        noise: tuple[Mapping[str, Any] | None, np.ndarray] | None) -> None:
         if self.normals is None:
             return
+        assert noise is not None  # check_state refuses a state without one for a noisy bank
         gen_state, rows = noise
         if gen_state is None:
             self.rngs[i] = None

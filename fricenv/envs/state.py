@@ -20,6 +20,7 @@ truncates on it).
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -73,7 +74,7 @@ class PlantState:
     plant: np.ndarray
     command: np.ndarray
     delay: np.ndarray | None = None
-    noise: tuple[dict | None, np.ndarray] | None = None
+    noise: tuple[Mapping[str, Any] | None, np.ndarray] | None = None
     episode_steps: int = 0
 
     # -- views of the plant vector ---------------------------------------------------------

@@ -25,22 +25,11 @@ from fricenv.checks import check_dict, check_int, got, is_int, items_of
 from fricenv.core import new_workspace
 from fricenv.envs import kernels as K
 from fricenv.envs.scenes import N_DRAWS, N_INIT, Scene, check_episode_cost
-from fricenv.envs.sensors import InstrumentBank, actuate_batch
-from fricenv.envs.state import (
-    N_PLANT,
-    PL_CTRL,
-    PL_P,
-    PL_S,
-    PL_WORK,
-    PlantState,
-    check_state,
-    pack,
-    unpack,
-)
+from fricenv.envs.setup import ACTION_DTYPES, EnvSetup, coerce_action, raise_status
 from fricenv.envs.steppers import Steppers, steppers_for_plants
-from fricenv.envs.stick_slip import ACTION_DTYPES, EnvSetup, coerce_action, raise_status
-from fricenv.layout import METHOD_EXACT, S_MODE, S_PHI1, S_PHI2, S_T, S_V, S_X, STATUS_DIVERGED
-from fricenv.params import P_U1, P_U2, P_V, P_XFK
+from fricenv.envs.vector_plants import VectorPlants
+from fricenv.envs.vector_render import VectorRendering
+from fricenv.layout import METHOD_EXACT, S_MODE, S_T, S_V, STATUS_DIVERGED
 
 _AUTORESET = {
     AutoresetMode.NEXT_STEP: K.AUTORESET_NEXT_STEP,
@@ -135,7 +124,7 @@ def _check_max_steps(value: Any) -> int:
     return check_int("max_episode_steps", value, 1, int(np.iinfo(np.int64).max))
 
 
-class StickSlipVectorEnv(VectorEnv):
+class StickSlipVectorEnv(VectorPlants, VectorRendering, VectorEnv):
     """``num_envs`` independent ``StickSlipEnv`` plants, stepped in one numba call.
 
     Arguments are those of ``StickSlipEnv`` plus ``num_envs`` (1 to ``MAX_NUM_ENVS``, and
@@ -256,7 +245,7 @@ class StickSlipVectorEnv(VectorEnv):
         b13 = self._bounds[:, [K.D_B1, K.D_B3]]
         if self._cfg[K.C_METHOD] == METHOD_EXACT and np.any(b13 != 0.0):
             raise ValueError("method='exact' needs the Coulomb law (b1 = b3 = 0)")
-        self._act_shape = self.action_space.shape
+        self._act_shape = (n, *self.single_action_space.shape)
         self._needs_reset = True
         self._failed_plant: int | None = None  # the plant whose failure needs a full reset
         # The info mask when every plant reports: shared by the keys and the steps, so
@@ -268,25 +257,6 @@ class StickSlipVectorEnv(VectorEnv):
             from fricenv.envs.rendering import Trace  # lazy: no matplotlib unless asked
 
             self._traces = [Trace(self.dt) for _ in range(n)]
-
-    def _init_instruments(self, n: int) -> None:
-        """Buffers of the sensor and actuator options (``fricenv.envs.sensors``), if any."""
-        inst = self.setup.instruments
-        self._bank: InstrumentBank | None = None
-        self._act: np.ndarray | None = None
-        self._sensing = False
-        if inst is None:
-            return
-        full = self.setup.full_observation_space
-        self._bank = InstrumentBank(inst, n, full.low, full.high)
-        self._sensing = inst.sensing
-        self._all_plants = np.arange(n)
-        if inst.sensing:
-            self._final_sensed = np.zeros((n, self.setup.observation_space.shape[0]),
-                                          dtype=np.float32)
-        if inst.actuating:
-            self._act = inst.actuator_params(self.setup.cfg)
-            self._zero_actions = np.zeros((n, *self.setup.action_space.shape))
 
     def _use_steppers(self, steppers: Steppers) -> None:
         """Step with the entry kernels ``steppers`` (see ``steppers_for_plants``): threads
@@ -343,8 +313,9 @@ class StickSlipVectorEnv(VectorEnv):
         self._bind_views()
         self._all_true.flags.writeable = False
 
+    # VectorEnv's is one int; a seed per plant is what SyncVectorEnv reports for its envs
     @property
-    def np_random_seed(self) -> tuple[int | None, ...]:
+    def np_random_seed(self) -> tuple[int | None, ...]:  # type: ignore[override]
         """Each plant's seed, as ``SyncVectorEnv`` reports its envs' (``seed + i`` or
         ``seed[i]``, a random one where a plant was first reset with None; None before a
         plant's first reset)."""
@@ -472,14 +443,20 @@ class StickSlipVectorEnv(VectorEnv):
         starts = self._new_init[plants][:, [K.I_U0, K.I_NU]]
         for u0, nu in np.unique(starts, axis=0).tolist():
             same = np.array(plants)[np.all(starts == (u0, nu), axis=1)]
-            check_episode_cost(self.scene, self._new_P[same], u0, nu,
-                               self._batch_context(self.num_envs) + "change the reset options",
-                               MAX_VECTOR_SCAN_STEPS / self.num_envs)
+            self._check_cost(self._new_P[same], u0, nu, "change the reset options")
+
+    def _check_cost(self, P: np.ndarray, u0: float, nu: float, what: str) -> None:
+        """``ValueError`` (its message ending in ``what``) unless plants ``P`` under the
+        setting ``(u0, nu)`` keep a vector step within ``MAX_VECTOR_SCAN_STEPS``."""
+        check_episode_cost(self.scene, P, u0, nu, self._batch_context(self.num_envs) + what,
+                           MAX_VECTOR_SCAN_STEPS / self.num_envs)
 
     def _refill(self, i: int) -> None:
         """Buffer plant ``i``'s next DRAW_ROWS episodes: the numbers as many single-env
         resets would draw, in order, from one call."""
-        self._rngs[i].random(out=self._draws[i])
+        rng = self._rngs[i]
+        assert rng is not None  # (every caller gives the plant a generator first)
+        rng.random(out=self._draws[i])
         self._cursor[i] = 0
 
     def _refill_empty(self) -> None:
@@ -565,101 +542,6 @@ class StickSlipVectorEnv(VectorEnv):
         ends = self._step_ends.copy()
         return obs, out[K.R_REWARD], ends[0], ends[1], infos
 
-    def _actuate(self, a: np.ndarray) -> np.ndarray:
-        """Move every stepped plant's actuator command and output by its action (checked
-        first, as the kernel would); the kernel then gets zero actions."""
-        bad = K.first_bad_action(a, self._autoreset, self._ivars[K.IV_MODE])
-        if bad >= 0:
-            raise_status(K.STATUS_BAD_ACTION, a[bad], f" {bad}")
-        # (a plant the kernel resets instead of stepping ignores its action)
-        actuate_batch(self._ctrl, self._bank.cmd, self.setup.cfg, a, self._act, self._autoreset)
-        return self._zero_actions
-
-    def _instruments_after_step(self) -> np.ndarray:
-        """After the kernel: the sensors read the plants (an ended episode's last state
-        first, then the new episode's start), restarted plants' commands are their start
-        settings; returns the observations."""
-        bank, did = self._bank, self._did_reset
-        if self._ivars[K.IV_N_RESET] == 0:
-            if self._sensing:
-                bank.push(self._all_plants, self._obs)
-        else:
-            restarted = np.flatnonzero(did)
-            stepped = np.flatnonzero(~did)
-            if self._sensing:
-                if self._autoreset_mode is AutoresetMode.SAME_STEP:
-                    bank.push(restarted, self._final_obs[restarted])
-                    self._final_sensed[restarted] = bank.output(restarted)
-                bank.push(stepped, self._obs[stepped])
-                bank.start(restarted, self._obs[restarted])
-            bank.cmd[restarted] = self._ctrl[restarted]
-        return self._observation()
-
-    def _observation(self) -> np.ndarray:
-        """What the agents observe now: the exact observations, or the sensors' readings."""
-        return self._bank.output() if self._sensing else self._obs.copy()
-
-    # -- plant state ---------------------------------------------------------------------------
-    def _plant_index(self, i: Any) -> int:
-        if self._needs_reset:
-            raise gym_error.ResetNeeded("reset the vector env before reading or setting a "
-                                        "plant's state")
-        return check_int("plant index i", i, 0, self.num_envs - 1)
-
-    def get_state(self, i: int) -> PlantState:
-        """Plant ``i``'s full state (``fricenv.envs.state.PlantState``)."""
-        i = self._plant_index(i)
-        bank = self._bank
-        command = self._ctrl[i] if self._act is None else bank.cmd[i]
-        return PlantState(
-            pack(self._P[i], self._S[i], self._ctrl[i], self._work[i]),
-            command.copy(),
-            None if not self._sensing else bank.delay[i].copy(),
-            None if bank is None else bank.noise_state(i),
-            int(self._steps[i]),
-        )
-
-    def set_state(self, i: int, state: PlantState) -> np.ndarray:
-        """Put plant ``i`` in ``state`` (from ``get_state`` of an environment made with the
-        same arguments, single or vector) and return its observation. Its episode goes on
-        from there: an ending pending for the next step is cancelled, and its step count
-        (for truncation) is the state's. A plant too costly to step among ``num_envs`` is
-        refused (``ValueError``), as reset options are."""
-        i = self._plant_index(i)
-        bank = self._bank
-        check_state(state, None if not self._sensing else bank.delay.shape[1],
-                    bank is not None and bank.normals is not None, self.scene.u0_range,
-                    self.scene.nu_range)
-        u0, nu = state.plant[PL_CTRL:PL_WORK].tolist()
-        check_episode_cost(self.scene, state.plant[PL_P:PL_S], u0, nu,
-                           self._batch_context(self.num_envs) + "refused state: its plant is "
-                           "too stiff or too fast", MAX_VECTOR_SCAN_STEPS / self.num_envs)
-        unpack(state.plant, self._P[i], self._S[i], self._ctrl[i], self._work[i])
-        self._fit_steppers()  # (the state's plant may have another damping or law)
-        K.write_obs(self._P[i], self._S[i], self._ctrl[i], self._cfg, self._obs[i],
-                    self._work[i])
-        self._steps[i] = state.episode_steps
-        self._autoreset[i] = self._terminated[i] = self._truncated[i] = False
-        if bank is not None:
-            bank.cmd[i] = state.command
-            if self._sensing:
-                bank.delay[i] = state.delay
-            bank.set_noise_state(i, state.noise)
-        if self._traces is not None:
-            self._traces[i].clear(self._S[i, S_T], self._S[i, S_V], self._S[i, S_MODE] == 0)
-        return self._bank.output(np.array([i]))[0] if self._sensing else self._obs[i].copy()
-
-    def state_arrays(self) -> tuple[np.ndarray, np.ndarray]:
-        """Every plant's plant vector (n, N_PLANT) and actuator command (n, 2), copied in two
-        arrays: the fast way to plan from all plants at once (``fricenv.envs.rollout``)."""
-        if self._needs_reset:
-            raise gym_error.ResetNeeded("reset the vector env before reading plant states")
-        plants = np.empty((self.num_envs, N_PLANT))
-        for i in range(self.num_envs):
-            pack(self._P[i], self._S[i], self._ctrl[i], self._work[i], plants[i])
-        commands = (self._ctrl if self._act is None else self._bank.cmd).copy()
-        return plants, commands
-
     def _watch_workers(self) -> None:
         """After a parallel step: go serial for a stretch if workers keep coming late (see
         LATE_STEPS); a step with every worker on time ends any such spell."""
@@ -700,64 +582,3 @@ class StickSlipVectorEnv(VectorEnv):
             infos["final_info"] = _info_dict(fin, np.broadcast_to(done, fin.shape).copy())
             infos["_final_info"] = done
         return infos
-
-    def render(self) -> tuple[np.ndarray, ...] | None:
-        if self.render_mode is None:
-            from gymnasium import logger
-
-            logger.warn(
-                "You are calling render method without specifying any render mode. "
-                "You can specify the render_mode at initialization, e.g. "
-                'gym.make_vec("fricenv/StickSlip-v0", render_mode="rgb_array") '
-                'or StickSlipVectorEnv(render_mode="rgb_array")'
-            )
-            return None
-        if self._painter is None:
-            from fricenv.envs.rendering import Painter
-
-            self._painter = Painter()
-        return tuple(
-            self._painter.draw(self.snapshot(i), self._traces[i]) for i in range(self.num_envs)
-        )
-
-    def close_extras(self, **kwargs: Any) -> None:
-        if self._painter is not None:
-            self._painter.close()
-            self._painter = None
-
-    # -- helpers ------------------------------------------------------------------------------
-    def snapshot(self, i: int) -> dict[str, float]:
-        P, S = self._P[i], self._S[i]
-        g = P[P_U1] * np.cos(S[S_PHI1]) + P[P_U2] * np.cos(S[S_PHI2])
-        return {
-            "t": float(S[S_T]),
-            "x": float(S[S_X]),
-            "v": float(S[S_V]),
-            "V": float(P[P_V]),
-            "stuck": bool(S[S_MODE] == 0.0),
-            "u0": float(self._ctrl[i, 0]),
-            "nu": float(self._ctrl[i, 1]),
-            "force": float(g),
-            "xfk": float(P[P_XFK]),
-            "x_limit": self.scene.x_limit,
-        }
-
-    def _record_traces(self, a: np.ndarray) -> None:
-        for i, tr in enumerate(self._traces):
-            if (self.autoreset_mode == AutoresetMode.NEXT_STEP and self._autoreset[i]) or (
-                not K.actions_finite(a[i])
-            ):
-                continue
-            status = self._steppers.sample_interval(
-                self._P[i],
-                self._S[i],
-                self._ctrl[i],
-                self._cfg,
-                a[i],
-                self._stats[i],
-                tr.buf_t,
-                tr.buf_v,
-                tr.buf_s,
-            )
-            if status == 0:
-                tr.push()

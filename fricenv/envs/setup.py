@@ -1,0 +1,258 @@
+"""What an environment derives from its ``make`` arguments, and the checks its steps share.
+
+``EnvSetup.build`` turns the keyword arguments of ``StickSlipEnv`` and
+``StickSlipVectorEnv`` into the scene, the spaces and the kernels' configuration, once, so
+that both environments read them alike; ``raise_status`` and ``coerce_action`` are the
+error and action paths their steps have in common. A module of its own so that neither
+environment's module carries the other's construction.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from gymnasium import spaces
+
+from fricenv.checks import check_bool, check_dict, check_real, real_array, real_tuple
+from fricenv.core import MAX_STEPS_PER_TAU
+from fricenv.envs import kernels as K
+from fricenv.envs.scenes import (
+    ACTION_MODES,
+    N_DRAWS,
+    THREE_WEIGHTS,
+    Scene,
+    episode_from_draws,
+    get_scene,
+)
+from fricenv.envs.sensors import Instruments
+from fricenv.layout import (
+    METHOD_EVENT,
+    METHOD_EXACT,
+    STATUS_DIVERGED,
+    STATUS_EVENT_CAP,
+    STATUS_NONFINITE,
+    STATUS_STEP_BUDGET,
+    STATUS_TOO_STIFF,
+)
+from fricenv.params import P_B1, P_B3
+
+_METHODS = {"auto": K.METHOD_AUTO, "exact": METHOD_EXACT, "event": METHOD_EVENT}
+_WEIGHT_KEYS = ("stick", "velocity", "effort")
+#: Action dtypes the kernels are compiled for; any other goes through ``coerce_action``.
+ACTION_DTYPES = (np.dtype(np.float32), np.dtype(np.float64))
+
+#: Solver settings of the environments: tight enough that integration error is far below
+#: anything a policy could exploit, loose enough to keep a step cheap.
+RTOL = 1e-8
+ATOL = 1e-10
+#: Events (stick/slip/reversal) allowed per control interval before the run is declared
+#: chattering (a Zeno-like plant; it raises rather than silently stalling).
+MAX_EVENTS = 10_000
+
+
+@dataclass(frozen=True)
+class EnvSetup:
+    """Everything the single and the vector environment derive from their ``make`` kwargs."""
+
+    scene: Scene
+    action_mode: str
+    incremental: bool
+    randomize: bool
+    cfg: np.ndarray
+    action_space: spaces.Box
+    observation_space: spaces.Box
+    draw_lo: np.ndarray
+    draw_hi: np.ndarray
+    #: sensor and actuator options (None: the exact observation, the setting applied at
+    #: once), the configuration the kernels run with (``Instruments.kernel_cfg``; ``cfg``
+    #: itself without instruments) and the nine-channel observation box the sensors clip to
+    instruments: Instruments | None
+    kernel_cfg: np.ndarray
+    full_observation_space: spaces.Box
+
+    @classmethod
+    def build(
+        cls,
+        scene: str | Scene = "paper",
+        action_mode: str | None = None,
+        incremental: bool = False,
+        control_dt: float | None = None,
+        randomize: bool = False,
+        reward_weights: Any = None,
+        params: dict | None = None,
+        method: str = "auto",
+        obs_noise: Any = None,
+        obs_delay: int = 0,
+        observe: Any = None,
+        actuator_lag: float = 0.0,
+        actuator_rate: float | None = None,
+    ) -> EnvSetup:
+        sc = get_scene(scene)
+        instruments = Instruments.build(obs_noise, obs_delay, observe, actuator_lag,
+                                        actuator_rate)
+        # bools only: a truthy string such as 'no' would switch the mode on
+        incremental = check_bool("incremental", incremental)
+        randomize = check_bool("randomize", randomize)
+        changes: dict[str, Any] = {}
+        check_dict("params", params, "a dict of plant parameters, e.g. {'lam': 0.2},")
+        if params:
+            changes["params"] = sc.params.replace(**params)
+            # a value given explicitly is kept for every episode, not drawn over
+            changes["randomization"] = tuple(
+                (k, r) for k, r in sc.randomization if k not in params)
+        if not randomize and sc.randomization:
+            # ranges never drawn from are not checked against the plant either: with
+            # params={"xfs": 2.5}, x_fk's range (2.2, 2.8) refused a plant that is valid
+            changes["randomization"] = ()
+        if action_mode is not None:
+            changes["action_mode"] = action_mode
+        if control_dt is not None:
+            changes["control_dt"] = check_real("control_dt", control_dt)
+        if reward_weights is not None:
+            changes["reward_weights"] = _reward_weights(reward_weights, sc.reward_weights)
+        if changes:
+            sc = sc.replace(**changes)
+        if not isinstance(method, str):
+            raise TypeError(f"method must be one of {sorted(_METHODS)}, got {method!r}")
+        if method not in _METHODS:
+            raise ValueError(f"method must be one of {sorted(_METHODS)}, got {method!r}")
+        # (b1, b3 drawn only when randomising; reset(options=...) checks its own episode)
+        drawn = sc.ranges if randomize else {}
+        if method == "exact" and (
+            not sc.params.is_coulomb
+            or any(drawn.get(k, (0.0, 0.0)) != (0.0, 0.0) for k in ("b1", "b3"))
+        ):
+            raise ValueError("method='exact' needs the Coulomb law (b1 = b3 = 0)")
+        # Every episode drawn without options (the vector env's autoresets included) stays
+        # within what this checks; reset(options=...) checks its own plant.
+        sc.check_interval_cost(randomize)
+
+        cfg = K.empty_cfg()
+        (ulo, uhi), (nlo, nhi) = sc.u0_range, sc.nu_range
+        g1, g2 = sc.tone_gains
+        cfg[K.C_DT] = sc.control_dt
+        cfg[K.C_ACTION_MODE] = ACTION_MODES.index(sc.action_mode)
+        cfg[K.C_INCREMENTAL] = 1.0 if incremental else 0.0
+        cfg[K.C_U_LO], cfg[K.C_U_HI] = ulo, uhi
+        cfg[K.C_NU_LO], cfg[K.C_NU_HI] = nlo, nhi
+        cfg[K.C_DU] = sc.max_delta * (uhi - ulo)
+        cfg[K.C_DNU] = sc.max_delta * (nhi - nlo)
+        cfg[K.C_G1], cfg[K.C_G2] = g1, g2
+        cfg[K.C_W_STICK], cfg[K.C_W_VEL], cfg[K.C_W_EFFORT] = sc.reward_weights
+        cfg[K.C_EFFORT_NORM] = 1.0 / ((g1 * g1 + g2 * g2) * uhi * uhi)
+        cfg[K.C_X_LIM], cfg[K.C_V_LIM] = sc.x_limit, sc.v_limit
+        cfg[K.C_METHOD] = _METHODS[method]
+        cfg[K.C_RTOL], cfg[K.C_ATOL], cfg[K.C_MAX_EVENTS] = RTOL, ATOL, MAX_EVENTS
+        cfg[K.C_U0_START], cfg[K.C_NU_START] = sc.params.u0, sc.params.nu
+
+        n_act = 2 if sc.action_mode == "both" else 1
+        action_space = spaces.Box(-1.0, 1.0, shape=(n_act,), dtype=np.float32)
+        high = np.array(
+            [sc.x_limit, sc.v_limit, 1.0, 1.0, 1.0, 1.0, 1.0, uhi, nhi], dtype=np.float32
+        )
+        low = np.array(
+            [-sc.x_limit, -sc.v_limit, 0.0, -1.0, -1.0, -1.0, -1.0, ulo, nlo], dtype=np.float32
+        )
+        full_space = spaces.Box(low, high, dtype=np.float32)
+        observation_space: spaces.Box = full_space
+        kernel_cfg = cfg
+        if instruments is not None:
+            observation_space = instruments.observation_space(full_space)
+            kernel_cfg = instruments.kernel_cfg(cfg)
+        draw_lo, draw_hi = sc.draw_bounds(randomize)
+        return cls(
+            sc,
+            sc.action_mode,
+            incremental,
+            randomize,
+            cfg,
+            action_space,
+            observation_space,
+            draw_lo,
+            draw_hi,
+            instruments,
+            kernel_cfg,
+            full_space,
+        )
+
+    def draw(self, rng: np.random.Generator) -> np.ndarray:
+        """The uniforms of one episode, scaled; always N_DRAWS numbers from ``rng``."""
+        return self.scale(rng.random(N_DRAWS))
+
+    def scale(self, u: np.ndarray) -> np.ndarray:
+        """One episode's N_DRAWS uniforms scaled to their bounds (``kernels._scaled`` is
+        the same expression, for episodes started inside the vector kernel)."""
+        return self.draw_lo + (self.draw_hi - self.draw_lo) * u
+
+    def episode(self, values: np.ndarray, options: dict | None, P_out, init_out) -> None:
+        episode_from_draws(self.scene, values, options, P_out, init_out)
+        if self.cfg[K.C_METHOD] == METHOD_EXACT and (P_out[P_B1] != 0.0 or P_out[P_B3] != 0.0):
+            raise ValueError("method='exact' needs the Coulomb law (b1 = b3 = 0)")
+
+
+def _reward_weights(value: Any, current: tuple[float, ...]) -> tuple[float, ...]:
+    """The ``reward_weights`` argument as three floats; a dict overrides the named ones of
+    ``current`` (the scene's)."""
+    what = f"{THREE_WEIGHTS} or a dict with keys {', '.join(map(repr, _WEIGHT_KEYS))}"
+    if isinstance(value, Mapping):
+        unknown = sorted(set(value) - set(_WEIGHT_KEYS), key=repr)
+        if unknown:
+            raise ValueError(f"unknown reward weight(s) {unknown}; expected {_WEIGHT_KEYS}")
+        for key, w in value.items():
+            check_real(f"reward_weights[{key!r}]", w)
+        merged = dict(zip(_WEIGHT_KEYS, current, strict=True))
+        merged.update(value)
+        value = tuple(merged[k] for k in _WEIGHT_KEYS)
+    return real_tuple("reward_weights", value, 3, what)
+
+
+def raise_status(status: int, action: Any, where: str = "") -> None:
+    """Turn a kernel status into the exception a user can act on."""
+    if status == K.STATUS_BAD_ACTION:
+        raise ValueError(f"action{where} must be finite (no NaN or inf), got {action!r}")
+    if status == STATUS_EVENT_CAP:
+        raise RuntimeError(
+            f"plant{where} chattered: more than {MAX_EVENTS} stick/slip events in one control "
+            "interval; reset the environment (check the parameters passed at make/reset)"
+        )
+    if status == STATUS_NONFINITE:
+        raise RuntimeError(f"plant{where} state became NaN or infinite; reset the environment")
+    if status == STATUS_TOO_STIFF:
+        raise RuntimeError(f"plant{where}: slip too stiff for the integrator's smallest step "
+                           "(check the parameters passed at make/reset); reset the environment")
+    if status == STATUS_STEP_BUDGET:
+        raise RuntimeError(
+            f"plant{where}: the control interval needed more integrator steps than the budget "
+            f"allows ({MAX_STEPS_PER_TAU:g} in a unit of tau): slip far stiffer than the "
+            "model's scale (b1, b3 huge) or a state far from it (check the parameters "
+            "passed at make/reset); reset the environment")
+    if status == STATUS_DIVERGED:
+        raise RuntimeError(f"plant{where} diverged: the state is finite but the interval's "
+                           "(v - V)^2 integral overflowed, leaving no reward (negative net "
+                           "damping? check the parameters passed at make/reset); reset the "
+                           "environment")
+    raise RuntimeError(f"plant{where}: integrator failed with status {status}")
+
+
+def coerce_action(
+    action: Any, shape: tuple[int, ...], name: str = "action", batch: bool = False
+) -> np.ndarray:
+    """Slow path for actions that are not a C-contiguous float32/float64 ndarray of shape
+    ``shape``: a float64 copy of ``shape`` (any layout of the same number of values; with
+    ``batch``, one whose first axis is ``shape[0]``, the plants, so that a transposed batch
+    is refused rather than read as other plants' actions).
+
+    ``TypeError`` unless ``action`` is made of real numbers (None, strings, dicts, complex
+    would otherwise turn into NaN, a float or a numba typing error), ``ValueError`` for the
+    wrong number of values; both name ``name`` and the value. NaN and inf pass: the kernels
+    reject them without touching the plant.
+    """
+    want = f"{name} must be an array of real numbers of shape {shape}"
+    a = real_array(action, want)
+    if a.size != math.prod(shape) or (batch and (a.ndim == 0 or a.shape[0] != shape[0])):
+        raise ValueError(f"{want}, got shape {a.shape}: {action!r}")
+    return np.ascontiguousarray(a.reshape(shape), dtype=np.float64)
