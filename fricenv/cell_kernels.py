@@ -43,7 +43,8 @@ def _advance_in_cell(advance_ws, P: np.ndarray, S: np.ndarray, t_span: float,
     A cell runs its transient and every segment of its windows as separate calls, each
     bounded by the workspace's per-call budget; spending that one budget over all of them
     bounds the cell as a whole (a cell of 49 calls of 1e6 steps each took 17 s), so a cell
-    over ``MAX_STEPS_PER_CALL`` steps in all ends UNRESOLVED with ``STATUS_STEP_BUDGET``.
+    over its ``max_steps`` (``SweepSettings``) in all ends UNRESOLVED with
+    ``STATUS_STEP_BUDGET``.
     """
     before = stats[ST_N_STEPS]
     status = advance_ws(P, S, t_span, stats, method, rtol, atol, max_events, work)
@@ -56,7 +57,8 @@ def _advance_in_cell(advance_ws, P: np.ndarray, S: np.ndarray, t_span: float,
 @kernel(inline=True, allocates=True)
 def _run_cell_with(advance_ws, P: np.ndarray, x0: float, v0: float, t_trans: float,
                    t_seg: float, n_seg: int, tries: int, method: int, rtol: float, atol: float,
-                   rate: float, m_max: int, tol: float, stats: np.ndarray) -> tuple[int, int]:
+                   rate: float, m_max: int, tol: float, steps_tau: float, steps_cell: float,
+                   stats: np.ndarray) -> tuple[int, int]:
     """One cell: transient, then a window of ``n_seg`` segments measured into ``stats``,
     each span advanced by ``advance_ws`` (the core's entry kernel for the cell's method).
 
@@ -72,6 +74,8 @@ def _run_cell_with(advance_ws, P: np.ndarray, x0: float, v0: float, t_trans: flo
     # transient's stats are dropped, so it skips the extrema too: locating them holds the
     # closed form to short scan steps (1.4-2.2 times the transient's cost on Coulomb cells).
     work = core.fresh_workspace(False, False)
+    work[core.W_MAX_STEPS_TAU] = steps_tau
+    work[core.W_MAX_STEPS_CALL] = steps_cell
     status = STATUS_OK
     if t_trans > 0.0:
         status = _advance_in_cell(advance_ws, P, S, t_trans, stats, method, rtol, atol,
@@ -123,25 +127,25 @@ def _converging(xs: np.ndarray, vs: np.ndarray, m_max: int) -> bool:
 
 @kernel(allocates=True)
 def _run_cell_exact(P, x0, v0, t_trans, t_seg, n_seg, tries, method, rtol, atol, rate, m_max,
-                    tol, stats):
+                    tol, steps_tau, steps_cell, stats):
     """``_run_cell_with`` by the closed form (the cell's plant must be conditioned)."""
     return _run_cell_with(core.advance_exact_ws, P, x0, v0, t_trans, t_seg, n_seg, tries,
-                          method, rtol, atol, rate, m_max, tol, stats)
+                          method, rtol, atol, rate, m_max, tol, steps_tau, steps_cell, stats)
 
 
 @kernel(allocates=True)
 def _run_cell_event(P, x0, v0, t_trans, t_seg, n_seg, tries, method, rtol, atol, rate, m_max,
-                    tol, stats):
+                    tol, steps_tau, steps_cell, stats):
     """``_run_cell_with`` by the event method."""
     return _run_cell_with(core.advance_event_ws, P, x0, v0, t_trans, t_seg, n_seg, tries,
-                          method, rtol, atol, rate, m_max, tol, stats)
+                          method, rtol, atol, rate, m_max, tol, steps_tau, steps_cell, stats)
 
 
 @kernel(inline=True, allocates=True)
 def _cells_with(run_cell, P_cells: np.ndarray, t_trans: np.ndarray, t_seg: np.ndarray,
                 n_seg: np.ndarray, tries: np.ndarray, x0: float, v0: float, method: int,
                 rtol: float, atol: float, rate: float, m_max: int, tol: float,
-                out_stats: np.ndarray, out_status: np.ndarray,
+                steps_tau: float, steps_cell: float, out_stats: np.ndarray, out_status: np.ndarray,
                 out_period: np.ndarray, n_workers: int, next_cell: np.ndarray) -> None:
     """Run the cells by ``run_cell`` on ``n_workers`` workers (one ``prange`` iteration
     each).
@@ -158,7 +162,7 @@ def _cells_with(run_cell, P_cells: np.ndarray, t_trans: np.ndarray, t_seg: np.nd
             P = P_cells[c].copy()
             stats = np.empty(N_STATS)
             st, per = run_cell(P, x0, v0, t_trans[c], t_seg[c], n_seg[c], tries[c], method,
-                               rtol, atol, rate, m_max, tol, stats)
+                               rtol, atol, rate, m_max, tol, steps_tau, steps_cell, stats)
             out_stats[c, :] = stats
             out_status[c] = st
             out_period[c] = per
@@ -167,22 +171,22 @@ def _cells_with(run_cell, P_cells: np.ndarray, t_trans: np.ndarray, t_seg: np.nd
 
 @kernel(parallel=True, allocates=True)
 def _cells_kernel_exact(P_cells, t_trans, t_seg, n_seg, tries, x0, v0, method, rtol, atol,
-                        rate, m_max, tol, out_stats, out_status, out_period, n_workers,
-                        next_cell):
+                        rate, m_max, tol, steps_tau, steps_cell, out_stats, out_status,
+                        out_period, n_workers, next_cell):
     """``_cells_with`` by the closed form (every plant conditioned)."""
     _cells_with(_run_cell_exact, P_cells, t_trans, t_seg, n_seg, tries, x0, v0, method, rtol,
-                atol, rate, m_max, tol, out_stats, out_status, out_period, n_workers,
-                next_cell)
+                atol, rate, m_max, tol, steps_tau, steps_cell, out_stats, out_status,
+                out_period, n_workers, next_cell)
 
 
 @kernel(parallel=True, allocates=True)
 def _cells_kernel_event(P_cells, t_trans, t_seg, n_seg, tries, x0, v0, method, rtol, atol,
-                        rate, m_max, tol, out_stats, out_status, out_period, n_workers,
-                        next_cell):
+                        rate, m_max, tol, steps_tau, steps_cell, out_stats, out_status,
+                        out_period, n_workers, next_cell):
     """``_cells_with`` by the event method."""
     _cells_with(_run_cell_event, P_cells, t_trans, t_seg, n_seg, tries, x0, v0, method, rtol,
-                atol, rate, m_max, tol, out_stats, out_status, out_period, n_workers,
-                next_cell)
+                atol, rate, m_max, tol, steps_tau, steps_cell, out_stats, out_status,
+                out_period, n_workers, next_cell)
 
 
 #: The parallel cell kernel of each method (the run's method is still passed to it).

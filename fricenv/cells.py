@@ -24,7 +24,7 @@ from .checks import (
     got,
     real_array,
 )
-from .core import conditioned_rows
+from .core import MAX_STEPS_PER_CALL, MAX_STEPS_PER_TAU, conditioned_rows
 from .divergence import diverged
 from .layout import (
     METHOD_EVENT,
@@ -80,11 +80,14 @@ class SweepSettings:
     integrator (the closed form ignores them); 1e-6 / 1e-8 gave labels identical to 1e-9 on
     every cell checked (scripts/bench_sweep.py repeats the check) at half the cost.
     ``max_event_rate``: events allowed per unit time before a cell is declared UNRESOLVED
-    (chattering); ``q_max, m_max, n_strobe, strobe_tol, lock_extensions``: periodicity test.
-    ``x0, v0`` lie within ``PARAM_LIMIT`` like every parameter; ``q_max`` and ``m_max`` are
-    at most ``MAX_PERIOD``, ``lock_extensions`` at most ``MAX_LOCK_EXTENSIONS`` and
-    ``n_strobe`` at most ``MAX_SEGMENTS``, ``atol`` > 0 and ``strobe_tol`` in (0, 1)
-    (``ValueError`` naming the field).
+    (chattering); ``max_steps_per_tau, max_steps``: the cell's step budget (as in
+    :func:`fricenv.run_stats`, ``max_steps`` spent over the transient and all windows
+    together; a cell past it is UNRESOLVED with ``STATUS_STEP_BUDGET``); ``q_max, m_max,
+    n_strobe, strobe_tol, lock_extensions``: periodicity test. ``x0, v0`` lie within
+    ``PARAM_LIMIT`` like every parameter; ``q_max`` and ``m_max`` are at most
+    ``MAX_PERIOD``, ``lock_extensions`` at most ``MAX_LOCK_EXTENSIONS`` and ``n_strobe`` at
+    most ``MAX_SEGMENTS``, ``atol`` > 0 and ``strobe_tol`` in (0, 1) (``ValueError`` naming
+    the field).
     """
 
     x0: float = 0.0
@@ -104,6 +107,8 @@ class SweepSettings:
     rtol: float = 1e-6
     atol: float = 1e-8
     max_event_rate: float = 200.0
+    max_steps_per_tau: float = MAX_STEPS_PER_TAU
+    max_steps: float = MAX_STEPS_PER_CALL
 
     def __post_init__(self) -> None:
         for f in fields(self):
@@ -129,7 +134,8 @@ class SweepSettings:
                      "window_periods"):
             if getattr(self, name) < 0:
                 raise ValueError(f"{name} must be >= 0, got {getattr(self, name)!r}")
-        for name in ("window_min", "max_event_rate", "strobe_tol", "modulation_cap", "atol"):
+        for name in ("window_min", "max_event_rate", "strobe_tol", "modulation_cap", "atol",
+                     "max_steps_per_tau", "max_steps"):
             if getattr(self, name) <= 0:  # (atol as in run_stats and simulate)
                 raise ValueError(f"{name} must be > 0, got {getattr(self, name)!r}")
         if self.strobe_tol >= 1.0:  # relative to the orbit's size: any orbit would match
@@ -405,7 +411,8 @@ def _run_group(cells_kernel: Callable, method: int, rows: np.ndarray, P_cells: n
                  float(settings.x0), float(settings.v0), int(method),
                  float(settings.rtol), float(settings.atol),
                  float(settings.max_event_rate), int(settings.m_max),
-                 float(settings.strobe_tol), st, status, period,
+                 float(settings.strobe_tol), float(settings.max_steps_per_tau),
+                 float(settings.max_steps), st, status, period,
                  numba.get_num_threads(), np.zeros(1, dtype=np.int64))
     if not whole:
         out_stats[rows], out_status[rows], out_period[rows] = st, status, period

@@ -43,7 +43,7 @@ FORMAT = "fricenv.regime_map"
 FORMAT_VERSION = 1
 #: Version of the per-cell measurement; a stored map is resumed only if it matches
 #: (CHANGELOG.md says what each version changed).
-ALGORITHM = 15
+ALGORITHM = 16
 #: Label of a cell that has not been computed yet (not a :class:`Regime`).
 NOT_COMPUTED = -1
 

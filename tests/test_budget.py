@@ -173,6 +173,18 @@ def test_a_cell_of_many_calls_is_held_to_one_budget() -> None:
     assert stats[0, ST_N_STEPS] <= MAX_STEPS_PER_CALL
 
 
+
+def test_a_sweep_cell_takes_the_budget_of_its_settings() -> None:
+    p = OscillatorParams.preset("stribeck", u0=1.15, eta=0.6, nu=0.1)
+    labels, _, _, status = cell_statistics([p, p], max_steps=100)
+    assert list(status) == [STATUS_STEP_BUDGET] * 2
+    assert list(labels) == [Regime.UNRESOLVED] * 2
+    labels, _, _, status = cell_statistics([p])  # the default budget is ample
+    assert status[0] == 0 and labels[0] != Regime.UNRESOLVED
+    with pytest.raises(ValueError, match="max_steps must be > 0"):
+        cell_statistics([p], max_steps=0.0)
+
+
 _INTERRUPTED = """
 import sys, time
 from fricenv import OscillatorParams, run_stats, simulate
