@@ -4,6 +4,7 @@ honest rendering, editor-visible signatures, portable run configs, the typed mar
 from __future__ import annotations
 
 import inspect
+import re
 import warnings
 from pathlib import Path
 
@@ -111,7 +112,8 @@ def test_run_configs_record_repository_paths(tmp_path, monkeypatch):
     assert portable_path(tmp_path / "mine.yml") == "mine.yml"
     for yml in Path(HYPERPARAMS_DIR.parent, "pretrained").glob("*.yml"):
         text = yml.read_text()
-        assert "/work/" not in text and "/root/" not in text and "/home/" not in text
+        # a machine's home or work folder, written as a pattern so this file holds none
+        assert not re.search(r"/(?:work|root|home)/", text), yml.name
 
 
 def test_package_ships_its_typed_marker():
