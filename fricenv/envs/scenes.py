@@ -390,11 +390,7 @@ SCENES: dict[str, Scene] = {
         params=OscillatorParams.preset("stribeck", lam=0.1, V=0.3, eta=6.0, u0=0.0, nu=1.0),
         u0_range=(0.0, 6.0),
         nu_range=(0.5, 1.5),
-        action_mode="both",
         max_episode_steps=300,
-        reward_weights=(1.0, 0.5, 0.1),
-        x0_range=(-1.0, 1.0),
-        v0_range=(-0.5, 0.5),
         # every corner keeps the sliding unstable: lam - b1 + 3 b3 V^2 < 0 up to lam = 0.13
         # with V = 0.35
         randomization={"lam": (0.07, 0.13), "V": (0.25, 0.35), "xfk": (2.2, 2.8),
@@ -413,11 +409,7 @@ SCENES: dict[str, Scene] = {
         params=OscillatorParams.preset("viscous", lam=0.1, eta=6.0, u0=0.0, nu=1.0),
         u0_range=(0.0, 6.0),
         nu_range=(0.5, 1.5),
-        action_mode="both",
         max_episode_steps=300,
-        reward_weights=(1.0, 0.5, 0.1),
-        x0_range=(-1.0, 1.0),
-        v0_range=(-0.5, 0.5),
         # lam stays below b1 = 0.2 in every corner: the sliding stays unstable
         randomization={"lam": (0.05, 0.15), **_PLANT_RANDOMIZATION},
     ),
