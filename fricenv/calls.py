@@ -17,8 +17,10 @@ go to the worker at once.
 
 from __future__ import annotations
 
+import contextlib
+import signal
 import threading
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 
 import numpy as np
 
@@ -33,6 +35,42 @@ DIRECT_STEPS = 1e5
 JOIN_POLL = 0.1
 #: Budget value that ends a running kernel at its next step.
 ABORT = -1.0
+#: How often (s) a stopping kernel is told again to stop while it is joined.
+ABORT_POLL = 0.01
+
+
+class SweepInterrupted(KeyboardInterrupt):
+    """Ctrl-C, or SIGTERM during a sweep, stopped a run of many cells; ``results`` holds
+    every cell finished before it (in the form the interrupted call returns, cells not
+    finished marked as not computed) and ``signum`` the signal. A ``KeyboardInterrupt``, so
+    that code which stops on Ctrl-C stops on it too. A sweep with a file or store has saved
+    its finished cells before this reaches the caller."""
+
+    def __init__(self, results: object = None, signum: int | None = None) -> None:
+        self.signum = signal.SIGINT if signum is None else signum
+        super().__init__(f"sweep stopped by {signal.Signals(self.signum).name}")
+        self.results = results
+
+
+def _raise_on_sigterm(signum: int, frame: object) -> None:
+    raise SweepInterrupted(signum=signum)
+
+
+@contextlib.contextmanager
+def sweep_signals() -> Iterator[None]:
+    """Within this block SIGTERM stops a sweep as Ctrl-C does (its finished cells saved,
+    then :class:`SweepInterrupted` raised), where Python's default would end the process
+    at once and lose them. Only in the main thread, and only where SIGTERM has its default
+    action: a handler of the caller's own is left alone."""
+    if (threading.current_thread() is not threading.main_thread()
+            or signal.getsignal(signal.SIGTERM) is not signal.SIG_DFL):
+        yield
+        return
+    signal.signal(signal.SIGTERM, _raise_on_sigterm)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, signal.SIG_DFL)
 
 
 def step_budget(max_steps_per_tau: float | None, max_steps: float | None
@@ -64,30 +102,69 @@ def new_workspace(budget: tuple[float, float]) -> np.ndarray:
     return work
 
 
-def _in_worker(run: Callable[[np.ndarray], int], work: np.ndarray) -> int:
-    """``run(work)`` in a worker thread, the calling thread waiting where Ctrl-C reaches
-    it; on KeyboardInterrupt the kernel is told to stop, joined, and the interrupt
-    re-raised."""
-    box: dict[str, object] = {}
+def run_stoppable(run: Callable[[], object], abort: Callable[[], None],
+                  stop_requested: Callable[[], bool] | None = None) -> bool:
+    """Run ``run()`` (a ``nogil`` kernel call) in a worker thread while the calling thread
+    waits in ``JOIN_POLL`` joins, where signals reach it.
+
+    ``abort()`` tells the running kernel to stop (it lowers a budget slot the kernel reads
+    every ``BUDGET_CHECK_STEPS`` steps); it is called again at every poll until the kernel
+    has returned, since a kernel may overwrite the slot once in a race with it. When the
+    waiting thread gets an exception (``KeyboardInterrupt`` on Ctrl-C, or whatever a signal
+    handler raises), the kernel is stopped and joined, then the exception propagates; a
+    second Ctrl-C meanwhile does not cut the join short, so the caller's arrays are never
+    written after this returns. ``stop_requested()``, polled at every join, stops the kernel
+    the same way but returns normally. Returns whether ``run()`` ran to its end unasked;
+    an exception raised by ``run()`` itself propagates.
+    """
+    box: dict[str, BaseException] = {}
 
     def target() -> None:
         try:
-            box["status"] = run(work)
+            run()
         except BaseException as error:  # handed to the calling thread
             box["error"] = error
 
     worker = threading.Thread(target=target, name="fricenv-kernel", daemon=True)
     worker.start()
+    stopped = False
     try:
         while worker.is_alive():
             worker.join(JOIN_POLL)
-    except KeyboardInterrupt:
-        work[W_MAX_STEPS_CALL] = ABORT
-        worker.join()
+            if stop_requested is not None and worker.is_alive() and stop_requested():
+                stopped = True
+                _stop(worker, abort)
+    except BaseException:
+        _stop(worker, abort)
         raise
     if "error" in box:
-        raise box["error"]  # type: ignore[misc]
-    return int(box["status"])  # type: ignore[call-overload]
+        raise box["error"]
+    return not stopped
+
+
+def _stop(worker: threading.Thread, abort: Callable[[], None]) -> None:
+    """Ask the kernel in ``worker`` to stop until it has (further Ctrl-Cs are dropped)."""
+    while worker.is_alive():
+        try:
+            abort()
+            worker.join(ABORT_POLL)
+        except KeyboardInterrupt:
+            continue
+
+
+def _in_worker(run: Callable[[np.ndarray], int], work: np.ndarray) -> int:
+    """``run(work)`` through :func:`run_stoppable`; Ctrl-C sets the budget slot to
+    ``ABORT``."""
+    box: dict[str, int] = {}
+
+    def call() -> None:
+        box["status"] = run(work)
+
+    def abort() -> None:
+        work[W_MAX_STEPS_CALL] = ABORT
+
+    run_stoppable(call, abort)
+    return box["status"]
 
 
 def run_call(run: Callable[[np.ndarray], int], make_work: Callable[[], np.ndarray],

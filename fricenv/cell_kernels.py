@@ -58,9 +58,12 @@ def _advance_in_cell(advance_ws, P: np.ndarray, S: np.ndarray, t_span: float,
 def _run_cell_with(advance_ws, P: np.ndarray, x0: float, v0: float, t_trans: float,
                    t_seg: float, n_seg: int, tries: int, method: int, rtol: float, atol: float,
                    rate: float, m_max: int, tol: float, steps_tau: float, steps_cell: float,
-                   stats: np.ndarray) -> tuple[int, int]:
+                   stats: np.ndarray, work: np.ndarray) -> tuple[int, int]:
     """One cell: transient, then a window of ``n_seg`` segments measured into ``stats``,
     each span advanced by ``advance_ws`` (the core's entry kernel for the cell's method).
+
+    ``work``: the worker's workspace row, reset here for the cell. The caller owns it, so
+    that another thread can stop a running cell by lowering its ``W_MAX_STEPS_CALL``.
 
     ``tries`` = 0: no periodicity test. Otherwise the window is tested and, while no period
     is found but the strobe mismatch is still shrinking (:func:`_converging`), repeated up
@@ -70,10 +73,13 @@ def _run_cell_with(advance_ws, P: np.ndarray, x0: float, v0: float, t_trans: flo
     S = np.empty(N_STATE)
     core.initial_state(P, x0, v0, S)
     core.reset_stats(stats)
-    # One workspace for the whole cell; the maps never read the (v - V)^2 integral. The
-    # transient's stats are dropped, so it skips the extrema too: locating them holds the
-    # closed form to short scan steps (1.4-2.2 times the transient's cost on Coulomb cells).
-    work = core.fresh_workspace(False, False)
+    # One workspace for the whole cell, every cache empty (NaN keys never match); the maps
+    # never read the (v - V)^2 integral. The transient's stats are dropped, so it skips the
+    # extrema too: locating them holds the closed form to short scan steps (1.4-2.2 times
+    # the transient's cost on Coulomb cells).
+    work[:] = np.nan
+    work[core.W_SKIP_EXTREMA] = 1.0
+    work[core.W_SKIP_VR2] = 1.0
     work[core.W_MAX_STEPS_TAU] = steps_tau
     work[core.W_MAX_STEPS_CALL] = steps_cell
     status = STATUS_OK
@@ -127,18 +133,20 @@ def _converging(xs: np.ndarray, vs: np.ndarray, m_max: int) -> bool:
 
 @kernel(allocates=True)
 def _run_cell_exact(P, x0, v0, t_trans, t_seg, n_seg, tries, method, rtol, atol, rate, m_max,
-                    tol, steps_tau, steps_cell, stats):
+                    tol, steps_tau, steps_cell, stats, work):
     """``_run_cell_with`` by the closed form (the cell's plant must be conditioned)."""
     return _run_cell_with(core.advance_exact_ws, P, x0, v0, t_trans, t_seg, n_seg, tries,
-                          method, rtol, atol, rate, m_max, tol, steps_tau, steps_cell, stats)
+                          method, rtol, atol, rate, m_max, tol, steps_tau, steps_cell, stats,
+                          work)
 
 
 @kernel(allocates=True)
 def _run_cell_event(P, x0, v0, t_trans, t_seg, n_seg, tries, method, rtol, atol, rate, m_max,
-                    tol, steps_tau, steps_cell, stats):
+                    tol, steps_tau, steps_cell, stats, work):
     """``_run_cell_with`` by the event method."""
     return _run_cell_with(core.advance_event_ws, P, x0, v0, t_trans, t_seg, n_seg, tries,
-                          method, rtol, atol, rate, m_max, tol, steps_tau, steps_cell, stats)
+                          method, rtol, atol, rate, m_max, tol, steps_tau, steps_cell, stats,
+                          work)
 
 
 @kernel(inline=True, allocates=True)
@@ -146,47 +154,52 @@ def _cells_with(run_cell, P_cells: np.ndarray, t_trans: np.ndarray, t_seg: np.nd
                 n_seg: np.ndarray, tries: np.ndarray, x0: float, v0: float, method: int,
                 rtol: float, atol: float, rate: float, m_max: int, tol: float,
                 steps_tau: float, steps_cell: float, out_stats: np.ndarray, out_status: np.ndarray,
-                out_period: np.ndarray, n_workers: int, next_cell: np.ndarray) -> None:
-    """Run the cells by ``run_cell`` on ``n_workers`` workers (one ``prange`` iteration
-    each).
+                out_period: np.ndarray, works: np.ndarray, next_cell: np.ndarray) -> None:
+    """Run the cells by ``run_cell`` on ``works.shape[0]`` workers (one ``prange``
+    iteration each, with its own workspace row ``works[w]``).
 
     Cells differ in cost by orders of magnitude (a stiff or slowly locking cell runs long
     transients), so rather than take a fixed share, each worker claims the next cell from
-    the counter ``next_cell[0]`` (bumped atomically) as soon as it is free.
+    the counter ``next_cell[0]`` (bumped atomically) as soon as it is free. To stop the
+    run from another thread, set ``next_cell[0]`` to at least the number of cells (no cell
+    is claimed after that) and each row's ``W_MAX_STEPS_CALL`` below 0 (the running cells
+    end within ``BUDGET_CHECK_STEPS`` steps, with ``STATUS_STEP_BUDGET``); cells never
+    claimed keep the status their outputs started with.
     """
     n = P_cells.shape[0]
-    next_cell[0] = 0
-    for _ in prange(n_workers):
+    for w in prange(works.shape[0]):
+        work = works[w]
         c = fetch_add(next_cell, 0, 1)
         while c < n:
             P = P_cells[c].copy()
             stats = np.empty(N_STATS)
             st, per = run_cell(P, x0, v0, t_trans[c], t_seg[c], n_seg[c], tries[c], method,
-                               rtol, atol, rate, m_max, tol, steps_tau, steps_cell, stats)
+                               rtol, atol, rate, m_max, tol, steps_tau, steps_cell, stats,
+                               work)
             out_stats[c, :] = stats
             out_status[c] = st
             out_period[c] = per
             c = fetch_add(next_cell, 0, 1)
 
 
-@kernel(parallel=True, allocates=True)
+@kernel(parallel=True, allocates=True, nogil=True)
 def _cells_kernel_exact(P_cells, t_trans, t_seg, n_seg, tries, x0, v0, method, rtol, atol,
                         rate, m_max, tol, steps_tau, steps_cell, out_stats, out_status,
-                        out_period, n_workers, next_cell):
+                        out_period, works, next_cell):
     """``_cells_with`` by the closed form (every plant conditioned)."""
     _cells_with(_run_cell_exact, P_cells, t_trans, t_seg, n_seg, tries, x0, v0, method, rtol,
                 atol, rate, m_max, tol, steps_tau, steps_cell, out_stats, out_status,
-                out_period, n_workers, next_cell)
+                out_period, works, next_cell)
 
 
-@kernel(parallel=True, allocates=True)
+@kernel(parallel=True, allocates=True, nogil=True)
 def _cells_kernel_event(P_cells, t_trans, t_seg, n_seg, tries, x0, v0, method, rtol, atol,
                         rate, m_max, tol, steps_tau, steps_cell, out_stats, out_status,
-                        out_period, n_workers, next_cell):
+                        out_period, works, next_cell):
     """``_cells_with`` by the event method."""
     _cells_with(_run_cell_event, P_cells, t_trans, t_seg, n_seg, tries, x0, v0, method, rtol,
                 atol, rate, m_max, tol, steps_tau, steps_cell, out_stats, out_status,
-                out_period, n_workers, next_cell)
+                out_period, works, next_cell)
 
 
 #: The parallel cell kernel of each method (the run's method is still passed to it).

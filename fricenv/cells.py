@@ -24,7 +24,14 @@ from .checks import (
     got,
     real_array,
 )
-from .core import MAX_STEPS_PER_CALL, MAX_STEPS_PER_TAU, conditioned_rows
+from . import calls
+from .core import (
+    MAX_STEPS_PER_CALL,
+    MAX_STEPS_PER_TAU,
+    N_WORK,
+    W_MAX_STEPS_CALL,
+    conditioned_rows,
+)
 from .divergence import diverged
 from .layout import (
     METHOD_EVENT,
@@ -35,6 +42,7 @@ from .layout import (
     ST_STICK_TIME,
     STATUS_DIVERGED,
     STATUS_OK,
+    STATUS_STEP_BUDGET,
 )
 from .params import (
     N_PARAMS,
@@ -303,7 +311,8 @@ def _check_rows(P: np.ndarray) -> None:
 
 def run_cells(P_cells: np.ndarray, t_transient: np.ndarray, t_segment: np.ndarray,
               n_segment: np.ndarray, tries: np.ndarray, settings: SweepSettings,
-              method: int, n_threads: int | None = None
+              method: int, n_threads: int | None = None,
+              stop_requested: Callable[[], bool] | None = None
               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Run independent cells in parallel: returns (stats[n, N_STATS], status[n], period[n]).
 
@@ -313,6 +322,14 @@ def run_cells(P_cells: np.ndarray, t_transient: np.ndarray, t_segment: np.ndarra
     public so that other scans (e.g. amplitude versus eta) reuse the same measured
     quantities. A cell the kernel finished whose motion ran away (:mod:`fricenv.divergence`)
     gets status ``STATUS_DIVERGED``; its statistics are kept, but they are no result.
+
+    Stopping: Ctrl-C (or SIGTERM inside :func:`fricenv.calls.sweep_signals`) stops the
+    running cells within ``BUDGET_CHECK_STEPS`` steps and raises
+    :class:`~fricenv.calls.SweepInterrupted`, whose ``results`` are the three outputs with
+    every finished cell; ``stop_requested()``, if given, is polled every ``JOIN_POLL``
+    seconds and, once true, stops the cells the same way but returns. Cells not finished
+    are left at NaN statistics and status ``STATUS_NOT_RUN``; a cell depends on its own row
+    only, so running them later gives what an uninterrupted run gives.
     """
     if not isinstance(settings, SweepSettings):  # its fields are the kernel's arguments
         raise TypeError(f"settings must be a fricenv.SweepSettings, {got(settings)}")
@@ -369,22 +386,44 @@ def run_cells(P_cells: np.ndarray, t_transient: np.ndarray, t_segment: np.ndarra
              np.ascontiguousarray(t_segment, dtype=np.float64),
              np.ascontiguousarray(n_segment, dtype=np.int64),
              np.ascontiguousarray(tries, dtype=np.int64))
-    with _Threads(n_threads):
-        for cell_method, rows in _method_groups(P_cells, method):
-            _run_group(CELL_KERNELS[cell_method], cell_method, rows, P_cells, kernel_spans,
-                       settings, out_stats, out_status, out_period)
-    missed = np.flatnonzero(out_status == STATUS_NOT_RUN)
-    if missed.size:  # an exception inside prange is lost: say so rather than return them
-        raise RuntimeError(f"the cell kernel left {missed.size} cell(s) unrun (first: cell "
-                           f"{int(missed[0])}); this is a bug in fricenv.sweep")
+    finished = True
+    try:
+        with _Threads(n_threads):
+            for cell_method, rows in _method_groups(P_cells, method):
+                finished = _run_group(cell_method, rows, P_cells, kernel_spans, settings,
+                                      out_stats, out_status, out_period, stop_requested)
+                if not finished:  # stopped on request: the other groups stay unrun
+                    break
+    except KeyboardInterrupt as stop:
+        _finish_cells(P_cells, kernel_spans, settings, out_stats, out_status, stopped=True)
+        raise calls.SweepInterrupted((out_stats, out_status, out_period),
+                                     getattr(stop, "signum", None)) from None
+    _finish_cells(P_cells, kernel_spans, settings, out_stats, out_status, not finished)
+    return out_stats, out_status, out_period
+
+
+def _finish_cells(P_cells: np.ndarray, spans: tuple[np.ndarray, ...],
+                  settings: SweepSettings, out_stats: np.ndarray, out_status: np.ndarray,
+                  stopped: bool) -> None:
+    """The kernels' outputs as results: a stopped run's cells that were cut short (their
+    budget slot was lowered, so they read ``STATUS_STEP_BUDGET``) become unrun, and a
+    finished cell whose motion ran away gets ``STATUS_DIVERGED``."""
+    if stopped:  # (a cell over its own budget before the stop is run again: same result)
+        out_status[out_status == STATUS_STEP_BUDGET] = STATUS_NOT_RUN
+        out_stats[out_status == STATUS_NOT_RUN] = np.nan
+    else:
+        missed = np.flatnonzero(out_status == STATUS_NOT_RUN)
+        if missed.size:  # an exception inside prange is lost: say so rather than return them
+            raise RuntimeError(f"the cell kernel left {missed.size} cell(s) unrun (first: "
+                               f"cell {int(missed[0])}); this is a bug in fricenv.sweep")
     # A window stuck throughout sums its stick phases a few ulps beyond its duration.
     np.minimum(out_stats[:, ST_STICK_TIME], out_stats[:, ST_DURATION],
                out=out_stats[:, ST_STICK_TIME])
+    t_transient, t_segment, n_segment, tries = spans
     longest = t_transient + t_segment * n_segment * np.maximum(tries, 1)
     out_status[(out_status == STATUS_OK) & diverged(
         P_cells, settings.x0, settings.v0, longest, out_stats, vr2_measured=False)] = (
         STATUS_DIVERGED)
-    return out_stats, out_status, out_period
 
 
 def _method_groups(P_cells: np.ndarray, method: int) -> list[tuple[int, np.ndarray]]:
@@ -399,20 +438,31 @@ def _method_groups(P_cells: np.ndarray, method: int) -> list[tuple[int, np.ndarr
             if sel.any()]
 
 
-def _run_group(cells_kernel: Callable, method: int, rows: np.ndarray, P_cells: np.ndarray,
+def _run_group(method: int, rows: np.ndarray, P_cells: np.ndarray,
                spans: tuple[np.ndarray, ...], settings: SweepSettings, out_stats: np.ndarray,
-               out_status: np.ndarray, out_period: np.ndarray) -> None:
-    """Run the cells ``rows`` by one method's parallel kernel into the outputs' rows. A
-    cell depends on its own row only, so which cells share a call changes no result."""
+               out_status: np.ndarray, out_period: np.ndarray,
+               stop_requested: Callable[[], bool] | None) -> bool:
+    """Run the cells ``rows`` by ``method``'s parallel kernel into the outputs' rows, in a
+    worker thread that Ctrl-C or ``stop_requested`` stops (:func:`fricenv.calls.
+    run_stoppable`); whether it ran to its end. A cell depends on its own row only, so
+    which cells share a call changes no result."""
     whole = rows.size == P_cells.shape[0]
     pick = (lambda a: a) if whole else (lambda a: np.ascontiguousarray(a[rows]))
     st, status, period = pick(out_stats), pick(out_status), pick(out_period)
-    cells_kernel(pick(P_cells), *(pick(a) for a in spans),
-                 float(settings.x0), float(settings.v0), int(method),
-                 float(settings.rtol), float(settings.atol),
-                 float(settings.max_event_rate), int(settings.m_max),
-                 float(settings.strobe_tol), float(settings.max_steps_per_tau),
-                 float(settings.max_steps), st, status, period,
-                 numba.get_num_threads(), np.zeros(1, dtype=np.int64))
-    if not whole:
-        out_stats[rows], out_status[rows], out_period[rows] = st, status, period
+    works = np.empty((numba.get_num_threads(), N_WORK))  # a workspace row per worker
+    next_cell = np.zeros(1, dtype=np.int64)
+    args = (pick(P_cells), *(pick(a) for a in spans), float(settings.x0),
+            float(settings.v0), int(method), float(settings.rtol), float(settings.atol),
+            float(settings.max_event_rate), int(settings.m_max), float(settings.strobe_tol),
+            float(settings.max_steps_per_tau), float(settings.max_steps), st, status, period,
+            works, next_cell)
+
+    def abort() -> None:  # (see cell_kernels._cells_with)
+        next_cell[0] = rows.size
+        works[:, W_MAX_STEPS_CALL] = calls.ABORT
+
+    try:
+        return calls.run_stoppable(lambda: CELL_KERNELS[method](*args), abort, stop_requested)
+    finally:  # also when stopped: the finished cells are kept
+        if not whole:
+            out_stats[rows], out_status[rows], out_period[rows] = st, status, period

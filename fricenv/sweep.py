@@ -81,6 +81,7 @@ from .cells import (  # noqa: F401
     plan_cells,
     run_cells,
 )
+from .calls import SweepInterrupted, sweep_signals
 from .checks import (
     check_bool,
     check_dict,
@@ -233,7 +234,8 @@ def regime_map(params: OscillatorParams | str, u0: object, nu: object, *,
     fastest = _cell_rows(base, np.full(nu.size, np.max(np.abs(u0))), plan.nu_exact)
     _check_cells(fastest, plan.t_transient, plan.t_segment, plan.n_segment, plan.tries)
     # One writer at a time: a second sweep on this path is refused while this one runs.
-    with mapfile.writer_lock(path) if path is not None else contextlib.nullcontext():
+    with (mapfile.writer_lock(path) if path is not None else contextlib.nullcontext(),
+          sweep_signals()):
         return _fill_map(params, u0, nu, settings, plan, method, path=path, resume=resume,
                          chunk_size=chunk_size, n_threads=n_threads, progress=progress,
                          callback=callback, meta=meta)
@@ -286,17 +288,17 @@ def _fill_map(params: OscillatorParams, u0: np.ndarray, nu: np.ndarray,
             iu, jn = np.divmod(idx, n_nu)
             P = _cell_rows(base, u0[iu], plan.nu_exact[jn])
             t0 = time.perf_counter()
-            st, status, period = run_cells(P, plan.t_transient[jn], plan.t_segment[jn],
-                                           plan.n_segment[jn], plan.tries[jn], settings,
-                                           method, n_threads)
-            rmap.elapsed += time.perf_counter() - t0
-            rmap.stats[iu, jn] = st
-            rmap.status[iu, jn] = status
-            rmap.period[iu, jn] = period
-            rmap.labels[iu, jn] = classify(st[:, ST_N_STICK], st[:, ST_STICK_TIME],
-                                           st[:, ST_N_REVERSAL], nu[jn], plan.q[jn], period,
-                                           status, st[:, ST_N_SLIP])
-            rmap.done[iu, jn] = True
+            try:
+                st, status, period = run_cells(P, plan.t_transient[jn], plan.t_segment[jn],
+                                               plan.n_segment[jn], plan.tries[jn], settings,
+                                               method, n_threads)
+            except SweepInterrupted as stop:  # keep the chunk's finished cells, then stop
+                _store_cells(rmap, iu, jn, plan, *stop.results)
+                unsaved = path is not None
+                raise
+            finally:
+                rmap.elapsed += time.perf_counter() - t0
+            _store_cells(rmap, iu, jn, plan, st, status, period)
             unsaved = path is not None
             if path is not None and time.perf_counter() - last_save >= SAVE_EVERY_S:
                 unsaved = False  # (a save that fails is not retried below)
@@ -309,13 +311,30 @@ def _fill_map(params: OscillatorParams, u0: np.ndarray, nu: np.ndarray,
     finally:
         if bar is not None:
             bar.close()
-        # the last chunks, also when a callback or Ctrl-C stops the sweep
+        # the last chunks, also when a callback, Ctrl-C or SIGTERM stops the sweep
         if unsaved and path is not None:
-            rmap.labels[~rmap.done] = NOT_COMPUTED  # (a chunk cut off between its writes)
+            rmap.labels[~rmap.done] = NOT_COMPUTED  # (a cell cut off between its writes)
             rmap.save(path)
     if path is not None and todo.size == 0 and not path.exists():
         rmap.save(path)
     return rmap
+
+
+def _store_cells(rmap: RegimeMap, iu: np.ndarray, jn: np.ndarray, plan: CellPlan,
+                 st: np.ndarray, status: np.ndarray, period: np.ndarray) -> None:
+    """Store the cells ``(iu[k], jn[k])`` of ``run_cells``' outputs that finished (all but
+    those a stop left at ``STATUS_NOT_RUN``) in ``rmap``, with their labels, and mark them
+    done; each cell's values are written before it is marked, so a stop between two writes
+    leaves no cell marked done without its values."""
+    ok = status != STATUS_NOT_RUN
+    iu, jn, st, status, period = iu[ok], jn[ok], st[ok], status[ok], period[ok]
+    rmap.stats[iu, jn] = st
+    rmap.status[iu, jn] = status
+    rmap.period[iu, jn] = period
+    rmap.labels[iu, jn] = classify(st[:, ST_N_STICK], st[:, ST_STICK_TIME],
+                                   st[:, ST_N_REVERSAL], rmap.nu[jn], plan.q[jn], period,
+                                   status, st[:, ST_N_SLIP])
+    rmap.done[iu, jn] = True
 
 
 def cell_statistics(params: list[OscillatorParams], settings: SweepSettings | None = None,
@@ -364,8 +383,24 @@ def cell_statistics(params: list[OscillatorParams], settings: SweepSettings | No
         tr.append(plan.tries[0])
         nus.append(p.nu)
     qs_a = np.array(qs)
-    st, status, period = run_cells(np.array(rows), np.array(tt), np.array(ts), np.array(ns),
-                                   np.array(tr), settings, method, n_threads)
-    labels = classify(st[:, ST_N_STICK], st[:, ST_STICK_TIME], st[:, ST_N_REVERSAL],
-                      np.array(nus), qs_a, period, status, st[:, ST_N_SLIP])
-    return np.asarray(labels), st, period, status
+    try:
+        with sweep_signals():
+            st, status, period = run_cells(np.array(rows), np.array(tt), np.array(ts),
+                                           np.array(ns), np.array(tr), settings, method,
+                                           n_threads)
+    except SweepInterrupted as stop:
+        st, status, period = stop.results
+        stop.results = _cell_results(st, status, period, np.array(nus), qs_a)
+        raise
+    return _cell_results(st, status, period, np.array(nus), qs_a)
+
+
+def _cell_results(st: np.ndarray, status: np.ndarray, period: np.ndarray, nu: np.ndarray,
+                  q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """``cell_statistics``' result: labels (``NOT_COMPUTED`` for a cell a stop left
+    unrun), stats, period, status."""
+    labels = np.asarray(classify(st[:, ST_N_STICK], st[:, ST_STICK_TIME],
+                                 st[:, ST_N_REVERSAL], nu, q, period, status,
+                                 st[:, ST_N_SLIP]))
+    labels[status == STATUS_NOT_RUN] = NOT_COMPUTED
+    return labels, st, period, status

@@ -17,12 +17,14 @@ from __future__ import annotations
 
 import itertools
 import math
-from collections.abc import Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
 
+from ..calls import SweepInterrupted
+from ..cells import STATUS_NOT_RUN  # (the stored fill value of a cell that has not run)
 from ..checks import check_int, got, real_array
 from ..layout import (
     METHOD_EVENT,
@@ -30,6 +32,7 @@ from ..layout import (
     N_STATS,
     ST_DURATION,
     ST_N_REVERSAL,
+    ST_N_SLIP,
     ST_N_STICK,
     ST_STICK_TIME,
     ST_V_MAX,
@@ -71,8 +74,6 @@ _COLUMN = {"lam": P_LAM, "V": P_V, "xfk": P_XFK, "xfs": P_XFS, "b1": P_B1, "b3":
 #: Fields the time spans depend on (plan_cells reads eta and lam - b1; nu is its argument).
 _PLAN_FIELDS = ("eta", "lam", "b1")
 
-#: Status of a cell that has not run (not a kernel status): the stored fill value.
-STATUS_NOT_RUN = -1
 #: The variables of an atlas, their dtype and the value of a cell not computed yet. The
 #: label is written last for each chunk, so a stored label marks its chunk complete.
 VARIABLES: dict[str, tuple[str, float]] = {
@@ -148,6 +149,9 @@ class ChunkTask:
     grids: dict[str, np.ndarray]  # this chunk's slice of each axis
     settings: SweepSettings
     cost: float  # estimated relative cost (simulated time), for scheduling order
+    # the cells to run (flat, C order; None: all): a chunk that a stop left part-done
+    # runs the rest only
+    todo: np.ndarray | None = None
 
 
 # -- validation ------------------------------------------------------------------------
@@ -408,28 +412,47 @@ def cell_rows(base: OscillatorParams, values: dict[str, np.ndarray],
     return P, t_tr, t_seg, n_seg, tries, method, nu, q
 
 
-def compute_chunk(task: ChunkTask, n_threads: int | None = None
+def compute_chunk(task: ChunkTask, n_threads: int | None = None,
+                  stop_requested: Callable[[], bool] | None = None
                   ) -> tuple[tuple[int, ...], dict[str, np.ndarray]]:
-    """Run all cells of a chunk (one numba call per method present) and return its index
-    and its variables, each shaped like the chunk. Runs on a worker or locally."""
-    names = list(task.grids)
+    """Run the cells of a chunk (those of ``task.todo``; one numba call per method
+    present) and return its index and its variables, each shaped like the chunk; cells
+    not run hold the fill values (status ``STATUS_NOT_RUN``). Runs on a worker or locally.
+
+    Stopping (see :func:`fricenv.sweep.run_cells`): ``stop_requested()`` becoming true
+    returns the chunk with the cells finished so far; Ctrl-C raises
+    :class:`~fricenv.calls.SweepInterrupted` whose ``results`` are that same pair.
+    """
     shape = tuple(g.size for g in task.grids.values())
     mesh = np.meshgrid(*task.grids.values(), indexing="ij")
-    values = {k: m.ravel() for k, m in zip(names, mesh, strict=True)}
+    values = {k: m.ravel() for k, m in zip(task.grids, mesh, strict=True)}
     P, t_tr, t_seg, n_seg, tries, method, nu, q = cell_rows(task.base, values, task.settings)
     n = P.shape[0]
-    stats = np.empty((n, N_STATS))
-    status = np.empty(n, dtype=np.int64)
-    period = np.empty(n, dtype=np.int64)
-    for m in np.unique(method):
-        idx = np.flatnonzero(method == m)
-        st, sta, per = run_cells(P[idx], t_tr[idx], t_seg[idx], n_seg[idx], tries[idx],
-                                 task.settings, int(m), n_threads)
-        stats[idx], status[idx], period[idx] = st, sta, per
-    labels = classify(stats[:, ST_N_STICK], stats[:, ST_STICK_TIME], stats[:, ST_N_REVERSAL],
-                      nu, q, period, status)
-    out = variables_from_stats(stats, period, status, np.asarray(labels))
-    return task.index, {k: v.reshape(shape) for k, v in out.items()}
+    stats = np.full((n, N_STATS), np.nan)
+    status = np.full(n, STATUS_NOT_RUN, dtype=np.int64)
+    period = np.zeros(n, dtype=np.int64)
+    todo = np.ones(n, dtype=bool) if task.todo is None else task.todo
+    stopped = None
+    for m in np.unique(method[todo]):
+        idx = np.flatnonzero(todo & (method == m))
+        try:
+            out = run_cells(P[idx], t_tr[idx], t_seg[idx], n_seg[idx], tries[idx],
+                            task.settings, int(m), n_threads, stop_requested)
+        except SweepInterrupted as stop:
+            stopped, out = stop, stop.results
+        stats[idx], status[idx], period[idx] = out
+        if stopped is not None or np.any(out[1] == STATUS_NOT_RUN):
+            break
+    labels = np.asarray(classify(stats[:, ST_N_STICK], stats[:, ST_STICK_TIME],
+                                 stats[:, ST_N_REVERSAL], nu, q, period, status,
+                                 stats[:, ST_N_SLIP]))
+    labels[status == STATUS_NOT_RUN] = NOT_COMPUTED
+    variables = variables_from_stats(stats, period, status, labels)
+    result = task.index, {k: v.reshape(shape) for k, v in variables.items()}
+    if stopped is not None:
+        stopped.results = result
+        raise stopped
+    return result
 
 
 def variables_from_stats(stats: np.ndarray, period: np.ndarray, status: np.ndarray,

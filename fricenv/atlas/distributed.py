@@ -37,6 +37,10 @@ IN_FLIGHT_PER_THREAD = 2
 PLUGIN_NAME = "fricenv-atlas-warm"
 #: Prefix of the tasks' keys: the dashboard groups the chunks under it.
 KEY_PREFIX = "fricenv-atlas-chunk"
+#: Longest a stopped run waits for its running chunks to hand back their finished cells
+#: (they stop within a poll of the stop event, ``fricenv.calls.JOIN_POLL``, and a few
+#: hundred kernel steps; the rest is the trip back from the worker).
+STOP_WAIT_S = 10.0
 
 
 def warm_kernels() -> None:
@@ -71,9 +75,18 @@ def _worker_threads() -> int:
     return max(1, min(int(n), config.NUMBA_NUM_THREADS))
 
 
-def run_chunk(task: ChunkTask) -> tuple[tuple[int, ...], dict[str, np.ndarray]]:
-    """The task a worker runs: one chunk."""
-    return compute_chunk(task, _worker_threads())
+def run_chunk(task: ChunkTask, stop_event: str | None = None
+              ) -> tuple[tuple[int, ...], dict[str, np.ndarray]]:
+    """The task a worker runs: one chunk. With ``stop_event`` (a ``distributed.Event``'s
+    name) the chunk stops once the client sets that event, and returns the cells finished
+    so far (the others at their fill values)."""
+    stop_requested = None
+    if stop_event is not None:
+        from distributed import Event
+
+        event = Event(stop_event)
+        stop_requested = event.is_set
+    return compute_chunk(task, _worker_threads(), stop_requested)
 
 
 def _has_plugin(dask_scheduler: object) -> bool:
@@ -95,45 +108,82 @@ def total_threads(client: Client) -> int:
     return max(1, sum(client.nthreads().values()))
 
 
-def run_distributed(client: Client, tasks: Sequence[ChunkTask],
-                    stats: dict | None = None
-                    ) -> Iterator[tuple[tuple[int, ...], dict[str, np.ndarray]]]:
-    """Yield each chunk's ``(index, variables)`` as its task completes. At most
-    ``IN_FLIGHT_PER_THREAD`` tasks per worker thread are submitted at once; a result is
-    released once yielded. ``stats``, if given, gets ``max_in_flight``: the most futures
-    held at once (a check that the client's memory is bounded)."""
-    ensure_warm_workers(client)
-    window = IN_FLIGHT_PER_THREAD * total_threads(client) + 1
-    run_id = uuid.uuid4().hex
-    todo = iter(tasks)
-    pending: set = set()
+class DistributedRun:
+    """The chunks of an atlas on a cluster, iterated as ``(index, variables)`` in the order
+    they complete.
 
-    def submit(task: ChunkTask) -> None:
-        key = f"{KEY_PREFIX}-{run_id}-{'.'.join(map(str, task.index))}"
-        fut = client.submit(run_chunk, task, key=key, pure=False)
-        pending.add(fut)
-        queue.add(fut)
+    At most ``IN_FLIGHT_PER_THREAD`` tasks per worker thread are submitted at once, and a
+    result is released once yielded. ``stats``, if given, gets ``max_in_flight``: the most
+    futures held at once (a check that the client's memory is bounded). :meth:`stop` ends
+    the run early and hands back what its running chunks had finished.
+    """
 
-    queue = as_completed([])
-    try:
-        for task in todo:
-            submit(task)
-            if len(pending) >= window:
-                break
-        if stats is not None:
-            stats["max_in_flight"] = max(stats.get("max_in_flight", 0), len(pending))
-        for fut in queue:
-            result = fut.result()
-            pending.discard(fut)
-            fut.release()
-            nxt = next(todo, None)
-            if nxt is not None:
-                submit(nxt)
-            if stats is not None:
-                stats["max_in_flight"] = max(stats.get("max_in_flight", 0),
-                                             len(pending) + 1)
-            yield result
-            del result
-    finally:
-        if pending:  # stopped early (an error, Ctrl-C, the caller closed us): cancel
-            client.cancel(list(pending))
+    def __init__(self, client: Client, tasks: Sequence[ChunkTask], stats: dict | None = None
+                 ) -> None:
+        ensure_warm_workers(client)
+        self.client = client
+        self.stats = stats
+        self.window = IN_FLIGHT_PER_THREAD * total_threads(client) + 1
+        self.run_id = uuid.uuid4().hex
+        self.stop_event = f"{KEY_PREFIX}-stop-{self.run_id}"
+        self.todo = iter(tasks)
+        self.pending: set = set()
+        self.queue = as_completed([])
+
+    def _submit(self, task: ChunkTask) -> None:
+        key = f"{KEY_PREFIX}-{self.run_id}-{'.'.join(map(str, task.index))}"
+        fut = self.client.submit(run_chunk, task, self.stop_event, key=key, pure=False)
+        self.pending.add(fut)
+        self.queue.add(fut)
+
+    def _note_in_flight(self, extra: int = 0) -> None:
+        if self.stats is not None:
+            self.stats["max_in_flight"] = max(self.stats.get("max_in_flight", 0),
+                                              len(self.pending) + extra)
+
+    def __iter__(self) -> Iterator[tuple[tuple[int, ...], dict[str, np.ndarray]]]:
+        try:
+            for task in self.todo:
+                self._submit(task)
+                if len(self.pending) >= self.window:
+                    break
+            self._note_in_flight()
+            for fut in self.queue:
+                result = fut.result()
+                self.pending.discard(fut)
+                fut.release()
+                nxt = next(self.todo, None)
+                if nxt is not None:
+                    self._submit(nxt)
+                self._note_in_flight(1)
+                yield result
+                del result
+        finally:
+            self.cancel()
+
+    def stop(self) -> list[tuple[tuple[int, ...], dict[str, np.ndarray]]]:
+        """Stop the run: no new chunk starts, the running ones stop within about a
+        second and their finished cells come back (chunks that have not started are
+        cancelled). Waits at most ``STOP_WAIT_S`` for them."""
+        from distributed import Event, wait
+
+        self.todo = iter(())
+        running = list(self.pending)
+        if not running:
+            return []
+        Event(self.stop_event, client=self.client).set()
+        done, _ = wait(running, timeout=STOP_WAIT_S)
+        results = [f.result() for f in done if f.status == "finished"]
+        self.cancel()
+        return results
+
+    def cancel(self) -> None:
+        if self.pending:  # stopped early (an error, Ctrl-C, the caller closed us)
+            self.client.cancel(list(self.pending))
+            self.pending.clear()
+
+
+def run_distributed(client: Client, tasks: Sequence[ChunkTask], stats: dict | None = None
+                    ) -> DistributedRun:
+    """The chunks ``tasks`` on ``client``'s workers (see :class:`DistributedRun`)."""
+    return DistributedRun(client, tasks, stats)

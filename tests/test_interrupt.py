@@ -1,0 +1,155 @@
+"""Ctrl-C and SIGTERM stop every kind of sweep within about a second, keeping each cell
+finished before the signal; a resumed run computes only the rest and equals an
+uninterrupted one bit for bit.
+
+Each sweep runs in a child process that warms its kernels, prints ``ready``, starts a
+sweep of one chunk (so that the signal lands inside a chunk, where nothing was kept
+before) and gets the signal a moment later.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import fricenv
+from fricenv.calls import SweepInterrupted
+from fricenv.cells import STATUS_NOT_RUN
+from fricenv.maps import NOT_COMPUTED
+
+ROOT = Path(__file__).resolve().parents[1]
+#: Longest a signal may take to stop the sweep, its saving included (seconds, on a busy
+#: machine; well under one on a quiet one).
+STOP_S = 5.0
+#: Time allowed the child, numba compilation from a cold cache included.
+CHILD_TIMEOUT_S = 600.0
+#: How long after ``ready`` the signal is sent: cells have finished, the sweep has not.
+SIGNAL_AFTER_S = 1.0
+N = 24
+U0 = np.geomspace(0.5, 50.0, N)
+NU = np.linspace(0.3, 2.7, N)
+SETTINGS = fricenv.SweepSettings(window_min=1000.0)
+
+_CHILD = """
+import sys, time
+import numpy as np
+import fricenv
+from fricenv.calls import SweepInterrupted
+
+kind, path = sys.argv[1], sys.argv[2]
+settings = fricenv.SweepSettings(window_min=1000.0)
+u0, nu = np.geomspace(0.5, 50.0, {n}), np.linspace(0.3, 2.7, {n})
+fricenv.cell_statistics([fricenv.OscillatorParams.preset("stribeck")], settings)  # warm
+print("ready", flush=True)
+try:
+    if kind == "map":
+        fricenv.regime_map("stribeck", u0, nu, settings=settings, path=path,
+                           chunk_size=u0.size * nu.size, progress=False)
+    elif kind == "atlas":
+        fricenv.atlas("stribeck", {{"u0": u0, "nu": nu}}, path=path, settings=settings,
+                      chunks=u0.size * nu.size, progress=False)
+    else:
+        base = fricenv.OscillatorParams.preset("stribeck")
+        cells = [base.replace(u0=float(a), nu=float(b)) for a in u0 for b in nu]
+        try:
+            fricenv.cell_statistics(cells, settings)
+        except SweepInterrupted as stop:
+            np.savez(path, *stop.results)
+            raise
+finally:
+    print("stopped", time.perf_counter(), flush=True)
+"""
+
+
+def _interrupted_child(kind: str, path: Path, signum: int) -> tuple[float, int]:
+    """Run the sweep ``kind`` in a child, send it ``signum`` once it is sweeping; the
+    seconds from the signal until the exception reached the child's own code (the sweep
+    stopped and its cells saved), and the child's return code."""
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    child = subprocess.Popen([sys.executable, "-c", _CHILD.format(n=N), kind, str(path)],
+                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                             env=env, cwd=ROOT)
+    try:
+        assert child.stdout is not None and child.stderr is not None
+        line = child.stdout.readline().strip()
+        assert line == "ready", child.stderr.read()
+        time.sleep(SIGNAL_AFTER_S)
+        sent = time.perf_counter()
+        child.send_signal(signum)
+        child.wait(timeout=CHILD_TIMEOUT_S)
+        out, err = child.stdout.read(), child.stderr.read()
+    finally:
+        child.kill()
+    assert out.startswith("stopped "), err[-2000:]
+    latency = float(out.split()[1]) - sent  # perf_counter is system-wide on Linux
+    assert "KeyboardInterrupt" in err or "SweepInterrupted" in err, err[-2000:]
+    print(f"\n[{kind}, {signal.Signals(signum).name}] stopped in {latency:.3f} s")
+    return latency, child.returncode
+
+
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM])
+def test_a_stopped_regime_map_keeps_its_finished_cells(tmp_path, signum) -> None:
+    path = tmp_path / "m.npz"
+    latency, code = _interrupted_child("map", path, signum)
+    assert latency <= STOP_S and code != 0
+    kept = fricenv.RegimeMap.load(path)
+    assert 0 < kept.done.sum() < N * N, "the signal came before any cell or after all"
+    assert np.all(kept.labels[~kept.done] == NOT_COMPUTED)
+    full = fricenv.regime_map("stribeck", U0, NU, settings=SETTINGS, progress=False)
+    for name in ("labels", "stats", "period", "status"):  # the kept cells as they are
+        np.testing.assert_array_equal(getattr(kept, name)[kept.done],
+                                      getattr(full, name)[kept.done])
+    ran = []
+    resumed = fricenv.regime_map("stribeck", U0, NU, settings=SETTINGS, path=path,
+                                 progress=False, callback=lambda m, n: ran.append(n))
+    assert sum(ran) == N * N - kept.done.sum()  # only the rest
+    for name in ("labels", "stats", "period", "status", "done"):
+        np.testing.assert_array_equal(getattr(resumed, name), getattr(full, name))
+
+
+def test_stopped_cell_statistics_hand_back_their_finished_cells(tmp_path) -> None:
+    path = tmp_path / "cells.npz"
+    latency, _ = _interrupted_child("cells", path, signal.SIGINT)
+    assert latency <= STOP_S
+    with np.load(path) as f:
+        labels, stats, period, status = (f[f"arr_{i}"] for i in range(4))
+    done = status != STATUS_NOT_RUN
+    assert 0 < done.sum() < N * N
+    assert np.all(labels[~done] == NOT_COMPUTED) and np.all(np.isnan(stats[~done]))
+    base = fricenv.OscillatorParams.preset("stribeck")
+    cells = [base.replace(u0=float(a), nu=float(b)) for a in U0 for b in NU]
+    full = fricenv.cell_statistics([c for c, d in zip(cells, done, strict=True) if d],
+                                   SETTINGS)
+    for kept, whole in zip((labels, stats, period, status), full, strict=True):
+        np.testing.assert_array_equal(kept[done], whole)
+
+
+def test_sweep_interrupted_is_a_keyboard_interrupt() -> None:
+    stop = SweepInterrupted((1, 2), signal.SIGTERM)
+    assert isinstance(stop, KeyboardInterrupt) and stop.results == (1, 2)
+    assert "SIGTERM" in str(stop)
+
+
+def test_stop_requested_returns_the_finished_cells_and_marks_the_rest() -> None:
+    """``run_cells``' stop_requested: a stop asked for at once leaves every cell unrun,
+    a request never made changes nothing."""
+    from fricenv.cells import plan_cells, run_cells
+    from fricenv.layout import METHOD_EVENT
+
+    base = fricenv.OscillatorParams.preset("stribeck")
+    plan = plan_cells(base, NU[:4], SETTINGS)
+    P = np.repeat(base.to_array()[None], 4, axis=0)
+    P[:, 9] = plan.nu_exact * P[:, 8]
+    spans = (plan.t_transient, plan.t_segment, plan.n_segment, plan.tries)
+    stats, status, period = run_cells(P, *spans, SETTINGS, METHOD_EVENT,
+                                      stop_requested=lambda: False)
+    assert np.all(status != STATUS_NOT_RUN)
+    again = run_cells(P, *spans, SETTINGS, METHOD_EVENT)
+    np.testing.assert_array_equal(again[0], stats)
