@@ -281,7 +281,6 @@ from .stick import (  # noqa: F401
     _stick_trial,
 )
 from .taylor import (  # noqa: F401
-    _SUMS,
     _dense_bounds,
     _dense_v,
     _dense_x,

@@ -25,11 +25,6 @@ def taylor_order(rtol):
     n = int(math.ceil(1.0 - 0.5 * math.log(max(rtol, TINY))))
     return min(TAYLOR_MAX_ORDER, max(6, n))
 
-# The series' sums may be reassociated (split into parallel partial sums): that shortens
-# their dependency chains several-fold, and the result is still deterministic for a given
-# build, only not the left-to-right rounding.
-_SUMS = {"reassoc", "contract"}
-
 @kernel
 def _taylor_coeffs(cx, sd, x0, v0, rtol, atol):
     """Taylor coefficients of x and v at the step start (tone cos/sin in cx[C_CP1..]), to
@@ -113,10 +108,14 @@ def _taylor_coeffs(cx, sd, x0, v0, rtol, atol):
         lh = min(lh, (le - math.log(last)) * _INV[n])
     return math.exp(lh - 0.7 * _INV[n - 1])
 
-@kernel(fastmath=_SUMS)
+@kernel
 def _taylor_vr2(cx, tau):
     """Integral of (v - V)^2 over [0, tau] of the current Taylor step, exactly:
-    tau * sum_ij z_i z_j / (i + j + 1) with z_i = w_i tau^i."""
+    tau * sum_ij z_i z_j / (i + j + 1) with z_i = w_i tau^i.
+
+    Summed in a fixed order, without fast-math reassociation: a reassociated sum is split
+    into as many partial sums as the CPU's vectors hold, so its last bit differed between
+    an AVX2 and an AVX-512 machine."""
     n = int(cx[C_TN])
     z = cx[C_TQ:C_TQ + n + 1]
     s = 1.0
