@@ -413,7 +413,7 @@ def _stored_spec_mismatch(stored: StoreCheck, spec: AtlasSpec, chunks_given: boo
     for name, grid in spec.axes.items():
         was = old.axes[name]
         if was.shape != grid.shape:
-            return f"its {name} grid has {was.size} values, not {grid.size}"
+            return f"its {name} grid differs: it has {was.size} values, not {grid.size}"
         differ = np.flatnonzero(was != grid)
         if differ.size:
             k = int(differ[0])
