@@ -418,8 +418,8 @@ def _stored_spec_mismatch(stored: StoreCheck, spec: AtlasSpec, chunks_given: boo
         if differ.size:
             k = int(differ[0])
             return (f"its {name} grid differs: first at index {k}, stored "
-                    f"{float(was[k])!r}, given {float(grid[k])!r} ({differ.size} values "
-                    "differ)")
+                    f"{float(was[k])!r}, given {float(grid[k])!r} ({differ.size} of "
+                    f"{grid.size} values differ)")
     if chunks_given and old.chunks != spec.chunks:
         return f"its chunks are {old.chunks}, not {spec.chunks}"
     return None
