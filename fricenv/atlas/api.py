@@ -57,8 +57,10 @@ def atlas(base: OscillatorParams | str, axes: Mapping[str, object],
     measures it (same transient, window, periodicity test and label), bit for bit.
 
     ``path``: a Zarr store (a folder) that chunks stream into as they finish; run again
-    with the same arguments, only the missing chunks are computed; a store of another
-    atlas raises ``ValueError``. ``client``: a ``dask.distributed.Client`` whose workers
+    with the same arguments, only the missing or damaged chunks are computed (every chunk
+    carries a checksum); a store of another atlas, or with damaged metadata, raises
+    ``ValueError``, and a store that another run is writing raises
+    :class:`~fricenv.MapInUseError`. ``client``: a ``dask.distributed.Client`` whose workers
     run the chunks (None: this machine's numba threads). ``chunks``: cells per chunk (an
     int), or chunk lengths per axis (a mapping or a tuple); default about 32 chunks per
     thread, 256 to 16384 cells each, or the store's when resuming. ``settings``: as for
