@@ -305,7 +305,6 @@ class StoreCheck:
     path: Path
     group: zarr.Group
     spec: AtlasSpec  # as stored
-    algorithm: int
     complete: set[tuple[int, ...]]  # every variable's chunk there and intact
     damaged: list[tuple[tuple[int, ...], str, str]]  # (chunk, variable, what is wrong)
 
@@ -362,7 +361,7 @@ def check_store(path: Path, mode: Literal["r", "r+"] = "r") -> StoreCheck:
                                  f"{shape}")
     spec = AtlasSpec(base, axes, settings, tuple(arrays["label"].chunks))
     complete, damaged = _check_chunks(path, spec)
-    return StoreCheck(path, group, spec, int(attrs.get("algorithm", -1)), complete, damaged)
+    return StoreCheck(path, group, spec, complete, damaged)
 
 
 def _check_chunks(path: Path, spec: AtlasSpec
