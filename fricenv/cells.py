@@ -58,7 +58,7 @@ from .params import (
     PARAM_LIMIT,
     OscillatorParams,
 )
-from .regimes import exact_rational, rational_denominator
+from .regimes import exact_rationals, rational_denominators
 from .simulate import check_scan_steps
 
 #: Most stroboscopic samples a cell keeps (two float64 each): ample for any sensible window
@@ -188,10 +188,10 @@ def modulation_period(eta: float, nu: np.ndarray, cap: float) -> np.ndarray:
 def plan_cells(params: OscillatorParams, nu: np.ndarray, settings: SweepSettings) -> CellPlan:
     """Transient, window and stroboscopic segments for each nu (module docstring)."""
     nu = np.asarray(nu, dtype=float)
-    q = np.array([rational_denominator(float(n), settings.q_max) for n in nu], dtype=np.int64)
+    q = rational_denominators(nu, settings.q_max)
     if settings.n_strobe < 2 * max(settings.m_max, 1) + 1:
         q[:] = 0  # too few samples to test any period: do not pretend
-    nu_exact = np.array([exact_rational(float(n), int(k)) for n, k in zip(nu, q, strict=True)])
+    nu_exact = exact_rationals(nu, q)
     t1 = 2.0 * math.pi / params.eta
     t_mod = modulation_period(params.eta, nu_exact, settings.modulation_cap)
     lam_eff = params.lam - params.b1  # damping of slip near v = V (b1 pumps energy in)

@@ -12,6 +12,7 @@ import numpy as np
 import xarray as xr
 
 from ..checks import check_bool, got
+from ..mapfile import writer_lock
 from ..params import OscillatorParams
 from ..sweep import SweepSettings
 from .core import AtlasSpec, chunk_slices, chunk_tasks, empty_variables, make_spec, run_local
@@ -19,10 +20,8 @@ from .store import (
     ZarrSink,
     check_store_path,
     create_store,
-    done_chunks,
     open_atlas,
     open_for_resume,
-    remove_partial_writes,
     to_dataset,
 )
 
@@ -58,8 +57,10 @@ def atlas(base: OscillatorParams | str, axes: Mapping[str, object],
     measures it (same transient, window, periodicity test and label), bit for bit.
 
     ``path``: a Zarr store (a folder) that chunks stream into as they finish; run again
-    with the same arguments, only the missing chunks are computed; a store of another
-    atlas raises ``ValueError``. ``client``: a ``dask.distributed.Client`` whose workers
+    with the same arguments, only the missing or damaged chunks are computed (every chunk
+    carries a checksum); a store of another atlas, or with damaged metadata, raises
+    ``ValueError``, and a store that another run is writing raises
+    :class:`~fricenv.MapInUseError`. ``client``: a ``dask.distributed.Client`` whose workers
     run the chunks (None: this machine's numba threads). ``chunks``: cells per chunk (an
     int), or chunk lengths per axis (a mapping or a tuple); default about 32 chunks per
     thread, 256 to 16384 cells each, or the store's when resuming. ``settings``: as for
@@ -75,28 +76,28 @@ def atlas(base: OscillatorParams | str, axes: Mapping[str, object],
     _check_client(client)
     store = None if path is None else check_store_path(path)
     spec = make_spec(base, axes, settings, chunks, _executor_threads(client))
-    todo = None
-    sink = arrays = None
-    if store is not None:
+    if store is None:
+        arrays = empty_variables(spec.shape)
+        _compute(spec, client, None, arrays, None, progress)
+        return to_dataset(spec, arrays)
+    with writer_lock(store):  # one writer per store (MapInUseError), as for regime maps
         if store.exists():
-            group, stored_chunks = open_for_resume(store, spec, chunks is not None)
+            group, stored_chunks, todo = open_for_resume(store, spec, chunks is not None)
             spec = replace(spec, chunks=stored_chunks)
-            remove_partial_writes(store)
-            done = done_chunks(store, len(spec.shape))
-            todo = [i for i in np.ndindex(*spec.chunk_grid) if i not in done]
         else:
             create_store(store, spec)
-            group, _ = open_for_resume(store, spec, True)
-        sink = ZarrSink(group)
-    else:
-        arrays = empty_variables(spec.shape)
+            group, todo = open_for_resume(store, spec, True)[0], None
+        _compute(spec, client, ZarrSink(store, group), None, todo, progress)
+    return open_atlas(store)
+
+
+def _compute(spec: AtlasSpec, client: Any, sink: ZarrSink | None,
+             arrays: dict[str, np.ndarray] | None, todo: list[tuple[int, ...]] | None,
+             progress: bool) -> None:
+    """Run the chunks ``todo`` (None: all) into the store's ``sink`` or into ``arrays``."""
     tasks = chunk_tasks(spec, todo)
     results = run_local(tasks) if client is None else _distributed(client, tasks)
     _drain(spec, results, sink, arrays, progress, sum(_cells(spec, t.slices) for t in tasks))
-    if store is not None:
-        return open_atlas(store)
-    assert arrays is not None  # (filled in memory when there is no store)
-    return to_dataset(spec, arrays)
 
 
 def _distributed(client: Any, tasks: list) -> Iterator:

@@ -8,10 +8,19 @@ need no shared file system.
 
 Crash safety: a store is created in a temporary folder and renamed into place, so it
 either exists whole or not at all; Zarr writes each chunk file atomically (temporary file,
-then rename), and a chunk's ``label`` is written after its other variables, so a stored
-label marks a complete chunk. A run killed at any moment (SIGKILL included) thus loses only
-the chunks in flight, and the next run with the same arguments computes just the chunks
-whose label is missing.
+then rename), every chunk file is written (fill values included), and a chunk's ``label``
+is written after its other variables. A chunk is complete when every variable's file is
+there and matches its checksum. A run killed at any moment (SIGKILL included) thus loses
+only the chunks in flight, and the next run with the same arguments computes just the
+chunks not complete.
+
+Integrity: each chunk file ends in a CRC-32C of its compressed bytes (Zarr's ``crc32c``
+codec), and the group's attributes hold a CRC-32C of every metadata document. Opening or
+resuming a store checks all of them first (reading each file once, without decompressing
+it), so that damage is a ``ValueError`` naming the store and the array or chunk, or, when
+resuming, a chunk computed again: a flipped bit never reads as a changed value. One run
+writes a store at a time: it holds the OS lock of ``<store>.lock``, beside the store
+(:func:`fricenv.mapfile.writer_lock`).
 """
 
 from __future__ import annotations
@@ -20,13 +29,18 @@ import json
 import os
 import re
 import shutil
-from dataclasses import asdict, fields
+import warnings
+from collections.abc import Sequence
+from dataclasses import asdict, dataclass, fields, replace
 from pathlib import Path
 from typing import Any, Literal
 
+import google_crc32c
 import numpy as np
 import xarray as xr
 import zarr
+from zarr.codecs import Crc32cCodec, ZstdCodec
+from zarr.core.array_spec import ArrayConfig
 
 from .. import __version__
 from ..checks import check_path, got
@@ -36,9 +50,24 @@ from ..sweep import ALGORITHM, NOT_COMPUTED, RegimeMap, SweepSettings, plan_cell
 from .core import STATUS_NOT_RUN, VARIABLES, AtlasSpec, variables_from_stats
 
 FORMAT = "fricenv.atlas"
-FORMAT_VERSION = 1
+#: Version 2: chunks carry checksums, metadata documents have theirs in the group's
+#: attributes, and every chunk file is written (fill values included).
+FORMAT_VERSION = 2
 #: Where the chunk files of an array live in a format-3 store (default chunk key encoding).
 _CHUNK_DIR = "c"
+#: A Zarr node's metadata document.
+_META = "zarr.json"
+#: Group attribute holding the CRC-32C of each metadata document (a JSON object by array
+#: name; "" is the group's own, without this attribute).
+_CHECKSUMS = "metadata_checksums"
+#: Zarr's default compressor, then a CRC-32C of the compressed bytes: any damage to a
+#: chunk file fails the checksum before anything is decompressed.
+_COMPRESSORS = (ZstdCodec(level=0, checksum=False), Crc32cCodec())
+#: Write chunks holding only fill values too: a chunk file missing is a chunk not written.
+_WRITE_EMPTY = ArrayConfig(order="C", write_empty_chunks=True)
+#: States of a chunk file (see _chunk_state).
+_MISSING = "is missing"
+_BAD_SUM = "does not match its checksum"
 
 _DESCRIPTIONS = {
     "stick_fraction": "share of the measurement window spent stuck",
@@ -126,105 +155,299 @@ def check_store_path(path: object) -> Path:
     return p
 
 
+def _digest(meta: Any) -> str:
+    """CRC-32C of a metadata document in canonical form (sorted keys, no spaces), so that
+    only a change of content, never of layout, changes it."""
+    text = json.dumps(meta, sort_keys=True, separators=(",", ":"))
+    return f"{google_crc32c.value(text.encode()):08x}"
+
+
+def _group_meta(meta: dict) -> dict:
+    """The group's metadata as its checksum covers it: without the checksums themselves."""
+    attrs = {k: v for k, v in meta.get("attributes", {}).items() if k != _CHECKSUMS}
+    return {**meta, "attributes": attrs}
+
+
+def _array_names(axes: Sequence[str]) -> list[str]:
+    return [*axes, "q", *VARIABLES]
+
+
 def create_store(path: Path, spec: AtlasSpec) -> None:
-    """Write an empty store for ``spec`` at ``path`` (built beside it, then renamed)."""
+    """Write an empty store for ``spec`` at ``path`` (built beside it, then renamed).
+
+    Every array's chunks end in a CRC-32C (codec ``crc32c`` after ``zstd``), every chunk
+    file is written even when it holds only fill values (so a missing file is a chunk not
+    written), and the group records a checksum of each array's metadata and of its own.
+    """
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(f".{path.name}.creating-{os.getpid()}")
     shutil.rmtree(tmp, ignore_errors=True)
+    kw: dict[str, Any] = {"compressors": _COMPRESSORS, "config": _WRITE_EMPTY}
     try:
         group = zarr.open_group(tmp, mode="w-", zarr_format=3, attributes=dataset_attrs(spec))
         for name, grid in spec.axes.items():
             a = group.create_array(name, shape=grid.shape, dtype="float64", chunks=grid.shape,
-                                   dimension_names=[name])
+                                   dimension_names=[name], **kw)
             a[...] = grid
         qdims, q, _ = _q(spec)
         a = group.create_array("q", shape=np.shape(q), dtype="int16", dimension_names=qdims,
-                               chunks=np.shape(q), attributes=_Q_ATTRS)
+                               chunks=np.shape(q), attributes=_Q_ATTRS, **kw)
         a[...] = q
         for name, (dtype, fill) in VARIABLES.items():
             group.create_array(name, shape=spec.shape, dtype=dtype, chunks=spec.chunks,
                                fill_value=fill, dimension_names=list(spec.names),
-                               attributes={**variable_attrs(name), "coordinates": "q"})
+                               attributes={**variable_attrs(name), "coordinates": "q"}, **kw)
+        sums = {name: _digest(json.loads((tmp / name / _META).read_bytes()))
+                for name in _array_names(spec.names)}
+        sums[""] = _digest(_group_meta(json.loads((tmp / _META).read_bytes())))
+        group.attrs[_CHECKSUMS] = json.dumps(sums, sort_keys=True)
         os.rename(tmp, path)  # fails if a store appeared meanwhile: nothing is overwritten
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
 
 
-def _array(group: zarr.Group, name: str) -> zarr.Array:
-    """The array ``name`` of an atlas store (a group there means a damaged store)."""
-    a = group[name]
-    if not isinstance(a, zarr.Array):
-        raise ValueError(f"the atlas store's {name!r} is a group, not an array")
-    return a
+def _damaged(path: Path, what: str) -> ValueError:
+    """The error for a store whose contents fail a check (raise it ``from`` the cause)."""
+    return ValueError(f"{path} is a damaged atlas store: {what}; remove it and run the "
+                      "atlas again, or restore it from a copy")
 
 
-def _open_group(path: Path, mode: Literal["r", "r+"] = "r+") -> zarr.Group:
-    """``path``'s store, or ``ValueError`` naming it if it is no fricenv atlas."""
+def _read_meta(path: Path, name: str) -> dict:
+    """The metadata document (``zarr.json``) of the array ``name`` ('': the group)."""
+    rel = f"{name}/{_META}" if name else _META
+    what = f"the metadata of array {name!r}" if name else "the group's metadata"
     try:
-        group = zarr.open_group(path, mode=mode)
-    except Exception as exc:  # (zarr raises several kinds for a folder it cannot read)
-        raise ValueError(f"{path} is not a fricenv atlas store ({exc})") from None
-    attrs = dict(group.attrs)
-    if attrs.get("format") != FORMAT or attrs.get("format_version") != FORMAT_VERSION:
+        meta = json.loads((path / rel).read_bytes())
+    except FileNotFoundError as exc:
+        if not name:
+            raise ValueError(f"{path} is not a fricenv atlas store (no {_META})") from exc
+        raise _damaged(path, f"{what} ({rel}) is missing") from exc
+    except (OSError, ValueError) as exc:  # (JSONDecodeError, UnicodeDecodeError)
+        raise _damaged(path, f"{what} ({rel}) cannot be read: {type(exc).__name__}: "
+                             f"{exc}") from exc
+    if not isinstance(meta, dict) or not isinstance(meta.get("attributes", {}), dict):
+        raise _damaged(path, f"{what} ({rel}) is not a metadata document")
+    return meta
+
+
+def _check_format(path: Path, attrs: dict) -> None:
+    if attrs.get("format") != FORMAT:
         raise ValueError(f"{path} is not a fricenv atlas store (format "
                          f"{attrs.get('format')!r} version {attrs.get('format_version')!r})")
-    return group
+    version = attrs.get("format_version")
+    if version == 1:
+        raise ValueError(f"{path} is a fricenv atlas store of format version 1, whose chunks "
+                         f"carry no checksums; this fricenv reads version {FORMAT_VERSION} "
+                         "only: remove it and run the atlas again (xarray.open_zarr still "
+                         "reads it, unchecked)")
+    if version != FORMAT_VERSION:
+        raise ValueError(f"{path} is a fricenv atlas store of format version {version!r}; "
+                         f"this fricenv reads version {FORMAT_VERSION}")
 
 
-def _stored_spec_mismatch(group: zarr.Group, spec: AtlasSpec, chunks_given: bool
-                          ) -> str | None:
-    """What differs between the stored atlas and ``spec`` (None: nothing)."""
-    attrs = dict(group.attrs)
+def _check_algorithm(path: Path, attrs: dict) -> None:
     if attrs.get("algorithm") != ALGORITHM:
-        return (f"it was made by measurement code version (ALGORITHM) "
-                f"{attrs.get('algorithm')!r}, this fricenv measures with {ALGORITHM}")
+        raise ValueError(f"{path} holds another atlas: it was made by measurement code "
+                         f"version (ALGORITHM) {attrs.get('algorithm')!r}, this fricenv "
+                         f"measures with {ALGORITHM}; remove it or choose another path")
+
+
+def _check_metadata(path: Path, resuming: bool) -> dict:
+    """The group's attributes, once every metadata document of the store has been read and
+    matched against the checksum recorded for it (``ValueError`` naming the document)."""
+    meta = _read_meta(path, "")
+    attrs = meta.get("attributes", {})
+    _check_format(path, attrs)
+    if resuming:  # (named before the checksums: the algorithm is the likelier reason)
+        _check_algorithm(path, attrs)
     try:
+        sums = json.loads(str(attrs[_CHECKSUMS]))
         axes = json.loads(str(attrs["axes"]))
+        if not (isinstance(sums, dict) and isinstance(axes, list)
+                and all(isinstance(a, str) for a in axes)):
+            raise TypeError("not a mapping and a list of names")
+    except (KeyError, TypeError, ValueError) as exc:
+        raise _damaged(path, f"its attributes {_CHECKSUMS!r} and 'axes' cannot be read "
+                             f"({type(exc).__name__}: {exc})") from exc
+    if sums.get("") != _digest(_group_meta(meta)):
+        raise _damaged(path, f"the group's metadata ({_META}) does not match its checksum")
+    for name in _array_names(axes):
+        if sums.get(name) != _digest(_read_meta(path, name)):
+            raise _damaged(path, f"the metadata of array {name!r} ({name}/{_META}) does not "
+                                 "match its checksum")
+    return attrs
+
+
+def _chunk_file(path: Path, name: str, index: tuple[int, ...]) -> Path:
+    """Where chunk ``index`` of array ``name`` lives (default chunk key encoding)."""
+    return path.joinpath(name, _CHUNK_DIR, *(str(i) for i in index))
+
+
+def _chunk_state(path: Path, name: str, index: tuple[int, ...]) -> str:
+    """'' if the chunk file is there and matches its checksum, else what is wrong. The
+    checksum is read from the file's last 4 bytes, as the ``crc32c`` codec writes it, so
+    no chunk is decompressed."""
+    try:
+        data = _chunk_file(path, name, index).read_bytes()
+    except FileNotFoundError:
+        return _MISSING
+    except OSError as exc:
+        return f"cannot be read ({exc})"
+    if len(data) < 4 or google_crc32c.value(data[:-4]) != int.from_bytes(data[-4:], "little"):
+        return _BAD_SUM
+    return ""
+
+
+@dataclass
+class StoreCheck:
+    """What a store holds, all of it checked: its atlas, and the state of its chunks."""
+
+    path: Path
+    group: zarr.Group
+    spec: AtlasSpec  # as stored
+    complete: set[tuple[int, ...]]  # every variable's chunk there and intact
+    damaged: list[tuple[tuple[int, ...], str, str]]  # (chunk, variable, what is wrong)
+
+    def raise_damage(self) -> None:
+        """``ValueError`` naming the first damaged chunk (and counting the others)."""
+        if self.damaged:
+            index, name, why = self.damaged[0]
+            more = len(self.damaged) - 1
+            raise ValueError(
+                f"{self.path} is a damaged atlas store: chunk {index} of variable {name!r} "
+                f"({_chunk_file(Path(''), name, index)}) {why}"
+                + (f" ({more} more damaged chunk files)" if more else "")
+                + "; run the atlas again with the same arguments to recompute it")
+
+
+def _read_coordinate(path: Path, group: zarr.Group, name: str) -> np.ndarray:
+    """A coordinate array's values, its one chunk checked first."""
+    a = _array(path, group, name)
+    why = _chunk_state(path, name, (0,) * a.ndim)
+    if why:
+        raise _damaged(path, f"the chunk of coordinate {name!r} {why}")
+    try:
+        return np.asarray(a[...])
+    except Exception as exc:  # (a decoding error: codecs raise several kinds)
+        raise _damaged(path, f"coordinate {name!r} cannot be decoded "
+                             f"({type(exc).__name__}: {exc})") from exc
+
+
+def check_store(path: Path, mode: Literal["r", "r+"] = "r") -> StoreCheck:
+    """Open the store at ``path`` and check everything in it: each metadata document
+    against its checksum, each coordinate, and each chunk file of each variable against
+    the checksum at its end. ``ValueError`` naming the store and what is wrong for
+    anything but chunks; the state of the chunks is returned (``mode="r+"``: for a run
+    that resumes, which recomputes damaged chunks instead)."""
+    attrs = _check_metadata(path, resuming=mode == "r+")
+    try:
+        group = zarr.open_group(path, mode=mode)
+    except Exception as exc:  # (zarr raises several kinds for a store it cannot read)
+        raise _damaged(path, f"Zarr cannot open it ({type(exc).__name__}: {exc})") from exc
+    names = json.loads(str(attrs["axes"]))
+    axes = {k: _read_coordinate(path, group, k) for k in names}
+    _read_coordinate(path, group, "q")
+    try:
         base = OscillatorParams(**json.loads(str(attrs["base"])))
         settings = SweepSettings(**json.loads(str(attrs["settings"])))
     except (KeyError, TypeError, ValueError) as exc:
-        return f"its attributes are damaged ({exc!r})"
-    if axes != list(spec.axes):
-        return f"its axes are {axes}, not {list(spec.axes)}"
-    stored = AtlasSpec(base, spec.axes, settings, spec.chunks)
-    if stored.base_key() != spec.base_key():
-        diff = [k for k, v in spec.base_key().items() if stored.base_key()[k] != v]
-        return ", ".join(f"base {k} = {stored.base_key()[k]!r}, not {spec.base_key()[k]!r}"
-                         for k in diff)
-    if settings != spec.settings:
-        a, b = asdict(settings), asdict(spec.settings)
+        raise _damaged(path, f"its attributes 'base' and 'settings' cannot be read "
+                             f"({type(exc).__name__}: {exc})") from exc
+    arrays = {k: _array(path, group, k) for k in VARIABLES}
+    shape = tuple(a.size for a in axes.values())
+    for k, a in arrays.items():
+        if tuple(a.shape) != shape:
+            raise _damaged(path, f"variable {k!r} has shape {tuple(a.shape)}, its axes "
+                                 f"{shape}")
+    spec = AtlasSpec(base, axes, settings, tuple(arrays["label"].chunks))
+    complete, damaged = _check_chunks(path, spec)
+    return StoreCheck(path, group, spec, complete, damaged)
+
+
+def _check_chunks(path: Path, spec: AtlasSpec
+                  ) -> tuple[set[tuple[int, ...]], list[tuple[tuple[int, ...], str, str]]]:
+    """The complete chunks (each variable's file there and intact), and the damaged chunk
+    files: those failing their checksum, and the files missing from a chunk whose label,
+    written last, is there."""
+    complete: set[tuple[int, ...]] = set()
+    damaged = []
+    for index in np.ndindex(*spec.chunk_grid):
+        states = {k: _chunk_state(path, k, index) for k in VARIABLES}
+        if not any(states.values()):
+            complete.add(index)
+            continue
+        label_written = states["label"] != _MISSING
+        for k, why in states.items():
+            if why and (why != _MISSING or label_written):
+                damaged.append((index, k, why))
+    return complete, damaged
+
+
+def _array(path: Path, group: zarr.Group, name: str) -> zarr.Array:
+    """The array ``name`` of an atlas store (``ValueError`` naming it if unreadable)."""
+    try:
+        a = group[name]
+    except Exception as exc:  # (KeyError, or whatever zarr's parsers raise)
+        raise _damaged(path, f"array {name!r} cannot be opened "
+                             f"({type(exc).__name__}: {exc})") from exc
+    if not isinstance(a, zarr.Array):
+        raise _damaged(path, f"{name!r} is a group, not an array")
+    return a
+
+
+def _stored_spec_mismatch(stored: StoreCheck, spec: AtlasSpec, chunks_given: bool
+                          ) -> str | None:
+    """What differs between the stored atlas and ``spec`` (None: nothing)."""
+    old = stored.spec
+    if list(old.axes) != list(spec.axes):
+        return f"its axes are {list(old.axes)}, not {list(spec.axes)}"
+    on_grid = replace(old, axes=spec.axes)
+    if on_grid.base_key() != spec.base_key():
+        a, b = on_grid.base_key(), spec.base_key()
+        return ", ".join(f"base {k} = {a[k]!r}, not {v!r}" for k, v in b.items() if a[k] != v)
+    if old.settings != spec.settings:
+        a, b = asdict(old.settings), asdict(spec.settings)
         return ", ".join(f"setting {f.name} = {a[f.name]!r}, not {b[f.name]!r}"
                          for f in fields(SweepSettings) if a[f.name] != b[f.name])
     for name, grid in spec.axes.items():
-        old = np.asarray(_array(group, name)[...])
-        if old.shape != grid.shape or not np.array_equal(old, grid):
-            return (f"its {name} grid differs ({old.size} values from {float(old.min())!r} "
-                    f"to {float(old.max())!r}; given {grid.size} from "
-                    f"{float(grid.min())!r} to {float(grid.max())!r})")
-    stored_chunks = tuple(_array(group, "label").chunks)
-    if chunks_given and stored_chunks != spec.chunks:
-        return f"its chunks are {stored_chunks}, not {spec.chunks}"
+        was = old.axes[name]
+        if was.shape != grid.shape:
+            return f"its {name} grid differs: it has {was.size} values, not {grid.size}"
+        differ = np.flatnonzero(was != grid)
+        if differ.size:
+            k = int(differ[0])
+            return (f"its {name} grid differs: first at index {k}, stored "
+                    f"{float(was[k])!r}, given {float(grid[k])!r} ({differ.size} of "
+                    f"{grid.size} values differ)")
+    if chunks_given and old.chunks != spec.chunks:
+        return f"its chunks are {old.chunks}, not {spec.chunks}"
     return None
 
 
 def open_for_resume(path: Path, spec: AtlasSpec, chunks_given: bool
-                    ) -> tuple[zarr.Group, tuple[int, ...]]:
-    """The store at ``path`` and its chunk shape, if it holds this atlas; else
-    ``ValueError`` naming what differs."""
-    group = _open_group(path)
-    why = _stored_spec_mismatch(group, spec, chunks_given)
+                    ) -> tuple[zarr.Group, tuple[int, ...], list[tuple[int, ...]]]:
+    """The store at ``path``, its chunk shape and the chunks still to compute (missing or
+    damaged ones, with a warning naming the damage), if it holds this atlas; else
+    ``ValueError`` naming what differs. The caller holds the store's writer lock."""
+    stored = check_store(path, mode="r+")
+    why = _stored_spec_mismatch(stored, spec, chunks_given)
     if why:
         raise ValueError(f"{path} holds another atlas: {why}; remove it or choose "
                          "another path")
-    for k in VARIABLES:
-        if k not in group or tuple(_array(group, k).shape) != spec.shape:
-            raise ValueError(f"{path} is a damaged atlas store: no {k} of shape {spec.shape}")
-    return group, tuple(_array(group, "label").chunks)
+    if stored.damaged:
+        index, name, what = stored.damaged[0]
+        warnings.warn(f"{path}: {len({d[0] for d in stored.damaged})} damaged chunks are "
+                      f"computed again (first: chunk {index} of {name!r} {what})",
+                      stacklevel=3)
+    remove_partial_writes(path)
+    todo = [i for i in np.ndindex(*stored.spec.chunk_grid) if i not in stored.complete]
+    return stored.group, stored.spec.chunks, todo
 
 
 def done_chunks(path: Path, ndim: int) -> set[tuple[int, ...]]:
-    """Indices of the chunks whose label is stored (complete chunks), from the file names
-    (no chunk is read; safe while a run writes)."""
+    """Indices of the chunks whose label is stored, from the file names: a count of the
+    progress (no chunk is read; safe while a run writes). A run that resumes checks every
+    chunk file instead (:func:`check_store`)."""
     root = path / "label" / _CHUNK_DIR
     done: set[tuple[int, ...]] = set()
     if not root.is_dir():
@@ -245,10 +468,12 @@ def remove_partial_writes(path: Path) -> None:
 
 
 class ZarrSink:
-    """Writes chunks into an open store: the label last, as the chunk's completion mark."""
+    """Writes chunks into an open store: the label last, so that a label file whose chunk
+    lacks another variable's file is known to be damage, not a write cut off."""
 
-    def __init__(self, group: zarr.Group) -> None:
-        self.arrays = {k: _array(group, k) for k in VARIABLES}  # (VARIABLES ends with label)
+    def __init__(self, path: Path, group: zarr.Group) -> None:
+        self.arrays = {k: _array(path, group, k).with_config(_WRITE_EMPTY)
+                       for k in VARIABLES}  # (VARIABLES ends with label)
 
     def __call__(self, slices: tuple[slice, ...], values: dict[str, np.ndarray]) -> None:
         for k, arr in self.arrays.items():
@@ -258,13 +483,21 @@ class ZarrSink:
 def open_atlas(path: str | os.PathLike, chunks: Any = None) -> xr.Dataset:
     """Open an atlas: a Zarr store written by :func:`fricenv.atlas` (lazily: cells are
     read when used; ``chunks`` as in ``xarray.open_zarr`` gives Dask arrays instead), or a
-    regime map's ``.npz`` file (converted in memory)."""
+    regime map's ``.npz`` file (converted in memory).
+
+    A store is checked first, whole (metadata, coordinates and every chunk file against
+    its checksum; a few milliseconds per megabyte): ``ValueError`` naming the store and
+    the damaged array or chunk. Chunks of an interrupted run that were never finished
+    read as not computed."""
     p = check_path("path", path)
     if p.suffix == ".npz" or (not p.exists() and p.with_name(p.name + ".npz").exists()):
         return RegimeMap.load(p).to_xarray()
     if not p.exists():
         raise FileNotFoundError(f"no atlas at {str(p)!r}")
-    _open_group(p, mode="r")
+    if not p.is_dir():
+        raise ValueError(f"{p} is not a fricenv atlas store (not a folder)")
+    check_store(p).raise_damage()
     ds = xr.open_zarr(p, consolidated=False, chunks=chunks, mask_and_scale=False,
                       decode_times=False)
+    ds.attrs.pop(_CHECKSUMS, None)
     return ds
