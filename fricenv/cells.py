@@ -15,6 +15,7 @@ from dataclasses import dataclass, fields
 import numba
 import numpy as np
 
+from . import calls
 from .cell_kernels import CELL_KERNELS
 from .checks import (
     check_bounded_real,
@@ -24,7 +25,6 @@ from .checks import (
     got,
     real_array,
 )
-from . import calls
 from .core import (
     MAX_STEPS_PER_CALL,
     MAX_STEPS_PER_TAU,

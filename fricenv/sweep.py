@@ -50,6 +50,7 @@ from pathlib import Path
 import numpy as np
 
 from . import mapfile
+from .calls import SweepInterrupted, sweep_signals
 
 # Cells (settings, plans, the checked parallel run) live in .cells and their kernels in
 # .cell_kernels; their names stay importable from here.
@@ -81,7 +82,6 @@ from .cells import (  # noqa: F401
     plan_cells,
     run_cells,
 )
-from .calls import SweepInterrupted, sweep_signals
 from .checks import (
     check_bool,
     check_dict,

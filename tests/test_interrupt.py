@@ -31,7 +31,7 @@ STOP_S = 5.0
 #: Time allowed the child, numba compilation from a cold cache included.
 CHILD_TIMEOUT_S = 600.0
 #: How long after ``ready`` the signal is sent: cells have finished, the sweep has not.
-SIGNAL_AFTER_S = 1.0
+SIGNAL_AFTER_S = 1.5
 N = 24
 U0 = np.geomspace(0.5, 50.0, N)
 NU = np.linspace(0.3, 2.7, N)
@@ -47,6 +47,8 @@ kind, path = sys.argv[1], sys.argv[2]
 settings = fricenv.SweepSettings(window_min=1000.0)
 u0, nu = np.geomspace(0.5, 50.0, {n}), np.linspace(0.3, 2.7, {n})
 fricenv.cell_statistics([fricenv.OscillatorParams.preset("stribeck")], settings)  # warm
+if kind == "atlas":  # (its first call imports xarray, zarr and Dask)
+    fricenv.atlas("stribeck", {{"u0": u0[:1]}}, settings=settings, progress=False)
 print("ready", flush=True)
 try:
     if kind == "map":
@@ -55,6 +57,17 @@ try:
     elif kind == "atlas":
         fricenv.atlas("stribeck", {{"u0": u0, "nu": nu}}, path=path, settings=settings,
                       chunks=u0.size * nu.size, progress=False)
+    elif kind == "dask":
+        from distributed import Client, LocalCluster
+
+        cluster = LocalCluster(n_workers=1, threads_per_worker=2, processes=True,
+                               dashboard_address=None)
+        client = Client(cluster)
+        fricenv.atlas("stribeck", {{"u0": u0[:1], "nu": nu[:1]}}, client=client,
+                      settings=settings, progress=False)  # the worker's kernels warm
+        print("cluster", flush=True)
+        fricenv.atlas("stribeck", {{"u0": u0, "nu": nu}}, path=path, settings=settings,
+                      chunks=u0.size * nu.size // 2, client=client, progress=False)
     else:
         base = fricenv.OscillatorParams.preset("stribeck")
         cells = [base.replace(u0=float(a), nu=float(b)) for a in u0 for b in nu]
@@ -80,6 +93,9 @@ def _interrupted_child(kind: str, path: Path, signum: int) -> tuple[float, int]:
         assert child.stdout is not None and child.stderr is not None
         line = child.stdout.readline().strip()
         assert line == "ready", child.stderr.read()
+        if kind == "dask":
+            line = child.stdout.readline().strip()
+            assert line == "cluster", child.stderr.read()
         time.sleep(SIGNAL_AFTER_S)
         sent = time.perf_counter()
         child.send_signal(signum)
@@ -153,3 +169,39 @@ def test_stop_requested_returns_the_finished_cells_and_marks_the_rest() -> None:
     assert np.all(status != STATUS_NOT_RUN)
     again = run_cells(P, *spans, SETTINGS, METHOD_EVENT)
     np.testing.assert_array_equal(again[0], stats)
+
+
+@pytest.mark.parametrize("kind", ["atlas", "dask"])
+def test_a_stopped_atlas_keeps_its_finished_cells(tmp_path, monkeypatch, kind) -> None:
+    """Local and Dask atlases: the chunks running at the signal store what they finished
+    (label stored), the rest of them stays not computed, and a resumed run computes the
+    rest only and equals an uninterrupted atlas."""
+    pytest.importorskip("distributed")
+    path = tmp_path / "a.zarr"
+    latency, code = _interrupted_child(kind, path, signal.SIGINT)
+    assert latency <= STOP_S and code != 0
+    kept = fricenv.open_atlas(path).load()
+    done = kept.label.values != NOT_COMPUTED
+    assert 0 < done.sum() < N * N, "the signal came before any cell or after all"
+    assert np.all(kept.status.values[~done] == STATUS_NOT_RUN)
+    axes = {"u0": U0, "nu": NU}
+    full = fricenv.atlas("stribeck", axes, settings=SETTINGS, progress=False)
+    for name in ("label", "stick_fraction", "period", "status"):
+        np.testing.assert_array_equal(kept[name].values[done], full[name].values[done])
+    from fricenv.atlas import core
+
+    ran = []
+    real = core.compute_chunk
+
+    def counting(task, *args):
+        cells = np.prod([g.size for g in task.grids.values()])
+        ran.append(int(cells if task.todo is None else task.todo.sum()))
+        return real(task, *args)
+
+    monkeypatch.setattr(core, "compute_chunk", counting)
+    resumed = fricenv.atlas("stribeck", axes, path=path, settings=SETTINGS,
+                            progress=False).load()
+    assert sum(ran) == N * N - done.sum()  # only the rest
+    import xarray as xr
+
+    xr.testing.assert_identical(resumed, full)

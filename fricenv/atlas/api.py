@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import os
-from collections.abc import Iterator, Mapping
+from collections.abc import Iterable, Mapping
 from dataclasses import replace
 from typing import Any
 
@@ -11,11 +11,22 @@ import numba
 import numpy as np
 import xarray as xr
 
+from ..calls import SweepInterrupted, sweep_signals
+from ..cells import STATUS_NOT_RUN
 from ..checks import check_bool, got
 from ..mapfile import writer_lock
+from ..maps import NOT_COMPUTED
 from ..params import OscillatorParams
 from ..sweep import SweepSettings
-from .core import AtlasSpec, chunk_slices, chunk_tasks, empty_variables, make_spec, run_local
+from .core import (
+    AtlasSpec,
+    ChunkTask,
+    chunk_slices,
+    chunk_tasks,
+    empty_variables,
+    make_spec,
+    run_local,
+)
 from .store import (
     ZarrSink,
     check_store_path,
@@ -78,29 +89,64 @@ def atlas(base: OscillatorParams | str, axes: Mapping[str, object],
     spec = make_spec(base, axes, settings, chunks, _executor_threads(client))
     if store is None:
         arrays = empty_variables(spec.shape)
-        _compute(spec, client, None, arrays, None, progress)
+        with sweep_signals():
+            _compute(spec, client, _ChunkWriter(spec, None, arrays, {}), None, progress)
         return to_dataset(spec, arrays)
-    with writer_lock(store):  # one writer per store (MapInUseError), as for regime maps
+    with writer_lock(store), sweep_signals():  # one writer per store (MapInUseError)
         if store.exists():
-            group, stored_chunks, todo = open_for_resume(store, spec, chunks is not None)
+            group, stored_chunks, todo, part_done = open_for_resume(store, spec,
+                                                                    chunks is not None)
             spec = replace(spec, chunks=stored_chunks)
         else:
             create_store(store, spec)
-            group, todo = open_for_resume(store, spec, True)[0], None
-        _compute(spec, client, ZarrSink(store, group), None, todo, progress)
+            group, todo, part_done = open_for_resume(store, spec, True)[0], None, {}
+        _compute(spec, client, _ChunkWriter(spec, ZarrSink(store, group), None, part_done),
+                 todo, progress)
     return open_atlas(store)
 
 
-def _compute(spec: AtlasSpec, client: Any, sink: ZarrSink | None,
-             arrays: dict[str, np.ndarray] | None, todo: list[tuple[int, ...]] | None,
-             progress: bool) -> None:
-    """Run the chunks ``todo`` (None: all) into the store's ``sink`` or into ``arrays``."""
-    tasks = chunk_tasks(spec, todo)
+class _ChunkWriter:
+    """Stores a chunk's variables in the store's sink or in ``arrays``; a chunk that a
+    stopped run left part done (``part_done``: its stored variables) is merged first, the
+    cells computed now (status not ``STATUS_NOT_RUN``) over the stored ones."""
+
+    def __init__(self, spec: AtlasSpec, sink: ZarrSink | None,
+                 arrays: dict[str, np.ndarray] | None,
+                 part_done: dict[tuple[int, ...], dict[str, np.ndarray]]) -> None:
+        self.spec, self.sink, self.arrays, self.part_done = spec, sink, arrays, part_done
+
+    def __call__(self, index: tuple[int, ...], values: dict[str, np.ndarray]) -> int:
+        """Store the chunk ``index``; the number of cells it brought."""
+        new = values["status"] != STATUS_NOT_RUN
+        if index in self.part_done:
+            old = self.part_done[index]
+            values = {k: np.where(new, v, old[k]) for k, v in values.items()}
+        sl = chunk_slices(self.spec, index)
+        if self.sink is not None:
+            self.sink(sl, values)
+        elif self.arrays is not None:
+            for k, v in values.items():
+                self.arrays[k][sl] = v
+        return int(new.sum())
+
+    def tasks(self, todo: list[tuple[int, ...]] | None) -> list[ChunkTask]:
+        """The chunks ``todo`` (None: all) to run, a part-done one for its other cells."""
+        tasks = chunk_tasks(self.spec, todo)
+        return [replace(t, todo=self.part_done[t.index]["label"].ravel() == NOT_COMPUTED)
+                if t.index in self.part_done else t for t in tasks]
+
+
+def _compute(spec: AtlasSpec, client: Any, put: _ChunkWriter,
+             todo: list[tuple[int, ...]] | None, progress: bool) -> None:
+    """Run the chunks ``todo`` (None: all) and store them with ``put``."""
+    tasks = put.tasks(todo)
+    n_todo = sum(_cells(spec, t.slices) if t.todo is None else int(t.todo.sum())
+                 for t in tasks)
     results = run_local(tasks) if client is None else _distributed(client, tasks)
-    _drain(spec, results, sink, arrays, progress, sum(_cells(spec, t.slices) for t in tasks))
+    _drain(spec, results, put, progress, n_todo)
 
 
-def _distributed(client: Any, tasks: list) -> Iterator:
+def _distributed(client: Any, tasks: list) -> Iterable:
     from .distributed import run_distributed
 
     return run_distributed(client, tasks)
@@ -110,9 +156,11 @@ def _cells(spec: AtlasSpec, slices: tuple[slice, ...]) -> int:
     return int(np.prod([s.stop - s.start for s in slices]))
 
 
-def _drain(spec: AtlasSpec, results: Iterator, sink: ZarrSink | None,
-           arrays: dict[str, np.ndarray] | None, progress: bool, n_todo: int) -> None:
-    """Store each chunk as it arrives (in the store, or in ``arrays``)."""
+def _drain(spec: AtlasSpec, results: Iterable, put: _ChunkWriter, progress: bool,
+           n_todo: int) -> None:
+    """Store each chunk as it arrives. On Ctrl-C (or SIGTERM, see
+    :func:`fricenv.calls.sweep_signals`) the running chunks stop within about a second and
+    their finished cells are stored too, before the interrupt propagates."""
     bar = None
     if progress:
         from tqdm.auto import tqdm
@@ -122,17 +170,18 @@ def _drain(spec: AtlasSpec, results: Iterator, sink: ZarrSink | None,
                    smoothing=0.1)
     try:
         for index, values in results:
-            sl = chunk_slices(spec, index)
-            if sink is not None:
-                sink(sl, values)
-            elif arrays is not None:
-                for k, v in values.items():
-                    arrays[k][sl] = v
+            n = put(index, values)
             if bar is not None:
-                bar.update(_cells(spec, sl))
+                bar.update(n)
+    except KeyboardInterrupt as stop:
+        kept = [stop.results] if isinstance(stop, SweepInterrupted) and stop.results else []
+        stop_run = getattr(results, "stop", None)  # (a cluster's run: its running chunks)
+        for index, values in kept + (stop_run() if stop_run is not None else []):
+            put(index, values)
+        raise
     finally:
         if bar is not None:
             bar.close()
-        close = getattr(results, "close", None)
-        if close is not None:  # cancels a cluster's pending chunks on an error
-            close()
+        cancel = getattr(results, "cancel", None)
+        if cancel is not None:  # a cluster's chunks not run yet, on an error
+            cancel()

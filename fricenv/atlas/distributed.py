@@ -158,8 +158,11 @@ class DistributedRun:
                 self._note_in_flight(1)
                 yield result
                 del result
-        finally:
+        except KeyboardInterrupt:  # the running chunks stay for stop() to collect
+            raise
+        except BaseException:
             self.cancel()
+            raise
 
     def stop(self) -> list[tuple[tuple[int, ...], dict[str, np.ndarray]]]:
         """Stop the run: no new chunk starts, the running ones stop within about a
@@ -171,10 +174,12 @@ class DistributedRun:
         running = list(self.pending)
         if not running:
             return []
-        Event(self.stop_event, client=self.client).set()
+        event = Event(self.stop_event, client=self.client)
+        event.set()
         done, _ = wait(running, timeout=STOP_WAIT_S)
         results = [f.result() for f in done if f.status == "finished"]
         self.cancel()
+        event.clear()
         return results
 
     def cancel(self) -> None:

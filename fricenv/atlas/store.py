@@ -425,9 +425,11 @@ def _stored_spec_mismatch(stored: StoreCheck, spec: AtlasSpec, chunks_given: boo
 
 
 def open_for_resume(path: Path, spec: AtlasSpec, chunks_given: bool
-                    ) -> tuple[zarr.Group, tuple[int, ...], list[tuple[int, ...]]]:
-    """The store at ``path``, its chunk shape and the chunks still to compute (missing or
-    damaged ones, with a warning naming the damage), if it holds this atlas; else
+                    ) -> tuple[zarr.Group, tuple[int, ...], list[tuple[int, ...]],
+                               dict[tuple[int, ...], dict[str, np.ndarray]]]:
+    """The store at ``path``, its chunk shape, the chunks still to compute (missing or
+    damaged ones, with a warning naming the damage, and those a stopped run left part
+    done) and the stored variables of the part-done ones, if it holds this atlas; else
     ``ValueError`` naming what differs. The caller holds the store's writer lock."""
     stored = check_store(path, mode="r+")
     why = _stored_spec_mismatch(stored, spec, chunks_given)
@@ -440,8 +442,25 @@ def open_for_resume(path: Path, spec: AtlasSpec, chunks_given: bool
                       f"computed again (first: chunk {index} of {name!r} {what})",
                       stacklevel=3)
     remove_partial_writes(path)
-    todo = [i for i in np.ndindex(*stored.spec.chunk_grid) if i not in stored.complete]
-    return stored.group, stored.spec.chunks, todo
+    part_done = _part_done_chunks(path, stored)
+    todo = [i for i in np.ndindex(*stored.spec.chunk_grid)
+            if i not in stored.complete or i in part_done]
+    return stored.group, stored.spec.chunks, todo, part_done
+
+
+def _part_done_chunks(path: Path, stored: StoreCheck
+                      ) -> dict[tuple[int, ...], dict[str, np.ndarray]]:
+    """The variables of each intact chunk that holds cells not computed: a run stopped by
+    Ctrl-C or SIGTERM stores the cells it finished in a chunk, the others at their fill
+    values. A cell is done when its label is stored (the label is written last)."""
+    arrays = {k: _array(path, stored.group, k) for k in VARIABLES}
+    out = {}
+    for index in sorted(stored.complete):
+        sl = tuple(slice(i * c, (i + 1) * c) for i, c in zip(index, stored.spec.chunks,
+                                                               strict=True))
+        if np.any(arrays["label"][sl] == NOT_COMPUTED):
+            out[index] = {k: np.asarray(a[sl]) for k, a in arrays.items()}
+    return out
 
 
 def done_chunks(path: Path, ndim: int) -> set[tuple[int, ...]]:
