@@ -33,7 +33,8 @@ each judged through the public API and its observable effects only:
   one fresh process (sound: no crash, the serial run's results), and a fork pool after a
   parallel kernel ran;
 * ``signals``: SIGINT 2 s into a one-chunk Stribeck regime_map (100 x 100), a one-chunk
-  atlas and a 10^4-cell cell_statistics, SIGTERM into a regime_map with 500-cell chunks:
+  atlas and a 10^3-cell cell_statistics (cells with long windows, ~10 s each sweep),
+  SIGTERM into a regime_map with 500-cell chunks:
   a hang if the process has not exited 2 s after the signal, wrong if it exits keeping
   none of the cells it had finished (the map file or store holds none after 2 s of
   computing, or fewer than the callback reported);
