@@ -16,15 +16,50 @@ others end as
   accepted;
 * *crash*: the worker died.
 
-The matrix (fixed seed, so two runs try the same calls): the three friction laws of Fig.
-2 and extreme ones (b1, b3 up to +-1e12), lam from 0 to 1e6, eta, nu, u0, V and the
-friction levels from 0 to 1e12, starting states up to +-1e12, spans up to 1e3, through
-run_stats, simulate, cell_statistics, regime_map (grids up to 1e12, saved and loaded),
-the environments (reset options, steps, sample_interval), the vector env, damaged map
-files, huge sizes and two writers of one map; plus the reproducers of known defects.
+The matrix (fixed seed, so two runs try the same calls), by class (``--classes``):
 
-Usage: ``python scripts/stress.py [--budget 10] [--cases 250] [--seed 0] [--json out]``;
-``PYTHONPATH`` picks the fricenv under test (e.g. ``PYTHONPATH=/path/to/other/tree``).
+* ``reproducers``: the known defects' reproducers;
+* ``random``: the three friction laws of Fig. 2 and extreme ones (b1, b3 up to +-1e12),
+  lam from 0 to 1e6, eta, nu, u0, V and the friction levels from 0 to 1e12, starting
+  states up to +-1e12, spans up to 1e3, through run_stats, simulate, cell_statistics,
+  regime_map (grids up to 1e12, saved and loaded), the environments (reset options, steps,
+  sample_interval) and the vector env;
+* ``map files``: damaged map files; ``writers``: two writers of one map;
+
+and the later classes (``stress_probes.py``; worker entries in ``stress_entries.py``),
+each judged through the public API and its observable effects only:
+
+* ``threads``: regime_map, cell_statistics and 64-plant vector envs in two threads of
+  one fresh process (sound: no crash, the serial run's results), and a fork pool after a
+  parallel kernel ran;
+* ``signals``: SIGINT 2 s into a one-chunk Stribeck regime_map (100 x 100), a one-chunk
+  atlas and a 10^3-cell cell_statistics (cells with long windows, ~10 s each sweep),
+  SIGTERM into a regime_map with 500-cell chunks:
+  a hang if the process has not exited 2 s after the signal, wrong if it exits keeping
+  none of the cells it had finished (the map file or store holds none after 2 s of
+  computing, or fewer than the callback reported);
+* ``damage``: copies of a small atlas store with a bit flipped in a chunk of each
+  variable, a chunk deleted, a coordinate flipped, a ``zarr.json`` truncated, invalid or
+  reshaped, opened and resumed (wrong: values unlike the undamaged store's, with no
+  error; bare: an error that does not name the store, e.g. Zstd's RuntimeError or a
+  JSONDecodeError); a second atlas writer on a store being written;
+* ``huge``: atlases of 10^12 to 10^14 cells (clear: a prompt ValueError; hang otherwise);
+* ``set_state``: env states with a stuck block off the belt speed, v = +-1e300,
+  x = 1e13, xfs = 1e300, t = 1e17, garbage in the workspace, then stepped (wrong: accepted
+  and the steps raise or disagree with a fresh reset to that plant and state, the time
+  does not advance, or a value is non-finite);
+* ``points``: simulate with 1.2e7 and 1e8 output points, or from t0 = 1e15 (wrong:
+  output times not strictly increasing, or a SimulationError that blames stiffness on
+  this non-stiff plant; bare: MemoryError);
+* ``tampered``: map files rewritten by the package's own ``save`` with inf or NaN
+  statistics, a negative period, an unknown status or label, loaded and resumed (wrong:
+  loaded, or the tampered values kept);
+* ``unclear``: one bad argument each (a short state array, a NaN mode, a ``.npy`` file
+  as a map, ``render_mode=5``): bare if the error does not name it.
+
+Usage: ``python scripts/stress.py [--budget 10] [--cases 250] [--seed 0] [--classes a,b]
+[--json out]``; ``PYTHONPATH`` picks the fricenv under test (e.g.
+``PYTHONPATH=/path/to/other/tree``), in this process and in every process it starts.
 """
 
 from __future__ import annotations
@@ -45,6 +80,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
 
+import stress_probes as probes  # noqa: E402
 from callcheck import WARM_UP, Outcome, Worker  # noqa: E402
 
 LAMS = [0.0, 1e-12, 0.05, 0.5, 2.0, 50.0, 1e3, 1e6]
@@ -187,63 +223,138 @@ def two_writers(pythonpath: str | None, budget: float) -> Outcome:
     return Outcome("clear" if "Error" in err[0] else "bare", seconds, error=err[0])
 
 
+#: The classes of calls, in the order they run (``--classes`` picks some).
+CLASSES = ("reproducers", "random", "map files", "writers", "threads", "signals", "damage",
+           "huge", "set_state", "points", "tampered", "unclear")
+ENTRIES_PLUGIN = Path(__file__).resolve().parent / "stress_entries.py"
+#: Warm-up calls of the later classes (Dask, Zarr and xarray; the Stribeck env's kernels).
+LATER_WARM_UP = [("atlas_warm", {}),
+                 ("set_state", {"env_id": "fricenv/StickSlipStribeck-v0", "change": {"t": 1.0}})]
+
+
+def worker_calls(classes: list[str], args: argparse.Namespace, rng: np.random.Generator,
+                 tmp: Path) -> list[tuple[str, str, dict]]:
+    """``(class, entry, kwargs)`` of every call that the worker makes. The random draws
+    come first, in the order of the first matrix, whatever classes are picked, so that a
+    seed tries the same calls."""
+    random = random_calls(rng, args.cases)
+    files = damaged_files(rng, args.files)
+    picked = {
+        "reproducers": [*KNOWN_HANGS, *KNOWN_DEFECTS], "random": random, "map files": files,
+        "huge": probes.HUGE, "set_state": probes.SET_STATE, "points": probes.POINTS,
+        "tampered": probes.TAMPERED, "unclear": probes.UNCLEAR,
+    }
+    if "damage" in classes:
+        store = probes.build_atlas(tmp)
+        picked["damage"] = probes.damage_calls(store, np.random.default_rng(args.seed),
+                                               args.flips)
+    return [(c, e, k) for c in classes if c in picked for e, k in picked[c]]
+
+
+def process_probes(classes: list[str], pythonpath: str | None,
+                   budget: float) -> list[tuple[str, str, dict, Outcome]]:
+    """The probes that run in processes of their own."""
+    out = []
+    if "writers" in classes:
+        out.append(("writers", "two_writers", {}, two_writers(pythonpath, budget)))
+    if "threads" in classes:
+        out += [("threads", *r) for r in probes.threads_class(pythonpath, budget)]
+    if "signals" in classes:
+        out += [("signals", *r) for r in probes.signal_class(pythonpath)]
+    if "damage" in classes:
+        out.append(("damage", "atlas_writers", {}, probes.atlas_writers(pythonpath, budget)))
+    return out
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--budget", type=float, default=10.0, help="seconds per call")
     ap.add_argument("--cases", type=int, default=250, help="random parameter sets")
     ap.add_argument("--files", type=int, default=200, help="damaged map files")
+    ap.add_argument("--flips", type=int, default=3, help="bit flips per atlas variable")
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--classes", default=",".join(CLASSES),
+                    help=f"comma-separated classes to run, of: {', '.join(CLASSES)}")
     ap.add_argument("--json", type=Path, help="write every outcome here")
     args = ap.parse_args()
-    rng = np.random.default_rng(args.seed)
-    calls = [*KNOWN_HANGS, *KNOWN_DEFECTS, *random_calls(rng, args.cases),
-             *damaged_files(rng, args.files)]
+    classes = [c.strip() for c in args.classes.split(",") if c.strip()]
+    unknown = sorted(set(classes) - set(CLASSES))
+    if unknown:
+        ap.error(f"unknown classes {unknown}; pick of {', '.join(CLASSES)}")
     pythonpath = os.environ.get("PYTHONPATH")
-    worker = Worker(pythonpath, WARM_UP)
-    results: list[tuple[str, dict, Outcome]] = []
+    results: list[tuple[str, str, dict, Outcome]] = []
     t0 = time.monotonic()
-    try:
-        for i, (entry, kwargs) in enumerate(calls):
-            out = worker.call(entry, kwargs, args.budget)
-            results.append((entry, kwargs, out))
-            if out.kind != "clear" and not out.ok:
-                print(f"[{i}] {entry} {_short(kwargs)}: {out.kind} {out.wrong or out.error} "
-                      f"({out.seconds:.1f} s"
-                      + (f", Ctrl-C {'honoured' if out.sigint_s is not None else 'ignored'}"
-                         if out.kind == "hang" else "") + ")", flush=True)
-        results.append(("two_writers", {}, two_writers(pythonpath, args.budget)))
-    finally:
-        worker.close()
+    with tempfile.TemporaryDirectory() as tmp:
+        calls = worker_calls(classes, args, np.random.default_rng(args.seed), Path(tmp))
+        later = any(c in classes for c in CLASSES[4:])
+        worker = Worker(pythonpath, WARM_UP + (LATER_WARM_UP if later else []),
+                        plugins=[ENTRIES_PLUGIN])
+        try:
+            for i, (cls, entry, kwargs) in enumerate(calls):
+                out = worker.call(entry, kwargs, args.budget)
+                results.append((cls, entry, kwargs, out))
+                _show(i, entry, kwargs, out)
+        finally:
+            worker.close()
+        for cls, entry, kwargs, out in process_probes(classes, pythonpath, args.budget):
+            results.append((cls, entry, kwargs, out))
+            _show(len(results) - 1, entry, kwargs, out)
     _report(results, time.monotonic() - t0, args.json)
+
+
+def _show(i: int, entry: str, kwargs: dict, out: Outcome) -> None:
+    """Print a call that did not end soundly or with a clear error."""
+    if out.kind != "clear" and not out.ok:
+        print(f"[{i}] {entry} {_short(kwargs)}: {out.kind} {out.wrong or out.error} "
+              f"({out.seconds:.1f} s"
+              + (f", Ctrl-C {'honoured' if out.sigint_s is not None else 'ignored'}"
+                 if out.kind == "hang" and entry != "signal" else "") + ")", flush=True)
+
+
+#: Arguments left out of the printed calls (the same in every call of their class).
+_UNSHOWN = ("good", "spec")
 
 
 def _short(kwargs: dict) -> str:
     text = repr({k: (f"<{len(v)} bytes>" if isinstance(v, bytes) else
                      f"<{len(v)} values>" if isinstance(v, list) and len(v) > 8 else v)
-                 for k, v in kwargs.items()})
+                 for k, v in kwargs.items() if k not in _UNSHOWN})
     return text if len(text) < 240 else text[:230] + "...}"
 
 
+KINDS = ("sound", "clear error", "bare error", "wrong result", "hang", "crash")
+
+
+def _kind(out: Outcome) -> str:
+    return {"returned": "wrong result" if out.wrong else "sound", "clear": "clear error",
+            "bare": "bare error", "hang": "hang", "crash": "crash"}[out.kind]
+
+
 def _report(results: list, seconds: float, json_path: Path | None) -> None:
-    kinds = collections.Counter()
+    kinds: collections.Counter = collections.Counter()
     per_entry: dict[str, collections.Counter] = collections.defaultdict(collections.Counter)
-    for entry, _, out in results:
-        kind = {"returned": "wrong result" if out.wrong else "sound", "clear": "clear error",
-                "bare": "bare error", "hang": "hang", "crash": "crash"}[out.kind]
+    per_class: dict[str, collections.Counter] = collections.defaultdict(collections.Counter)
+    for cls, entry, _, out in results:
+        kind = _kind(out)
         kinds[kind] += 1
         per_entry[entry][kind] += 1
-    hangs = [out for _, _, out in results if out.kind == "hang"]
+        per_class[cls][kind] += 1
+    hangs = [out for *_, out in results if out.kind == "hang"]
     honoured = sum(out.sigint_s is not None for out in hangs)
     print(f"\ncalls tried: {len(results)} in {seconds:.0f} s")
-    for kind in ("sound", "clear error", "bare error", "wrong result", "hang", "crash"):
+    for kind in KINDS:
         print(f"  {kind:13s} {kinds[kind]}")
     print(f"  (hangs: Ctrl-C honoured within 1 s in {honoured} of {len(hangs)})")
     print("per entry: " + "; ".join(f"{e} {dict(c)}" for e, c in sorted(per_entry.items())))
+    print(f"\n{'class':12s}" + "".join(f"{k:>13s}" for k in KINDS))
+    for cls in CLASSES:
+        if cls in per_class:
+            print(f"{cls:12s}" + "".join(f"{per_class[cls][k]:13d}" for k in KINDS))
     if json_path is not None:
         json_path.write_text(json.dumps([
-            {"entry": e, "call": _short(k), "kind": o.kind, "seconds": o.seconds,
+            {"class": c, "entry": e, "call": _short(k), "kind": o.kind, "seconds": o.seconds,
              "wrong": o.wrong, "error": o.error, "sigint_s": o.sigint_s}
-            for e, k, o in results], indent=1))
+            for c, e, k, o in results], indent=1))
 
 
 if __name__ == "__main__":

@@ -85,20 +85,23 @@ class Worker:
 
     ``warm_up``: calls made, without a time budget, whenever a worker starts: numba loads
     (or compiles) each kernel on its first call in a process, which is no part of any
-    call's own cost.
+    call's own cost. ``plugins``: files whose ``ENTRIES`` the worker adds to its own (see
+    :func:`load_plugins`).
     """
 
     def __init__(self, pythonpath: str | None = None,
-                 warm_up: list[tuple[str, dict]] = ()) -> None:
+                 warm_up: list[tuple[str, dict]] = (), plugins: list[Path] = ()) -> None:
         self.pythonpath = pythonpath
         self.warm_up = list(warm_up)
+        self.plugins = [str(Path(p).resolve()) for p in plugins]
         self.proc: subprocess.Popen | None = None
 
     def _start(self) -> None:
         env = dict(os.environ)
         if self.pythonpath is not None:
             env["PYTHONPATH"] = self.pythonpath
-        self.proc = subprocess.Popen([sys.executable, str(Path(__file__).resolve())],
+        self.proc = subprocess.Popen([sys.executable, str(Path(__file__).resolve()),
+                                      *self.plugins],
                                      stdin=subprocess.PIPE, stdout=subprocess.PIPE,
                                      stderr=subprocess.DEVNULL, env=env)
         reply = self._read(600.0)  # imports (and loads numba's cache) first
@@ -362,10 +365,26 @@ ENTRIES = {"simulate": _simulate, "run_stats": _run_stats, "cell_statistics": _c
            "regime_map": _regime_map, "load": _load, "env": _env, "vector": _vector}
 
 
+def load_plugins(paths: list[str]) -> None:
+    """Add the ``ENTRIES`` of each file in ``paths`` to :data:`ENTRIES` (entries of other
+    callers, e.g. ``scripts/stress_entries.py``). A plugin's entry returns what is wrong with
+    the answer (a list), or its own judgment, a dict with ``kind``, ``wrong`` and
+    ``error``, when it has its own rule for which errors are clear."""
+    import importlib.util
+
+    for i, path in enumerate(paths):
+        spec = importlib.util.spec_from_file_location(f"_callcheck_plugin{i}", path)
+        module = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(module)
+        ENTRIES.update(module.ENTRIES)
+
+
 def _answer(entry: str, kwargs: dict) -> dict:
     t0 = time.monotonic()
     try:
         wrong = ENTRIES[entry](**kwargs)
+        if isinstance(wrong, dict):  # a plugin's own judgment
+            return {**wrong, "seconds": time.monotonic() - t0}
         return {"kind": "returned", "seconds": time.monotonic() - t0, "wrong": wrong}
     except KeyboardInterrupt:
         return {"kind": "bare", "seconds": time.monotonic() - t0, "error": "KeyboardInterrupt"}
@@ -393,6 +412,7 @@ def serve() -> None:
 
     import fricenv  # noqa: F401
 
+    load_plugins(sys.argv[1:])
     send("ready")
     while True:
         head = src.read(_HEADER.size)
