@@ -26,6 +26,7 @@ from .checks import (
 )
 from .core import MAX_STEPS_PER_CALL, MAX_STEPS_PER_TAU, conditioned_rows
 from .divergence import diverged
+from .jit import parallel_section
 from .layout import (
     METHOD_EVENT,
     METHOD_EXACT,
@@ -369,7 +370,7 @@ def run_cells(P_cells: np.ndarray, t_transient: np.ndarray, t_segment: np.ndarra
              np.ascontiguousarray(t_segment, dtype=np.float64),
              np.ascontiguousarray(n_segment, dtype=np.int64),
              np.ascontiguousarray(tries, dtype=np.int64))
-    with _Threads(n_threads):
+    with _Threads(n_threads), parallel_section():
         for cell_method, rows in _method_groups(P_cells, method):
             _run_group(CELL_KERNELS[cell_method], cell_method, rows, P_cells, kernel_spans,
                        settings, out_stats, out_status, out_period)
