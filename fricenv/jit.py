@@ -160,6 +160,21 @@ def _decide_section() -> contextlib.AbstractContextManager[Any]:
         return _section
 
 
+def _new_locks_in_child() -> None:
+    """After ``fork``: fresh locks, since a thread of the parent that held one (inside a
+    parallel kernel) does not exist in the child, which would wait for it for ever."""
+    global _PARALLEL_LOCK, _section, _decide_lock
+    serialised = _section is _PARALLEL_LOCK
+    _PARALLEL_LOCK = threading.RLock()
+    _decide_lock = threading.Lock()
+    if serialised:
+        _section = _PARALLEL_LOCK
+
+
+if hasattr(os, "register_at_fork"):  # (not on Windows, which has no fork)
+    os.register_at_fork(after_in_child=_new_locks_in_child)
+
+
 def parallel_section(parallel: bool = True) -> contextlib.AbstractContextManager[Any]:
     """The context every Python call of a parallel kernel runs in: on a thread-safe layer
     nothing, else the process-wide lock that keeps two threads from entering parallel

@@ -5,10 +5,9 @@ yields each chunk's result as it completes, so it never holds more than that win
 chunks whatever the atlas's size. Workers run :func:`fricenv.atlas.core.compute_chunk`:
 the whole chunk in one numba call per friction method, no Python per cell.
 
-Workers must be started by spawn, not fork (Dask's default for ``LocalCluster`` and
-``dask worker``): numba's OpenMP threading layer does not survive a fork after a parallel
-kernel ran. :class:`WarmKernels` loads each worker's numba cache once, as it joins, so no
-task pays for it.
+Workers may be started by spawn (Dask's default) or fork and may have several threads
+(see :mod:`fricenv.jit` on the threading layer). :class:`WarmKernels` loads each worker's
+numba cache once, as it joins, so no task pays for it.
 
 A task holds the Python GIL while its kernel runs (numba releases it only with
 ``nogil``), so the tasks of one worker run one at a time; each therefore uses as many
