@@ -122,6 +122,7 @@ def test_vector_envs_stepped_in_two_threads_equal_a_serial_one(tmp_path, layer):
 
 
 _DASK = """
+import os
 import numpy as np
 import xarray as xr
 from distributed import Client, LocalCluster
@@ -133,7 +134,9 @@ if __name__ == "__main__":
     local = fricenv.atlas("coulomb", axes, chunks=6, progress=False)
     with LocalCluster(n_workers=1, threads_per_worker=2, processes=True,
                       dashboard_address=None) as cluster, Client(cluster) as client:
+        pids = client.run(os.getpid)
         dist = fricenv.atlas("coulomb", axes, client=client, chunks=6, progress=False)
+        assert client.run(os.getpid) == pids  # no worker died (Dask retries a lost task)
         layers = client.run(lambda: fricenv.threading_info().layer)
     xr.testing.assert_identical(dist, local)
     print("same", *layers.values())
@@ -151,7 +154,6 @@ def test_dask_worker_with_two_threads_equals_the_local_atlas(tmp_path):
 _FORK = _TWO_THREADS + """
 import multiprocessing as mp
 from fricenv import OscillatorParams
-from fricenv.jit import parallel_section
 
 PLANT = OscillatorParams.preset("coulomb", eta=1.0)
 PARAMS = [PLANT.replace(u0=u0, nu=0.5) for u0 in (0.5, 2.0)]
@@ -169,6 +171,7 @@ if __name__ == "__main__":
         there = pool.map_async(labels, PARAMS, chunksize=1).get(timeout=300)
     assert there == here, (there, here)
     # a fork while another thread is inside a parallel section: the child starts unlocked
+    from fricenv.jit import parallel_section
     entered, leave = threading.Event(), threading.Event()
     def hold():
         with parallel_section():
