@@ -3,6 +3,7 @@
 # First, before any module with compiled kernels: keys their numba cache on the whole
 # package's source (see _numba_cache).
 from . import _numba_cache  # noqa: F401
+from .jit import threading_info
 from .mapfile import MapInUseError
 from .params import FRICTION_LAWS, OscillatorParams
 from .regimes import Regime, classify, classify_stats, strobe_period
@@ -41,6 +42,7 @@ __all__ = [
     "run_stats",
     "simulate",
     "strobe_period",
+    "threading_info",
     "warmup",
 ]
 __version__ = "0.1.0"

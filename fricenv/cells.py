@@ -33,6 +33,7 @@ from .core import (
     conditioned_rows,
 )
 from .divergence import diverged
+from .jit import parallel_section
 from .layout import (
     METHOD_EVENT,
     METHOD_EXACT,
@@ -388,7 +389,7 @@ def run_cells(P_cells: np.ndarray, t_transient: np.ndarray, t_segment: np.ndarra
              np.ascontiguousarray(tries, dtype=np.int64))
     finished = True
     try:
-        with _Threads(n_threads):
+        with _Threads(n_threads), parallel_section():
             for cell_method, rows in _method_groups(P_cells, method):
                 finished = _run_group(cell_method, rows, P_cells, kernel_spans, settings,
                                       out_stats, out_status, out_period, stop_requested)

@@ -23,34 +23,96 @@ changing a kernel's ``inline`` or ``fastmath`` changes what it computes, not onl
 Threading layer
 ---------------
 The parallel kernels (sweeps, ``cell_statistics``, the vector environment from
-``PARALLEL_MIN_PLANTS`` plants) run on numba's threading layer, which numba picks when the
-first of them starts. Its default here is GNU OpenMP, which is not fork-safe: after any
-parallel kernel has run, a ``multiprocessing`` pool, ``ProcessPoolExecutor`` or joblib's
-multiprocessing backend started by ``fork`` prints ``fork() called from a process already
-using GNU OpenMP`` and its workers hang or crash. This module therefore asks numba for the
-``"safe"`` layer, Intel TBB (a dependency where its wheels exist): safe after ``fork`` and
-safe to call from several Python threads at once (Dask's threaded scheduler, a thread per
-environment). Where TBB cannot be loaded it asks for ``"forksafe"``, which on GNU OpenMP
-systems is numba's ``workqueue`` layer: fork-safe too, but its parallel kernels must not run
-from two Python threads at the same time. A ``NUMBA_THREADING_LAYER`` set in the
-environment is left as it is.
+``PARALLEL_MIN_PLANTS`` plants, batch rollouts) run on numba's threading layer, which
+numba picks when the first of them starts. Its default here is GNU OpenMP, which is not
+fork-safe: after any parallel kernel has run, a ``multiprocessing`` pool,
+``ProcessPoolExecutor`` or joblib's multiprocessing backend started by ``fork`` prints
+``fork() called from a process already using GNU OpenMP`` and its workers hang or crash.
+This module therefore asks numba for the ``"safe"`` layer, Intel TBB (a dependency where
+its wheels exist): safe after ``fork`` and safe to call from several Python threads at once
+(Dask workers with several threads, a thread per environment).
+
+The ``tbb`` wheel installs ``libtbb`` into ``<prefix>/lib``, where the dynamic loader does
+not look (a virtual environment, a pyenv or python.org Python), and numba's extension asks
+the loader for it by its soname only. So, before numba looks, this module loads the
+library by its absolute path from where the wheel's file list says it is, or else from
+the ``lib`` directories of ``sys.prefix``, ``sys.base_prefix`` and the site-packages; the
+soname then resolves to the library already loaded. ``RTLD_LOCAL`` (ctypes' default) is
+enough for that and exports no TBB symbols to libraries loaded later.
+
+Where TBB still cannot be loaded (no wheel for the platform) it asks for ``"forksafe"``,
+which on GNU OpenMP systems is numba's ``workqueue`` layer: fork-safe too, but it aborts
+the process when parallel kernels run from two Python threads at the same time. Every
+Python call of a parallel kernel therefore runs inside :func:`parallel_section`, which
+does nothing on a thread-safe layer (TBB, OpenMP) and otherwise takes one process-wide
+lock, so that such calls run one after another. A ``NUMBA_THREADING_LAYER`` set in the
+environment is left as it is (the lock then follows the layer it gives).
+:func:`threading_info` says which layer runs, where TBB came from and whether calls are
+serialised.
 """
 
 from __future__ import annotations
 
+import contextlib
+import ctypes
 import importlib
+import importlib.metadata
 import os
+import site
+import sys
+import threading
 from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import numba
 from numba import njit
 
+#: The file name numba's TBB extension asks the loader for (its soname), per platform.
+TBB_LIBRARY = {"win32": "tbb12.dll", "darwin": "libtbb.12.dylib"}.get(sys.platform,
+                                                                     "libtbb.so.12")
+#: The layers on which parallel kernels may run from several Python threads at once
+#: (numba's threading-layer documentation); on any other, calls are serialised.
+THREAD_SAFE_LAYERS = ("tbb", "omp")
+
+
+def _tbb_candidates() -> list[Path]:
+    """Where the ``tbb`` wheel may have put ``TBB_LIBRARY``, most specific first: the
+    wheel's own file list, then the ``lib`` directories of the prefixes and beside the
+    site-packages (``<prefix>/lib/pythonX.Y/site-packages`` -> ``<prefix>/lib``)."""
+    found: list[Path] = []
+    try:
+        dist = importlib.metadata.distribution("tbb")
+        found += [Path(str(dist.locate_file(f))) for f in dist.files or ()
+                  if f.name == TBB_LIBRARY]
+    except importlib.metadata.PackageNotFoundError:
+        pass
+    dirs = [Path(sys.prefix) / "lib", Path(sys.base_prefix) / "lib"]
+    packages = [*site.getsitepackages(), site.getusersitepackages()]
+    dirs += [Path(p).parent.parent for p in packages]
+    found += [d / TBB_LIBRARY for d in dirs]
+    unique = dict.fromkeys(p.resolve() for p in found if p.is_file())
+    return list(unique)
+
+
+def _preload_tbb() -> str | None:
+    """Load ``TBB_LIBRARY`` by its absolute path (see the module docstring); the path that
+    loaded, or None if none did (then numba asks the loader, which may still find it)."""
+    for path in _tbb_candidates():
+        try:
+            ctypes.CDLL(str(path))
+        except OSError:  # another platform's or a broken file: try the next
+            continue
+        return str(path)
+    return None
+
 
 def _tbb_loads() -> bool:
     """Whether numba's TBB threading layer can be loaded: the ``tbb`` wheel is installed,
-    the loader finds its library and numba accepts its version. Asked the way numba asks
-    when it starts a layer (its version check loads the library, then its TBB pool)."""
+    its library is loaded or the loader finds it, and numba accepts its version. Asked the
+    way numba asks when it starts a layer (its version check loads the library, then its
+    TBB pool)."""
     try:
         from numba.np.ufunc.parallel import _check_tbb_version_compatible
 
@@ -61,6 +123,10 @@ def _tbb_loads() -> bool:
     return True
 
 
+TBB_PATH = _preload_tbb()  # on import, before numba can look for TBB
+TBB_LOADS = _tbb_loads()
+
+
 def choose_threading_layer() -> str:
     """Ask numba for a fork-safe threading layer (see the module docstring) unless the user
     chose one with ``NUMBA_THREADING_LAYER``; the layer asked for. It takes effect if no
@@ -68,11 +134,101 @@ def choose_threading_layer() -> str:
     config: Any = numba.config  # (numba sets its options as module attributes at run time)
     if os.environ.get("NUMBA_THREADING_LAYER"):
         return str(config.THREADING_LAYER)
-    config.THREADING_LAYER = "safe" if _tbb_loads() else "forksafe"
+    config.THREADING_LAYER = "safe" if TBB_LOADS else "forksafe"
     return str(config.THREADING_LAYER)
 
 
 THREADING_LAYER = choose_threading_layer()  # on import, before any kernel can run
+
+_NO_LOCK = contextlib.nullcontext()
+#: Held around every parallel kernel call when the layer is not thread-safe. Reentrant, so
+#: that a caller may hold it around a call that takes it again.
+_PARALLEL_LOCK = threading.RLock()
+_section: contextlib.AbstractContextManager[Any] | None = None  # decided at the first call
+_decide_lock = threading.Lock()
+
+
+def _decide_section() -> contextlib.AbstractContextManager[Any]:
+    """Start numba's threading layer (as the first parallel kernel would) and pick what
+    :func:`parallel_section` returns from the layer it gave."""
+    global _section
+    with _decide_lock:
+        if _section is None:
+            numba.get_num_threads()  # (launches the layer if no parallel kernel has yet)
+            layer = numba.threading_layer()
+            _section = _NO_LOCK if layer in THREAD_SAFE_LAYERS else _PARALLEL_LOCK
+        return _section
+
+
+def _new_locks_in_child() -> None:
+    """After ``fork``: fresh locks, since a thread of the parent that held one (inside a
+    parallel kernel) does not exist in the child, which would wait for it for ever."""
+    global _PARALLEL_LOCK, _section, _decide_lock
+    serialised = _section is _PARALLEL_LOCK
+    _PARALLEL_LOCK = threading.RLock()
+    _decide_lock = threading.Lock()
+    if serialised:
+        _section = _PARALLEL_LOCK
+
+
+if hasattr(os, "register_at_fork"):  # (not on Windows, which has no fork)
+    os.register_at_fork(after_in_child=_new_locks_in_child)
+
+
+def parallel_section(parallel: bool = True) -> contextlib.AbstractContextManager[Any]:
+    """The context every Python call of a parallel kernel runs in: on a thread-safe layer
+    nothing, else the process-wide lock that keeps two threads from entering parallel
+    kernels at once (see the module docstring). ``parallel=False`` (a serial kernel chosen
+    at run time) needs no lock. Use as ``with parallel_section(): kernel(...)``."""
+    if not parallel:
+        return _NO_LOCK
+    return _section if _section is not None else _decide_section()
+
+
+@dataclass(frozen=True)
+class ThreadingInfo:
+    """What :func:`threading_info` reports."""
+
+    layer: str
+    """The threading layer numba runs parallel kernels on: ``"tbb"``, ``"omp"`` or
+    ``"workqueue"`` (``numba.threading_layer()``)."""
+    asked: str
+    """The layer asked of numba (``numba.config.THREADING_LAYER``), e.g. ``"safe"``."""
+    user_layer: str | None
+    """``NUMBA_THREADING_LAYER`` from the environment, which fricenv leaves as it is."""
+    tbb_loaded: bool
+    """Whether numba's TBB layer could be loaded in this process."""
+    tbb_path: str | None
+    """The ``libtbb`` fricenv loaded by its path; None if it loaded none (the loader found
+    it, or there is none)."""
+    thread_safe: bool
+    """Whether parallel kernels may run from several Python threads at once."""
+    serialised: bool
+    """Whether fricenv runs its parallel kernel calls one at a time (behind one lock)."""
+    fork_safe: bool
+    """Whether a process forked after a parallel kernel ran can run them too."""
+    num_threads: int
+    """Numba threads a parallel kernel uses when called from this thread."""
+    max_threads: int
+    """Numba threads launched (``NUMBA_NUM_THREADS``)."""
+
+
+def threading_info() -> ThreadingInfo:
+    """How fricenv's parallel kernels run in this process: numba's threading layer, whether
+    TBB loaded and from where, whether calls are serialised, the thread count. Calling it
+    starts numba's threading layer, as the first parallel kernel would, so set
+    ``NUMBA_THREADING_LAYER`` or ``NUMBA_NUM_THREADS`` before."""
+    serialised = parallel_section() is _PARALLEL_LOCK
+    layer = str(numba.threading_layer())
+    config: Any = numba.config
+    gnu_omp = layer == "omp" and sys.platform.startswith("linux")  # (GNU OpenMP there)
+    return ThreadingInfo(
+        layer=layer, asked=str(config.THREADING_LAYER),
+        user_layer=os.environ.get("NUMBA_THREADING_LAYER") or None,
+        tbb_loaded=TBB_LOADS, tbb_path=TBB_PATH,
+        thread_safe=layer in THREAD_SAFE_LAYERS, serialised=serialised,
+        fork_safe=not gnu_omp, num_threads=int(numba.get_num_threads()),
+        max_threads=int(config.NUMBA_NUM_THREADS))
 
 
 def kernel(fn: Callable | None = None, *, inline: bool = False, allocates: bool = False,

@@ -5,15 +5,16 @@ yields each chunk's result as it completes, so it never holds more than that win
 chunks whatever the atlas's size. Workers run :func:`fricenv.atlas.core.compute_chunk`:
 the whole chunk in one numba call per friction method, no Python per cell.
 
-Workers must be started by spawn, not fork (Dask's default for ``LocalCluster`` and
-``dask worker``): numba's OpenMP threading layer does not survive a fork after a parallel
-kernel ran. :class:`WarmKernels` loads each worker's numba cache once, as it joins, so no
-task pays for it.
+Workers may be started by spawn (Dask's default) or fork and may have several threads
+(see :mod:`fricenv.jit` on the threading layer). :class:`WarmKernels` loads each worker's
+numba cache once, as it joins, so no task pays for it.
 
-A task holds the Python GIL while its kernel runs (numba releases it only with
-``nogil``), so the tasks of one worker run one at a time; each therefore uses as many
-numba threads as its worker has Dask threads. The usual layout for such code is one
-process per core with one thread each (``--nworkers N --nthreads 1``).
+The cell kernels release the GIL, so a worker's Dask threads run its tasks at once; each
+task asks for as many numba threads as its worker has Dask threads, so that the last
+chunk of a run still uses the whole worker, and under TBB the tasks share one pool of
+threads rather than oversubscribing the cores. A task polls the run's stop event (a
+``distributed.Event``) while its kernel runs, so that :meth:`DistributedRun.stop` ends it
+within about a second with the cells it finished.
 """
 
 from __future__ import annotations
@@ -65,8 +66,8 @@ class WarmKernels(WorkerPlugin):
 
 
 def _worker_threads() -> int:
-    """Numba threads for a task: its worker's Dask threads (tasks run one at a time, see
-    the module docstring), within numba's own limit."""
+    """Numba threads for a task: its worker's Dask threads (see the module docstring),
+    within numba's own limit."""
     try:
         n = get_worker().state.nthreads
     except (ValueError, AttributeError):  # not on a worker (a test's direct call)

@@ -30,7 +30,7 @@ from fricenv.envs import kernels as K
 from fricenv.envs.sensors import actuate, no_actuator
 from fricenv.envs.state import N_PLANT, PL_CTRL, PL_P, PL_S, PL_WORK, PlantState
 from fricenv.envs.steppers import steppers_for_plants
-from fricenv.jit import kernel
+from fricenv.jit import kernel, parallel_section
 from fricenv.layout import N_STATS, S_V, S_X
 from fricenv.params import P_V
 
@@ -274,9 +274,10 @@ class BatchRollout:
         A = self._actions(actions)
         name = steppers_for_plants(self.cfg[K.C_METHOD], plants[:, PL_P:PL_S]).name
         run = _KERNELS[name][0 if self.parallel else 1]
-        run(plants, cmds, src, self.cfg, self.ucfg, self.act, self.actuated, A, self._table,
-            self._cmd, self._stats, self._res, self._zero, self._rewards, self._stick,
-            self._length, self._status)
+        with parallel_section(self.parallel):
+            run(plants, cmds, src, self.cfg, self.ucfg, self.act, self.actuated, A,
+                self._table, self._cmd, self._stats, self._res, self._zero, self._rewards,
+                self._stick, self._length, self._status)
         return RolloutResult(self._rewards, self._stick, self._length, self._status)
 
     def _starts(self, start: Any) -> tuple[np.ndarray, np.ndarray]:

@@ -29,6 +29,7 @@ from fricenv.envs.setup import ACTION_DTYPES, EnvSetup, coerce_action, raise_sta
 from fricenv.envs.steppers import Steppers, steppers_for_plants
 from fricenv.envs.vector_plants import VectorPlants
 from fricenv.envs.vector_render import VectorRendering
+from fricenv.jit import parallel_section
 from fricenv.layout import METHOD_EXACT, S_MODE, S_T, S_V, STATUS_DIVERGED
 
 _AUTORESET = {
@@ -501,18 +502,19 @@ class StickSlipVectorEnv(VectorPlants, VectorRendering, VectorEnv):
         if self._serial_left:
             self._serial_left -= 1
             kernel = self._serial_kernel
-        n_failed = kernel(
-            self._table,
-            self._cfg,
-            a,
-            self._obs_pair,
-            self._res,
-            self._flags,
-            self._counters,
-            self._draws,
-            self._bounds,
-            self._ivars,
-        )
+        with parallel_section(kernel is not self._serial_kernel):
+            n_failed = kernel(
+                self._table,
+                self._cfg,
+                a,
+                self._obs_pair,
+                self._res,
+                self._flags,
+                self._counters,
+                self._draws,
+                self._bounds,
+                self._ivars,
+            )
         if n_failed != 0:
             if n_failed < 0:
                 i = -n_failed - 1
