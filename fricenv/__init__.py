@@ -3,6 +3,7 @@
 # First, before any module with compiled kernels: keys their numba cache on the whole
 # package's source (see _numba_cache).
 from . import _numba_cache  # noqa: F401
+from .calls import SweepInterrupted
 from .jit import threading_info
 from .mapfile import MapInUseError
 from .params import FRICTION_LAWS, OscillatorParams
@@ -33,6 +34,7 @@ __all__ = [
     "RegimeMap",
     "RunStats",
     "SimulationError",
+    "SweepInterrupted",
     "SweepSettings",
     "Trajectory",
     "cell_statistics",
