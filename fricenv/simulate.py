@@ -89,20 +89,29 @@ def _check_params(params: OscillatorParams) -> None:
         raise TypeError(f"params must be an OscillatorParams, got {type(params).__name__}")
 
 
-def _check_state(state: OscillatorState, params: OscillatorParams, t_span: float) -> None:
-    """``ValueError`` for a state the kernels cannot continue from consistently (x and v
-    beyond ``PARAM_LIMIT`` overflow them as a parameter would: a NaN integral, status OK)."""
-    for name in ("t", "phase1", "phase2"):
-        check_finite_real(f"state.{name}", getattr(state, name))
-    for name in ("x", "v"):
+def check_start(state: OscillatorState, params: OscillatorParams, t_span: float,
+                span_name: str = "t_span") -> None:
+    """``ValueError`` naming the field and its value for a state the kernels cannot continue
+    from consistently over ``t_span`` (called ``span_name`` in the message): magnitudes
+    of t, x, v and the phases beyond ``PARAM_LIMIT`` (x and v overflow the kernels as a
+    parameter would: a NaN integral, status OK), a mode other than -1, 0, 1 or one that
+    contradicts v (stick needs v == V exactly: the stick step holds v there and would
+    report a v - V it never integrates), and a span below the spacing of float64 at
+    ``state.t``, where the end time would be lost in rounding (time would stand still, or
+    jump by a whole spacing). Every public entry that starts from a given state (``simulate``,
+    ``run_stats``, the environments' ``set_state``) runs this one check."""
+    for name in ("t", "x", "v", "phase1", "phase2"):
         check_bounded_real(f"state.{name}", getattr(state, name), PARAM_LIMIT)
     if check_int("state.mode", state.mode) not in (-1, 0, 1):
         raise ValueError(f"state.mode must be -1, 0 or 1, got {state.mode!r}")
-    if state.t + t_span == state.t:
-        raise ValueError(f"t_span = {t_span!r} is lost in rounding at state.t = {state.t!r}")
+    spacing = math.ulp(state.t)
+    if t_span < spacing:
+        raise ValueError(f"{span_name} = {t_span!r} is below the spacing of float64 at "
+                         f"state.t = {state.t!r} ({spacing:.3g}): the run's end time would be "
+                         "lost in rounding")
     if state.mode == 0 and state.v != params.V:
         raise ValueError(f"state.mode = 0 (stick) needs v == V = {params.V!r}, got "
-                         f"v = {state.v!r}; build the state with OscillatorState.start")
+                         f"state.v = {state.v!r}; build the state with OscillatorState.start")
     if state.mode != 0 and (state.v - params.V) * state.mode < 0.0:
         raise ValueError(f"state.mode = {state.mode} contradicts v - V = "
                          f"{state.v - params.V!r}; build the state with OscillatorState.start")
@@ -466,7 +475,7 @@ def simulate(
     t_span = _positive("t_span", t_span)
     if not isinstance(state, OscillatorState):
         raise TypeError(f"state must be an OscillatorState, got {type(state).__name__}")
-    _check_state(state, params, t_span)
+    check_start(state, params, t_span)
     dt_out = _positive("dt_out", dt_out)
     dt = _positive("dt", dt)  # every method: dt='abc' passed silently unless method='rk4'
     rtol = check_rtol(rtol)
@@ -581,7 +590,7 @@ def run_stats(
     elif not isinstance(state, OscillatorState):
         raise TypeError(f"state must be an OscillatorState, got {type(state).__name__}")
     else:
-        _check_state(state, params, t_span)
+        check_start(state, params, t_span)
     max_event_rate = _positive("max_event_rate", max_event_rate)
     max_events = int(min(max_event_rate * max(t_span, 1.0), 2**62))
     budget = calls.step_budget(max_steps_per_tau, max_steps)

@@ -426,7 +426,9 @@ def test_a_continued_run_does_not_depend_on_the_absolute_time(law, t0):
         (OscillatorState(mode=5), "mode"),
         (OscillatorState(t=float("inf")), "state.t"),
         (OscillatorState(x=float("nan")), "state.x"),
-        (OscillatorState(t=1e300), "lost in rounding"),
+        (OscillatorState(t=1e300), r"state\.t must lie within \+-1e\+12"),
+        (OscillatorState(t=1e13), r"state\.t must lie within \+-1e\+12"),
+        (OscillatorState(phase1=1e13), r"state\.phase1 must lie within"),
         # beyond PARAM_LIMIT, as simulate's x0 / v0: ran to a NaN integral with status OK
         (OscillatorState(x=1e200), r"state\.x must lie within \+-1e\+12"),
         (OscillatorState(x=-1e13), r"state\.x must lie within \+-1e\+12"),
@@ -438,6 +440,17 @@ def test_run_stats_rejects_inconsistent_states(state, match):
     stats (a stuck block at v != V was counted stuck while sliding)."""
     with pytest.raises(ValueError, match=match):
         run_stats(OscillatorParams(), 1.0, state=state)
+
+
+def test_a_span_below_the_spacing_of_float64_at_the_start_is_refused():
+    """At t = 1e12 doubles are 1.2e-4 apart: a span of 1e-5 would leave t where it was
+    (time standing still), one of 1e-4 would jump by 1.2e-4."""
+    for span in (1e-5, 1e-4):
+        with pytest.raises(ValueError, match=r"t_span = .* below the spacing of float64 at "
+                                             r"state\.t = 1000000000000\.0"):
+            run_stats(OscillatorParams(), span, state=OscillatorState(t=1e12))
+        with pytest.raises(ValueError, match="below the spacing"):
+            simulate(OscillatorParams(), span, state=OscillatorState(t=1e12), dt_out=span)
 
 
 def test_continuing_a_stuck_state_at_another_belt_speed_is_refused():
