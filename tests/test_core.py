@@ -921,3 +921,19 @@ def test_simulate_continues_from_a_state():
     end = run_stats(p, 5.0, state=first.final_state).state
     assert end.t == second.final_state.t
     assert end.x == pytest.approx(second.final_state.x, abs=1e-12)
+
+
+def test_state_from_array_names_a_bad_vector():
+    """from_array(np.array([1.0])) raised a bare IndexError, a NaN mode 'cannot convert
+    float NaN to integer'."""
+    with pytest.raises(ValueError, match=r"s must be a state vector: a real array of shape "
+                                         r"\(6,\) .*got shape \(1,\)"):
+        OscillatorState.from_array(np.array([1.0]))
+    s = OscillatorState(t=2.0, x=0.5, v=-1.0, mode=-1).to_array()
+    assert OscillatorState.from_array(s) == OscillatorState(t=2.0, x=0.5, v=-1.0, mode=-1)
+    for mode in (np.nan, 0.5, 7.0):
+        bad = s.copy()
+        bad[fricenv.layout.S_MODE] = mode
+        with pytest.raises(ValueError, match=r"s\[S_MODE\] \(the mode\) must be -1, 0 or 1, "
+                                             rf"got {mode!r}"):
+            OscillatorState.from_array(bad)
