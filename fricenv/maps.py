@@ -29,6 +29,7 @@ from .layout import (
     ST_STICK_TIME,
     ST_V_MAX,
     ST_V_MIN,
+    ST_VR2_INT,
     ST_X_MAX,
     ST_X_MIN,
     STATUS_OK,
@@ -267,8 +268,9 @@ KNOWN_STATUSES = frozenset(v for k, v in vars(layout).items()
 def _check_cell_values(arrays: dict[str, np.ndarray]) -> None:
     """``ValueError`` naming the array, the first bad cell and its value unless every
     value is one a sweep writes: a known status, a period and a q >= 0, and finite
-    statistics in a cell computed with status OK (a map rewritten with inf or NaN
-    statistics, a period of -3 or a status of 77 loaded, and a resume kept it)."""
+    statistics in a cell computed with status OK (vr2_int may be NaN: not measured). A
+    resume keeps every done cell as it is, so a file that passes its checksums but holds
+    impossible values is refused here, as a damaged one is."""
     u0, nu = arrays["u0"], arrays["nu"]
 
     def refuse(name: str, bad: np.ndarray, value: np.ndarray, why: str) -> None:
@@ -290,7 +292,9 @@ def _check_cell_values(arrays: dict[str, np.ndarray]) -> None:
         if np.any(a < 0):
             refuse(name, a < 0, a, f"{name} is >= 0")
     ok = arrays["done"] & (status == STATUS_OK)
-    bad = ok[..., None] & ~np.isfinite(stats)
+    # (a sweep does not integrate (v - V)^2: NaN there means not measured)
+    measured = np.where(np.arange(N_STATS) == ST_VR2_INT, ~np.isnan(stats), True)
+    bad = ok[..., None] & measured & ~np.isfinite(stats)
     if bad.any():
         refuse("stats", bad, stats, "a cell computed with status OK has finite statistics")
 

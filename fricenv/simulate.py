@@ -272,7 +272,7 @@ class OscillatorState:
             raise ValueError(f"s must be a state vector: a real array of shape ({N_STATE},) "
                              f"in the layout.S_* order, {what}")
         if s[S_MODE] not in (-1.0, 0.0, 1.0):
-            raise ValueError(f"s[S_MODE] (the mode) must be -1, 0 or 1, got {s[S_MODE]!r}")
+            raise ValueError(f"s[S_MODE] (the mode) must be -1, 0 or 1, got {float(s[S_MODE])!r}")
         return cls(float(s[S_T]), float(s[S_X]), float(s[S_V]), int(s[S_MODE]),
                    float(s[S_PHI1]), float(s[S_PHI2]))
 

@@ -131,7 +131,8 @@ def test_well_formed_maps_with_impossible_contents_are_refused(tmp_path, small_m
     ok = np.argwhere(small_map.done & (small_map.status == STATUS_OK))
     assert len(ok) > 0
     i, j = (int(k) for k in ok[-1])
-    where = rf"cell \({i}, {j}\) \(u0 = {small_map.u0[i]!r}, nu = {small_map.nu[j]!r}\)"
+    u0, nu = float(small_map.u0[i]), float(small_map.nu[j])
+    where = rf"cell \({i}, {j}\) \(u0 = {u0!r}, nu = {nu!r}\)"
 
     def put(value, at=(i, j)):
         def change(a):
@@ -141,11 +142,13 @@ def test_well_formed_maps_with_impossible_contents_are_refused(tmp_path, small_m
     cases = {
         "inf": (("stats",), put(np.inf, (i, j, 1)),
                 rf"stats holds inf at {where}, statistic 'stick_time': .*finite"),
-        "nan": (("stats",), put(np.nan), rf"stats holds nan at {where}"),
+        "nan": (("stats",), put(np.nan), rf"stats holds nan at {where}, statistic 'duration'"),
+        "vr2": (("stats",), put(-np.inf, (i, j, 9)), rf"stats holds -inf at {where}, "
+                                                     "statistic 'vr2_int'"),
         "period": (("period",), put(-3), rf"period holds -3 at {where}: period is >= 0"),
         "status": (("status",), put(77),
                    rf"status holds 77 at {where}: a status is one of \[0, 1, 2"),
-        "q": (("q", "plan_q"), put(-2, (j,)), rf"q holds -2 at nu\[{j}\] = {small_map.nu[j]!r}"),
+        "q": (("q", "plan_q"), put(-2, (j,)), rf"q holds -2 at nu\[{j}\] = {nu!r}"),
         "label": (("labels",), put(9), r"labels holds 9, neither a Regime value"),
     }
     for case, (names, change, match) in cases.items():
