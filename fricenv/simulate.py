@@ -492,7 +492,10 @@ def simulate(
     applies, event otherwise). ``dt`` is checked (a finite number > 0) whatever the method,
     though only ``"rk4"`` uses it, so a bad value never passes unseen. Output times are
     ``state.t``, then every ``dt_out`` on, and the end ``state.t + t_span`` (appended when
-    off the grid): always at least the start and the end. ``t_span`` and ``state`` mean
+    off the grid): always at least the start and the end, at most ``MAX_OUTPUTS`` of
+    them, and distinct in float64 (a grid finer than the spacing of doubles at
+    ``state.t`` is refused); the steps the grid adds are not charged to the step budget,
+    so the budget bounds the motion's work, not the output's. ``t_span`` and ``state`` mean
     what they mean in :func:`run_stats`; the older keywords ``t_end``, ``x0``, ``v0``,
     ``phase1`` and ``phase2`` still work, with a ``DeprecationWarning``. A run that
     cannot go on, or whose motion diverged (:mod:`fricenv.divergence`), raises
