@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from . import mapfile
+from . import layout, mapfile
 from .cells import CellPlan, SweepSettings
 from .checks import check_finite_real, check_int, check_output_dir, check_path, real_array
 from .layout import (
@@ -29,8 +29,10 @@ from .layout import (
     ST_STICK_TIME,
     ST_V_MAX,
     ST_V_MIN,
+    ST_VR2_INT,
     ST_X_MAX,
     ST_X_MIN,
+    STATUS_OK,
 )
 from .params import PARAM_LIMIT, OscillatorParams
 from .regimes import Regime
@@ -182,8 +184,12 @@ class RegimeMap:
         """Read a map written by :meth:`save` (``ValueError`` naming the file if it is not
         one, is damaged, incomplete or inconsistent, with the cause chained; the
         ``OSError`` of a path that cannot be opened: ``FileNotFoundError`` if there is
-        none). ``.npz`` is appended if missing, as by :meth:`save`."""
-        path = _with_npz(check_path("path", path))
+        none). ``.npz`` is appended if missing, as by :meth:`save`, unless only the file
+        as named exists (``m.npy``: read, and named in the error if it is no map)."""
+        given = check_path("path", path)
+        path = _with_npz(given)
+        if path != given and not path.exists() and given.is_file():
+            path = given
         z = mapfile.read_npz(path)  # (ValueError for a damaged archive, cause chained)
         try:
             meta = json.loads(str(z["meta"][()]))
@@ -209,7 +215,7 @@ class RegimeMap:
             _check_map_arrays(arrays, plan)
         except (KeyError, TypeError, ValueError) as exc:
             what = f"no {exc}" if isinstance(exc, KeyError) else str(exc)
-            raise ValueError(f"{path} is not a valid regime map: {what}") from exc
+            raise mapfile.not_a_map(path, what) from exc
         extra = {k: v for k, v in meta.items()
                  if k not in ("format", "version", "params", "settings", "stats_layout",
                               "algorithm",
@@ -251,6 +257,46 @@ def _check_map_arrays(arrays: dict[str, np.ndarray], plan: CellPlan | None) -> N
     if plan is not None and not np.array_equal(arrays["q"], plan.q):
         raise ValueError(f"q {arrays['q'].tolist()} differs from the plan's "
                          f"{plan.q.tolist()}")
+    _check_cell_values(arrays)
+
+
+#: Every status a cell may have (``layout.STATUS_*``).
+KNOWN_STATUSES = frozenset(v for k, v in vars(layout).items()
+                           if k.startswith("STATUS_") and isinstance(v, int))
+
+
+def _check_cell_values(arrays: dict[str, np.ndarray]) -> None:
+    """``ValueError`` naming the array, the first bad cell and its value unless every
+    value is one a sweep writes: a known status, a period and a q >= 0, and finite
+    statistics in a cell computed with status OK (vr2_int may be NaN: not measured). A
+    resume keeps every done cell as it is, so a file that passes its checksums but holds
+    impossible values is refused here, as a damaged one is."""
+    u0, nu = arrays["u0"], arrays["nu"]
+
+    def refuse(name: str, bad: np.ndarray, value: np.ndarray, why: str) -> None:
+        i = tuple(int(k) for k in np.argwhere(bad)[0])
+        if len(i) == 1:
+            at = f"nu[{i[0]}] = {float(nu[i[0]])!r}"
+        else:
+            at = f"cell {i[:2]} (u0 = {float(u0[i[0]])!r}, nu = {float(nu[i[1]])!r})"
+        if len(i) == 3:
+            at += f", statistic {STAT_NAMES[i[2]]!r}"
+        raise ValueError(f"{name} holds {value[i].item()!r} at {at}: {why}")
+
+    status, period, q, stats = arrays["status"], arrays["period"], arrays["q"], arrays["stats"]
+    bad = ~np.isin(status, sorted(KNOWN_STATUSES))
+    if bad.any():
+        refuse("status", bad, status, f"a status is one of {sorted(KNOWN_STATUSES)} "
+               "(layout.STATUS_*)")
+    for name, a in (("period", period), ("q", q)):
+        if np.any(a < 0):
+            refuse(name, a < 0, a, f"{name} is >= 0")
+    ok = arrays["done"] & (status == STATUS_OK)
+    # (a sweep does not integrate (v - V)^2: NaN there means not measured)
+    measured = np.where(np.arange(N_STATS) == ST_VR2_INT, ~np.isnan(stats), True)
+    bad = ok[..., None] & measured & ~np.isfinite(stats)
+    if bad.any():
+        refuse("stats", bad, stats, "a cell computed with status OK has finite statistics")
 
 
 def _with_npz(p: Path) -> Path:

@@ -60,9 +60,11 @@ MAX_SCAN_STEPS = 1e9
 #: and ``run_stats``): steps in each unit of dimensionless time, and in the whole call.
 MAX_STEPS_PER_TAU = core.MAX_STEPS_PER_TAU
 MAX_STEPS_PER_CALL = core.MAX_STEPS_PER_CALL
-#: Most output instants ``simulate`` records (three float64 arrays and a mode each: 2.5 GB
-#: at the cap); a finer grid over a long run is refused before anything is allocated.
-MAX_OUTPUTS = 1e8
+#: Most output instants ``simulate`` records: t, x, v and the mode take 33 bytes an
+#: instant (330 MB at the cap, and about as many exact steps as instants); a finer grid
+#: over a longer run is refused before anything is allocated (``run_stats`` keeps no
+#: trajectory, and a long run can be recorded in pieces, each continuing the last).
+MAX_OUTPUTS = 1e7
 EVENT_NAMES = {EVENT_STICK: "stick", EVENT_SLIP: "slip", EVENT_REVERSAL: "reversal"}
 EVENT_DTYPE = np.dtype([("t", "f8"), ("kind", "i1"), ("name", "U8"), ("x", "f8")])
 
@@ -89,20 +91,29 @@ def _check_params(params: OscillatorParams) -> None:
         raise TypeError(f"params must be an OscillatorParams, got {type(params).__name__}")
 
 
-def _check_state(state: OscillatorState, params: OscillatorParams, t_span: float) -> None:
-    """``ValueError`` for a state the kernels cannot continue from consistently (x and v
-    beyond ``PARAM_LIMIT`` overflow them as a parameter would: a NaN integral, status OK)."""
-    for name in ("t", "phase1", "phase2"):
-        check_finite_real(f"state.{name}", getattr(state, name))
-    for name in ("x", "v"):
+def check_start(state: OscillatorState, params: OscillatorParams, t_span: float,
+                span_name: str = "t_span") -> None:
+    """``ValueError`` naming the field and its value for a state the kernels cannot continue
+    from consistently over ``t_span`` (called ``span_name`` in the message): magnitudes
+    of t, x, v and the phases beyond ``PARAM_LIMIT`` (x and v overflow the kernels as a
+    parameter would: a NaN integral, status OK), a mode other than -1, 0, 1 or one that
+    contradicts v (stick needs v == V exactly: the stick step holds v there and would
+    report a v - V it never integrates), and a span below the spacing of float64 at
+    ``state.t``, where the end time would be lost in rounding (time would stand still, or
+    jump by a whole spacing). Every public entry that starts from a given state (``simulate``,
+    ``run_stats``, the environments' ``set_state``) runs this one check."""
+    for name in ("t", "x", "v", "phase1", "phase2"):
         check_bounded_real(f"state.{name}", getattr(state, name), PARAM_LIMIT)
     if check_int("state.mode", state.mode) not in (-1, 0, 1):
         raise ValueError(f"state.mode must be -1, 0 or 1, got {state.mode!r}")
-    if state.t + t_span == state.t:
-        raise ValueError(f"t_span = {t_span!r} is lost in rounding at state.t = {state.t!r}")
+    spacing = math.ulp(state.t)
+    if t_span < spacing:
+        raise ValueError(f"{span_name} = {t_span!r} is below the spacing of float64 at "
+                         f"state.t = {state.t!r} ({spacing:.3g}): the run's end time would be "
+                         "lost in rounding")
     if state.mode == 0 and state.v != params.V:
         raise ValueError(f"state.mode = 0 (stick) needs v == V = {params.V!r}, got "
-                         f"v = {state.v!r}; build the state with OscillatorState.start")
+                         f"state.v = {state.v!r}; build the state with OscillatorState.start")
     if state.mode != 0 and (state.v - params.V) * state.mode < 0.0:
         raise ValueError(f"state.mode = {state.mode} contradicts v - V = "
                          f"{state.v - params.V!r}; build the state with OscillatorState.start")
@@ -253,6 +264,15 @@ class OscillatorState:
 
     @classmethod
     def from_array(cls, s: np.ndarray) -> OscillatorState:
+        """The state in a kernels' state vector ``s`` (layout ``layout.S_*``); ``ValueError``
+        naming ``s`` unless it is one, with a mode of -1, 0 or 1."""
+        if not (isinstance(s, np.ndarray) and s.shape == (N_STATE,) and s.dtype.kind in "fiu"):
+            what = (f"got shape {s.shape} and dtype {s.dtype}" if isinstance(s, np.ndarray)
+                    else got(s))
+            raise ValueError(f"s must be a state vector: a real array of shape ({N_STATE},) "
+                             f"in the layout.S_* order, {what}")
+        if s[S_MODE] not in (-1.0, 0.0, 1.0):
+            raise ValueError(f"s[S_MODE] (the mode) must be -1, 0 or 1, got {float(s[S_MODE])!r}")
         return cls(float(s[S_T]), float(s[S_X]), float(s[S_V]), int(s[S_MODE]),
                    float(s[S_PHI1]), float(s[S_PHI2]))
 
@@ -396,6 +416,24 @@ def output_times(t0: float, t_end: float, dt_out: float) -> np.ndarray:
     return t
 
 
+def _output_grid(t0: float, t_span: float, dt_out: float) -> np.ndarray:
+    """``output_times`` from ``t0`` over ``t_span``; ``ValueError`` naming ``dt_out`` where
+    instants collide in float64 (a grid finer than the spacing of doubles at ``t0``
+    recorded some instants twice and others not at all)."""
+    out_t = output_times(0.0, t_span, dt_out)
+    if t0 != 0.0:  # the grid counts from the start, as the kernels' time does
+        out_t = t0 + out_t
+        steps = np.diff(out_t)
+        if not np.all(steps > 0.0):
+            k = int(np.argmin(steps > 0.0))
+            raise ValueError(
+                f"dt_out = {dt_out!r} is too fine for a start at state.t = {t0!r}: output "
+                f"instants {k} and {k + 1} are both t = {out_t[k]!r} in float64 (doubles are "
+                f"{math.ulp(out_t[-1]):.3g} apart there); use a larger dt_out or start the "
+                "run at a smaller t")
+    return out_t
+
+
 #: Keywords ``simulate`` took before it shared ``run_stats``' vocabulary (``t_span`` for the
 #: run's length, ``state`` for where it starts); they still work, with a
 #: ``DeprecationWarning``, and go in a later release.
@@ -454,7 +492,10 @@ def simulate(
     applies, event otherwise). ``dt`` is checked (a finite number > 0) whatever the method,
     though only ``"rk4"`` uses it, so a bad value never passes unseen. Output times are
     ``state.t``, then every ``dt_out`` on, and the end ``state.t + t_span`` (appended when
-    off the grid): always at least the start and the end. ``t_span`` and ``state`` mean
+    off the grid): always at least the start and the end, at most ``MAX_OUTPUTS`` of
+    them, and distinct in float64 (a grid finer than the spacing of doubles at
+    ``state.t`` is refused); the steps the grid adds are not charged to the step budget,
+    so the budget bounds the motion's work, not the output's. ``t_span`` and ``state`` mean
     what they mean in :func:`run_stats`; the older keywords ``t_end``, ``x0``, ``v0``,
     ``phase1`` and ``phase2`` still work, with a ``DeprecationWarning``. A run that
     cannot go on, or whose motion diverged (:mod:`fricenv.divergence`), raises
@@ -466,7 +507,7 @@ def simulate(
     t_span = _positive("t_span", t_span)
     if not isinstance(state, OscillatorState):
         raise TypeError(f"state must be an OscillatorState, got {type(state).__name__}")
-    _check_state(state, params, t_span)
+    check_start(state, params, t_span)
     dt_out = _positive("dt_out", dt_out)
     dt = _positive("dt", dt)  # every method: dt='abc' passed silently unless method='rk4'
     rtol = check_rtol(rtol)
@@ -474,18 +515,17 @@ def simulate(
     max_event_rate = _positive("max_event_rate", max_event_rate)
     budget = calls.step_budget(max_steps_per_tau, max_steps)
     method = resolve_method(params, method)
-    if t_span / dt_out > MAX_OUTPUTS:
+    if t_span / dt_out + 1.0 > MAX_OUTPUTS:
         raise ValueError(f"dt_out = {dt_out!r} asks for {t_span / dt_out:.3g} output instants up "
                          f"to t_span = {t_span!r} (at most {MAX_OUTPUTS:g}); use a larger dt_out, "
-                         "or run_stats, which keeps no trajectory")
+                         "record the run in pieces (each from the last one's final_state), or "
+                         "use run_stats, which keeps no trajectory")
     P = params.to_array()
     scan_steps = 0.0
     if method != "rk4":  # before the output arrays are allocated
         scan_steps = check_scan_steps(P[None], np.array([t_span]), _SCAN_REMEDY,
                                       min(MAX_SCAN_STEPS, budget[1]))
-    out_t = output_times(0.0, t_span, dt_out)
-    if state.t != 0.0:  # the grid counts from the start, as the kernels' time does
-        out_t = state.t + out_t
+    out_t = _output_grid(state.t, t_span, dt_out)
     n = out_t.shape[0]
     out_x = np.empty(n)
     out_v = np.empty(n)
@@ -530,7 +570,9 @@ def simulate(
             return record(P, S, out_t, stats, code, rtol, atol, max_events, out_x, out_v,
                           out_mode, ev_t, ev_kind, ev_x, counts, work)
 
-        status = calls.run_call(run, lambda: calls.new_workspace(budget), scan_steps)
+        # (the budget does not charge the steps the grid adds, so count them here: a call
+        # with many outputs goes to the worker thread, where Ctrl-C reaches it)
+        status = calls.run_call(run, lambda: calls.new_workspace(budget), scan_steps + n)
         if status != STATUS_BUFFER_FULL:
             break
         capacity *= 4
@@ -581,7 +623,7 @@ def run_stats(
     elif not isinstance(state, OscillatorState):
         raise TypeError(f"state must be an OscillatorState, got {type(state).__name__}")
     else:
-        _check_state(state, params, t_span)
+        check_start(state, params, t_span)
     max_event_rate = _positive("max_event_rate", max_event_rate)
     max_events = int(min(max_event_rate * max(t_span, 1.0), 2**62))
     budget = calls.step_budget(max_steps_per_tau, max_steps)

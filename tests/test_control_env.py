@@ -18,7 +18,7 @@ from fricenv.envs import kernels as K
 from fricenv.envs.rollout import STATUS_LEFT_BOX, BatchRollout, rollout_batch
 from fricenv.envs.scenes import SCENES
 from fricenv.envs.sensors import CHANNELS, NOISE_ROWS, Instruments
-from fricenv.envs.state import N_PLANT, PlantState
+from fricenv.envs.state import N_PLANT, PL_WORK, PlantState
 from fricenv.envs.stick_slip import StickSlipEnv
 from fricenv.envs.vector import StickSlipVectorEnv
 
@@ -313,6 +313,63 @@ def test_set_state_refuses_what_does_not_fit():
         vec.get_state(2)
 
 
+@pytest.mark.parametrize("vector", [False, True])
+def test_set_state_refuses_what_run_stats_refuses(vector):
+    """A state is held to run_stats' own check: a stuck plant off the belt speed (it stepped
+    as stuck while reporting v - V = 4), magnitudes beyond 1e12 (v = 1e300, xfs = 1e300,
+    t = 1e17, where time stood still) were restored and stepped."""
+    from fricenv.envs.state import PL_P, PL_S
+    from fricenv.layout import S_MODE, S_T, S_V, S_X
+    from fricenv.params import P_XFS
+
+    env = StickSlipVectorEnv(num_envs=2) if vector else StickSlipEnv(scene="paper")
+    env.reset(seed=0)
+    state = env.get_state(0) if vector else env.get_state()
+    put = (lambda s: env.set_state(1, s)) if vector else env.set_state
+    stuck = state.plant.copy()
+    stuck[PL_S + S_MODE], stuck[PL_S + S_V] = 0.0, 5.0  # the belt runs at V = 1
+    cases = [(stuck, r"state\.mode = 0 \(stick\) needs v == V = 1\.0, got state\.v = 5\.0")]
+    for slot, value, match in ((S_V, 1e300, r"state\.v must lie within \+-1e\+12, .*1e\+300"),
+                               (S_V, -1e300, r"state\.v .* -1e\+300"),
+                               (S_X, 1e13, r"state\.x must lie within"),
+                               (S_T, 1e17, r"state\.t must lie within .* 1e\+17")):
+        plant = state.plant.copy()
+        plant[PL_S + slot] = value
+        cases.append((plant, match))
+    plant = state.plant.copy()
+    plant[PL_P + P_XFS] = 1e300
+    cases.append((plant, r"invalid plant: xfs must lie within .* 1e\+300"))
+    for plant, match in cases:
+        with pytest.raises(ValueError, match=match.replace(", ", ".*")):
+            put(PlantState(plant, state.command))
+    put(state)  # the env is unharmed
+    after = env.get_state(1) if vector else env.get_state()
+    assert after.plant[:PL_WORK].tobytes() == state.plant[:PL_WORK].tobytes()
+
+
+def test_set_state_recomputes_the_workspace_caches():
+    """Every workspace slot set to garbage (-1e300 was reported as chattering, others
+    shifted the next observations by up to 104) restores the same plant: the caches are
+    recomputed from the state, the settings are the environment's own."""
+    env = StickSlipEnv(scene="paper")
+    env.reset(seed=3)
+    for a in _actions(env, 7):
+        env.step(a)
+    state = env.get_state()
+    acts = _actions(env, 3, seed=1)
+    obs0 = env.set_state(state)
+    ref = [env.step(a)[:2] for a in acts]
+    for k in range(PL_WORK, N_PLANT):
+        for value in (-1e300, 104.0, np.nan, 0.0):
+            plant = state.plant.copy()
+            plant[k] = value
+            first = env.set_state(PlantState(plant, state.command))
+            assert np.array_equal(first, obs0)
+            for a, (obs, reward) in zip(acts, ref, strict=True):
+                o, r = env.step(a)[:2]
+                assert np.array_equal(o, obs) and abs(r - reward) <= 1e-12, (k, value)
+
+
 def test_set_state_refuses_a_plant_too_costly_to_step():
     """A restored plant is held to the scan-step caps that reset options are held to."""
     from fricenv.envs.state import PL_P
@@ -345,7 +402,8 @@ def test_vector_state_arrays_and_set_state_cancel_a_pending_reset():
     vec.set_state(0, keep)
     plants, cmds = vec.state_arrays()
     assert plants.shape == (3, N_PLANT) and cmds.shape == (3, 2)
-    assert plants[0].tobytes() == keep.plant.tobytes()
+    # (the workspace's caches are recomputed from the state, not restored)
+    assert plants[0, :PL_WORK].tobytes() == keep.plant[:PL_WORK].tobytes()
     _, _, _, trunc, _ = vec.step(_actions(vec, 1, seed=4)[0])
     assert trunc[0] and vec.get_state(0).episode_steps == 4  # stepped, not reset
 

@@ -426,7 +426,9 @@ def test_a_continued_run_does_not_depend_on_the_absolute_time(law, t0):
         (OscillatorState(mode=5), "mode"),
         (OscillatorState(t=float("inf")), "state.t"),
         (OscillatorState(x=float("nan")), "state.x"),
-        (OscillatorState(t=1e300), "lost in rounding"),
+        (OscillatorState(t=1e300), r"state\.t must lie within \+-1e\+12"),
+        (OscillatorState(t=1e13), r"state\.t must lie within \+-1e\+12"),
+        (OscillatorState(phase1=1e13), r"state\.phase1 must lie within"),
         # beyond PARAM_LIMIT, as simulate's x0 / v0: ran to a NaN integral with status OK
         (OscillatorState(x=1e200), r"state\.x must lie within \+-1e\+12"),
         (OscillatorState(x=-1e13), r"state\.x must lie within \+-1e\+12"),
@@ -438,6 +440,17 @@ def test_run_stats_rejects_inconsistent_states(state, match):
     stats (a stuck block at v != V was counted stuck while sliding)."""
     with pytest.raises(ValueError, match=match):
         run_stats(OscillatorParams(), 1.0, state=state)
+
+
+def test_a_span_below_the_spacing_of_float64_at_the_start_is_refused():
+    """At t = 1e12 doubles are 1.2e-4 apart: a span of 1e-5 would leave t where it was
+    (time standing still), one of 1e-4 would jump by 1.2e-4."""
+    for span in (1e-5, 1e-4):
+        with pytest.raises(ValueError, match=r"t_span = .* below the spacing of float64 at "
+                                             r"state\.t = 1000000000000\.0"):
+            run_stats(OscillatorParams(), span, state=OscillatorState(t=1e12))
+        with pytest.raises(ValueError, match="below the spacing"):
+            simulate(OscillatorParams(), span, state=OscillatorState(t=1e12), dt_out=span)
 
 
 def test_continuing_a_stuck_state_at_another_belt_speed_is_refused():
@@ -908,3 +921,19 @@ def test_simulate_continues_from_a_state():
     end = run_stats(p, 5.0, state=first.final_state).state
     assert end.t == second.final_state.t
     assert end.x == pytest.approx(second.final_state.x, abs=1e-12)
+
+
+def test_state_from_array_names_a_bad_vector():
+    """from_array(np.array([1.0])) raised a bare IndexError, a NaN mode 'cannot convert
+    float NaN to integer'."""
+    with pytest.raises(ValueError, match=r"s must be a state vector: a real array of shape "
+                                         r"\(6,\) .*got shape \(1,\)"):
+        OscillatorState.from_array(np.array([1.0]))
+    s = OscillatorState(t=2.0, x=0.5, v=-1.0, mode=-1).to_array()
+    assert OscillatorState.from_array(s) == OscillatorState(t=2.0, x=0.5, v=-1.0, mode=-1)
+    for mode in (np.nan, 0.5, 7.0):
+        bad = s.copy()
+        bad[fricenv.layout.S_MODE] = mode
+        with pytest.raises(ValueError, match=r"s\[S_MODE\] \(the mode\) must be -1, 0 or 1, "
+                                             rf"got {mode!r}"):
+            OscillatorState.from_array(bad)

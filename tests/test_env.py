@@ -1276,3 +1276,25 @@ def test_every_kernel_status_has_its_own_message() -> None:
                          (STATUS_TOO_STIFF, "too stiff")):
         with pytest.raises(RuntimeError, match=text):
             raise_status(status, None, " 3")
+
+
+@pytest.mark.parametrize("mode", [5, [], b"rgb_array"])
+def test_a_render_mode_that_is_no_str_is_named_by_every_env(mode) -> None:
+    """gym.make(..., render_mode=5) raised AttributeError from inside gymnasium (it calls
+    render_mode.endswith on a mode not among the env's)."""
+    from fricenv.envs.sb3 import StickSlipSB3VecEnv
+
+    match = r"render_mode must be one of \[.*'rgb_array'\] or None, got"
+    makers = [lambda: gym.make("fricenv/StickSlip-v0", render_mode=mode),
+              lambda: gym.make_vec("fricenv/StickSlip-v0", num_envs=2, render_mode=mode,
+                                   vectorization_mode="vector_entry_point"),
+              lambda: StickSlipEnv(render_mode=mode),
+              lambda: StickSlipVectorEnv(num_envs=2, render_mode=mode),
+              lambda: StickSlipSB3VecEnv(num_envs=2, render_mode=mode)]
+    for make in makers:
+        with pytest.raises(TypeError, match=match):
+            make()
+    with pytest.raises(ValueError, match=r"render_mode must be one of \['human', 'rgb_array'\]"):
+        StickSlipEnv(render_mode="ascii")
+    assert "rgb_array" in StickSlipEnv.metadata["render_modes"]
+    assert None not in StickSlipEnv.metadata["render_modes"]

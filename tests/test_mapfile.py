@@ -110,6 +110,57 @@ def test_every_changed_byte_gives_the_map_or_a_value_error(tmp_path, small_map) 
             _expect_map_or_named_value_error(path, small_map)
 
 
+def _rewritten(good: Path, path: Path, names: tuple[str, ...], change) -> Path:
+    """``good`` with the arrays ``names`` changed by ``change(array)`` (in place), written
+    as a well-formed archive with valid checksums."""
+    with np.load(good) as z:
+        entries = {k: z[k] for k in z.files}
+    for name in names:
+        change(entries[name])
+    np.savez(path, **entries)
+    return path
+
+
+def test_well_formed_maps_with_impossible_contents_are_refused(tmp_path, small_map) -> None:
+    """A map rewritten with valid checksums and inf or all-NaN statistics, a period of -3
+    or a status of 77 loaded, and a resume kept it; now each is the named ValueError of a
+    damaged file, naming the array and the first bad cell."""
+    from fricenv.layout import STATUS_OK
+
+    good = small_map.save(tmp_path / "good.npz")
+    ok = np.argwhere(small_map.done & (small_map.status == STATUS_OK))
+    assert len(ok) > 0
+    i, j = (int(k) for k in ok[-1])
+    u0, nu = float(small_map.u0[i]), float(small_map.nu[j])
+    where = rf"cell \({i}, {j}\) \(u0 = {u0!r}, nu = {nu!r}\)"
+
+    def put(value, at=(i, j)):
+        def change(a):
+            a[at] = value
+        return change
+
+    cases = {
+        "inf": (("stats",), put(np.inf, (i, j, 1)),
+                rf"stats holds inf at {where}, statistic 'stick_time': .*finite"),
+        "nan": (("stats",), put(np.nan), rf"stats holds nan at {where}, statistic 'duration'"),
+        "vr2": (("stats",), put(-np.inf, (i, j, 9)), rf"stats holds -inf at {where}, "
+                                                     "statistic 'vr2_int'"),
+        "period": (("period",), put(-3), rf"period holds -3 at {where}: period is >= 0"),
+        "status": (("status",), put(77),
+                   rf"status holds 77 at {where}: a status is one of \[0, 1, 2"),
+        "q": (("q", "plan_q"), put(-2, (j,)), rf"q holds -2 at nu\[{j}\] = {nu!r}"),
+        "label": (("labels",), put(9), r"labels holds 9, neither a Regime value"),
+    }
+    for case, (names, change, match) in cases.items():
+        path = _rewritten(good, tmp_path / f"{case}.npz", names, change)
+        with pytest.raises(ValueError, match=rf"{case}\.npz is not a fricenv regime map \("
+                                             + match):
+            RegimeMap.load(path)
+        with pytest.raises(ValueError, match=rf"{case}\.npz is not a fricenv regime map"):
+            regime_map(PARAMS, small_map.u0, small_map.nu, path=path, progress=False)
+    _same(small_map, RegimeMap.load(good))
+
+
 def test_archives_claiming_huge_arrays_are_refused_before_allocating(tmp_path) -> None:
     path = tmp_path / "m.npz"
     with zipfile.ZipFile(path, "w") as zf:  # a .npy header asking for 8e15 bytes
@@ -208,3 +259,17 @@ def test_a_grid_too_large_for_memory_is_refused_before_anything_is_allocated(tmp
                                          rf"MAX_CELLS = {MAX_CELLS}"):
         regime_map(PARAMS, u0, nu, path=tmp_path / "m.npz", progress=False)
     assert not list(tmp_path.iterdir())
+
+
+def test_a_map_named_with_another_suffix_is_read_as_named(tmp_path, small_map) -> None:
+    """RegimeMap.load('x.npy') on an existing x.npy said FileNotFoundError for x.npy.npz."""
+    npy = tmp_path / "x.npy"
+    np.save(npy, np.zeros(3))
+    with pytest.raises(ValueError, match=r"x\.npy is not a fricenv regime map"):
+        RegimeMap.load(npy)
+    kept = tmp_path / "m.map"
+    kept.write_bytes(small_map.save(tmp_path / "m.npz").read_bytes())
+    _same(small_map, RegimeMap.load(kept))
+    small_map.save(tmp_path / "both.map")  # both.map.npz: the name save gives it wins
+    (tmp_path / "both.map").write_bytes(b"not a map")
+    _same(small_map, RegimeMap.load(tmp_path / "both.map"))

@@ -335,7 +335,13 @@ def _scan_exact(S, t_span, stats, max_events, rec, cx, cap, c1, s1, c2, s2):
 
     Steps are aligned with the output grid (``rec.out_t``, or the single interval [t, t +
     t_span] when ``rec`` is None), each output interval split into equal scan steps whose
-    transition constants are computed once, so recording costs nothing extra.
+    transition constants are computed once, so recording costs nothing extra. An interval
+    of length L takes m = ceil(L / cap) scan steps where the scan alone would take L / cap:
+    the grid's m - L / cap (under one step an instant) are not charged to the step budget,
+    so that a fine grid over a long run (the caller's choice of output, which ``simulate``
+    caps) is charged what the same run without outputs is. Those steps still count towards
+    the budget checks' cadence: a call lowered to a budget below 0 from another thread
+    ends as promptly as ever.
     """
     ph1 = S[S_PHI1]
     ph2 = S[S_PHI2]
@@ -354,6 +360,7 @@ def _scan_exact(S, t_span, stats, max_events, rec, cx, cap, c1, s1, c2, s2):
     status = STATUS_OK
     fresh = True  # the current phase starts on a switching surface (or at the call start)
     n_call = 0.0  # steps so far, and the step budget's state (see _budget_check)
+    n_grid = 0.0  # steps the output grid added, which the budget does not charge
     n_check = 0.0
     t_win = 0.0
     n_win0 = 0.0
@@ -379,11 +386,13 @@ def _scan_exact(S, t_span, stats, max_events, rec, cx, cap, c1, s1, c2, s2):
             while t < tk:
                 n_call += 1.0
                 if n_call >= n_check:
-                    over, t_win, n_win0, n_check = _budget_check(cx, t, n_call, t_win, n_win0,
-                                                                 n_scan)
+                    n_used = n_call - n_grid
+                    over, t_win, n_win0, n_next = _budget_check(cx, t, n_used, t_win, n_win0,
+                                                                n_scan)
                     if over:
                         status = STATUS_STEP_BUDGET
                         break
+                    n_check = n_call + (n_next - n_used)
                 stats[ST_N_STEPS] += 1.0
                 if mode != 0.0:
                     tau, halved, on_grid, kind, mode, x, v, acc, c1, s1, c2, s2 = _slip_step(
@@ -414,6 +423,7 @@ def _scan_exact(S, t_span, stats, max_events, rec, cx, cap, c1, s1, c2, s2):
         if rec is not None:
             _write_output(rec, j + 1, x, v, mode)
             rec.counts[1] = j + 2
+            n_grid += max(0.0, m - length / cap)
     stats[ST_DURATION] += t
     _end_call(S, cx, t_start + t, x, v, mode, ph1, c1, s1, ph2, c2, s2)
     return status

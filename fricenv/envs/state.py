@@ -5,13 +5,19 @@ it was and try other actions. Everything a control interval reads lives in one f
 vector per plant, ``plant``, laid out as the kernels' own arrays (``PL_*``): the episode's
 parameter vector (``params.P_*``, the randomised plant and the excitation it runs under),
 the state (``layout.S_*``: t, x, v, mode, tone phases), the applied setting (u0, nu) and
-the core's workspace. The workspace is part of the state, not a cache one may drop: it
-carries the closed form's transition constants and the tones' cos/sin, rotated from one
-interval to the next, so a restored plant without it would take its next step through
-freshly computed values that differ in the last bits. With it, restoring a state and
-replaying the same actions reproduces the trajectory bit for bit, and the batch rollout
+the core's workspace. The workspace carries the tones' cos/sin, rotated from one interval
+to the next, so a restored plant without them would take its next step through freshly
+computed values that differ in the last bits. With them, restoring a state and replaying
+the same actions reproduces the trajectory bit for bit, and the batch rollout
 (``fricenv.envs.rollout``) starts any number of samples from the same vector without
 copying a Python object per sample.
+
+A restored state is held to what ``run_stats`` accepts as a start (one check,
+``fricenv.simulate.check_start``), and its workspace is not trusted: every cache in it is
+dropped and recomputed from the physical state at the next step (their keys are the
+parameters, so the values are the same bits), the environment keeps its own settings
+(budget, skipped statistics), and the tones' carried cos/sin are kept only where they are
+the cos/sin of the state's phases to within ``TONE_CACHE_TOL``.
 
 Around the plant (``fricenv.envs.sensors``): the actuator's command, the sensors' delay
 line and the noise stream's position; and the steps taken in the episode (the vector env
@@ -27,7 +33,19 @@ from typing import Any
 import numpy as np
 
 from fricenv.checks import got
-from fricenv.core import new_workspace
+from fricenv.core import (
+    W_C1,
+    W_C2,
+    W_MAX_STEPS_CALL,
+    W_MAX_STEPS_TAU,
+    W_PH1,
+    W_PH2,
+    W_S1,
+    W_S2,
+    W_SKIP_EXTREMA,
+    W_SKIP_VR2,
+    new_workspace,
+)
 from fricenv.envs import kernels as K
 from fricenv.envs.sensors import check_noise_state
 from fricenv.layout import N_STATE, S_MODE, S_PHI1, S_PHI2, S_T, S_V, S_X
@@ -43,7 +61,9 @@ from fricenv.params import (
     P_W2,
     P_XFK,
     P_XFS,
+    OscillatorParams,
 )
+from fricenv.simulate import OscillatorState, check_start
 
 TWO_PI = 2.0 * np.pi
 
@@ -55,6 +75,16 @@ PL_S = PL_P + N_PARAMS
 PL_CTRL = PL_S + N_STATE
 PL_WORK = PL_CTRL + 2
 N_PLANT = PL_WORK + N_WORK
+#: Workspace slots that are the environment's settings, not the plant's: kept from the
+#: environment's own workspace when a state is restored.
+_SETTINGS = np.array([W_SKIP_EXTREMA, W_SKIP_VR2, W_MAX_STEPS_TAU, W_MAX_STEPS_CALL])
+#: Each tone's phase slot in the state and its cos/sin cache (key, cos, sin) in the workspace.
+_TONE_CACHES = ((S_PHI1, W_PH1, W_C1, W_S1), (S_PHI2, W_PH2, W_C2, W_S2))
+#: Largest difference a restored tone cache may have from the cos and sin of its phase: the
+#: closed form carries them by rotation across intervals, which drifts by about an ulp per
+#: step (1e-13 after a million steps); anything further is not a carried value, and the
+#: cache is recomputed.
+TONE_CACHE_TOL = 1e-9
 
 
 @dataclass(frozen=True, eq=False)
@@ -147,18 +177,51 @@ def pack(P: np.ndarray, S: np.ndarray, ctrl: np.ndarray, work: np.ndarray,
 
 def unpack(plant: np.ndarray, P: np.ndarray, S: np.ndarray, ctrl: np.ndarray,
            work: np.ndarray) -> None:
-    """Write a plant vector into the environment's arrays."""
+    """Write a plant vector (checked by ``check_state``) into the environment's arrays.
+
+    The workspace is rebuilt, not copied: the environment's settings stay its own, every
+    cache is emptied (the kernels refill them from the parameters, bit for bit as before),
+    and a tone's carried cos/sin is taken over only when its key is the state's phase and
+    its values are that phase's cos and sin to within ``TONE_CACHE_TOL``.
+    """
     P[:] = plant[PL_P:PL_S]
     S[:] = plant[PL_S:PL_CTRL]
     ctrl[:] = plant[PL_CTRL:PL_WORK]
-    work[:] = plant[PL_WORK:]
+    settings = work[_SETTINGS].copy()
+    work[:] = np.nan  # (NaN keys never match: every cache is recomputed)
+    work[_SETTINGS] = settings
+    given = plant[PL_WORK:]
+    for s_phi, key, c, s in _TONE_CACHES:
+        phi = S[s_phi]
+        if (given[key] == phi and abs(given[c] - np.cos(phi)) <= TONE_CACHE_TOL
+                and abs(given[s] - np.sin(phi)) <= TONE_CACHE_TOL):
+            work[key], work[c], work[s] = phi, given[c], given[s]
+
+
+def _check_physics(state: PlantState, dt: float) -> None:
+    """``ValueError`` naming the field and value unless the plant and its state are a start
+    ``run_stats`` accepts for a run of one control interval ``dt`` (the same check)."""
+    P = state.plant[PL_P:PL_S]
+    try:
+        params = OscillatorParams(
+            lam=float(P[P_LAM]), eta=float(P[P_W1]), nu=float(P[P_W2] / P[P_W1]),
+            u0=state.u0, V=float(P[P_V]), xfk=float(P[P_XFK]), xfs=float(P[P_XFS]),
+            b1=float(P[P_B1]), b3=float(P[P_B3]), u1=float(P[P_U1]), u2=float(P[P_U2]))
+    except ValueError as e:
+        raise ValueError(f"state holds an invalid plant: {e}") from None
+    S = state.plant[PL_S:PL_CTRL]
+    start = OscillatorState(float(S[S_T]), float(S[S_X]), float(S[S_V]), state.mode,
+                            float(S[S_PHI1]), float(S[S_PHI2]))
+    check_start(start, params, dt, "the control interval dt")
 
 
 def check_state(state: Any, delay_rows: int | None, noisy: bool,
-                u_range: tuple[float, float], nu_range: tuple[float, float]) -> None:
+                u_range: tuple[float, float], nu_range: tuple[float, float],
+                dt: float) -> None:
     """``TypeError`` / ``ValueError`` naming what is wrong unless ``state`` can be restored
     into an environment whose delay line has ``delay_rows`` rows (None: no sensors), with
-    noise or not, and these setting ranges."""
+    noise or not, these setting ranges and control interval ``dt``; the plant and its
+    state are held to ``run_stats``' own check (``fricenv.simulate.check_start``)."""
     if not isinstance(state, PlantState):
         raise TypeError(f"state must be a PlantState (from get_state()), {got(state)}")
     for name, arr, shape, dtype in (("plant", state.plant, (N_PLANT,), np.float64),
@@ -177,6 +240,7 @@ def check_state(state: Any, delay_rows: int | None, noisy: bool,
         raise ValueError(f"state holds an invalid plant ({', '.join(bad)}): {state.params}")
     if state.mode not in (-1, 0, 1) or state.plant[PL_S + S_MODE] != state.mode:
         raise ValueError(f"state.mode must be -1, 0 or 1, got {state.plant[PL_S + S_MODE]!r}")
+    _check_physics(state, dt)
     for j, (lo, hi), name in ((0, u_range, "u0"), (1, nu_range, "nu")):
         for arr, what in ((state.plant[PL_CTRL:PL_WORK], "applied"), (state.command, "command")):
             if not lo <= arr[j] <= hi:

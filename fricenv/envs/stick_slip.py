@@ -13,7 +13,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from fricenv.checks import check_int, is_int
+from fricenv.checks import check_int, got, is_int
 from fricenv.core import new_workspace
 from fricenv.envs import kernels as K
 from fricenv.envs.scenes import Scene, check_episode_cost, new_episode_arrays
@@ -62,6 +62,31 @@ _PLANT = np.zeros(1, dtype=np.int64)
 #: Most instants ``sample_interval`` returns: 17 MB of arrays and a kernel call each, far
 #: more than any plot of one control interval needs (n_samples = 1e10 asked for 170 GB).
 MAX_SAMPLES = 10**6
+
+
+def check_render_mode(render_mode: Any, modes: list[str]) -> None:
+    """``TypeError`` (not a str) or ``ValueError`` (another str) naming ``render_mode`` and
+    the allowed ``modes`` unless it is one of them or None."""
+    if render_mode is None:
+        return
+    if not isinstance(render_mode, str):
+        raise TypeError(f"render_mode must be one of {list(modes)} or None, {got(render_mode)}")
+    if render_mode not in modes:
+        raise ValueError(f"render_mode must be one of {list(modes)} or None, "
+                         f"got {render_mode!r}")
+
+
+class RenderModes(list[str]):
+    """An environment's ``metadata["render_modes"]``: a list of str whose ``in`` raises the
+    ``TypeError`` of :func:`check_render_mode` for anything but a str or None.
+    ``gymnasium.make`` tests ``render_mode in render_modes`` before it builds the
+    environment, and for a mode not in the list calls ``render_mode.endswith``: an int
+    gave an ``AttributeError`` from inside gymnasium instead of a word on render_mode."""
+
+    def __contains__(self, mode: object) -> bool:
+        if mode is not None and not isinstance(mode, str):
+            check_render_mode(mode, self)
+        return super().__contains__(mode)
 
 
 class StickSlipEnv(gym.Env):
@@ -255,7 +280,7 @@ class StickSlipEnv(gym.Env):
       `get_state` and `set_state`.
     """
 
-    metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 12}
+    metadata = {"render_modes": RenderModes(["human", "rgb_array"]), "render_fps": 12}
 
     def __init__(
         self,
@@ -274,11 +299,7 @@ class StickSlipEnv(gym.Env):
         actuator_lag: float = 0.0,
         actuator_rate: float | None = None,
     ):
-        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise ValueError(
-                f"render_mode must be one of {self.metadata['render_modes']} or None, "
-                f"got {render_mode!r}"
-            )
+        check_render_mode(render_mode, self.metadata["render_modes"])
         self.setup = EnvSetup.build(
             scene,
             action_mode,
@@ -460,7 +481,7 @@ class StickSlipEnv(gym.Env):
         bank = self._bank
         check_state(state, None if bank is None or bank.delay is None else bank.delay.shape[1],
                     bank is not None and bank.normals is not None, self.scene.u0_range,
-                    self.scene.nu_range)
+                    self.scene.nu_range, self.dt)
         u0, nu = state.plant[PL_CTRL:PL_WORK].tolist()
         check_episode_cost(self.scene, state.plant[PL_P:PL_S], u0, nu,
                            "refused state: its plant is too stiff or too fast")

@@ -27,6 +27,7 @@ from fricenv.envs import kernels as K
 from fricenv.envs.scenes import N_DRAWS, N_INIT, Scene, check_episode_cost
 from fricenv.envs.setup import ACTION_DTYPES, EnvSetup, coerce_action, raise_status
 from fricenv.envs.steppers import Steppers, steppers_for_plants
+from fricenv.envs.stick_slip import RenderModes, check_render_mode
 from fricenv.envs.vector_plants import VectorPlants
 from fricenv.envs.vector_render import VectorRendering
 from fricenv.jit import parallel_section
@@ -142,7 +143,7 @@ class StickSlipVectorEnv(VectorPlants, VectorRendering, VectorEnv):
     """
 
     metadata = {
-        "render_modes": ["rgb_array"],
+        "render_modes": RenderModes(["rgb_array"]),
         "render_fps": 12,
         "autoreset_mode": AutoresetMode.NEXT_STEP,
     }
@@ -171,11 +172,7 @@ class StickSlipVectorEnv(VectorPlants, VectorRendering, VectorEnv):
         self._traces = None
         self._painter = None
         num_envs = check_int("num_envs", num_envs, 1, MAX_NUM_ENVS)
-        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise ValueError(
-                f"render_mode must be one of {self.metadata['render_modes']} or None, "
-                f"got {render_mode!r}"
-            )
+        check_render_mode(render_mode, self.metadata["render_modes"])
         self._autoreset_mode = AutoresetMode(autoreset_mode)
         self.metadata = {**type(self).metadata, "autoreset_mode": self._autoreset_mode}
         self.setup = EnvSetup.build(

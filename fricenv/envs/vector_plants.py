@@ -45,6 +45,7 @@ class VectorPlants:
     setup: EnvSetup
     scene: Scene
     num_envs: int
+    dt: float
     _cfg: np.ndarray
     _ivars: np.ndarray
     _autoreset_mode: AutoresetMode
@@ -164,7 +165,7 @@ class VectorPlants:
         bank = self._bank
         check_state(state, None if bank is None or bank.delay is None else bank.delay.shape[1],
                     bank is not None and bank.normals is not None, self.scene.u0_range,
-                    self.scene.nu_range)
+                    self.scene.nu_range, self.dt)
         u0, nu = state.plant[PL_CTRL:PL_WORK].tolist()
         self._check_cost(state.plant[PL_P:PL_S], u0, nu,
                          "refused state: its plant is too stiff or too fast")
