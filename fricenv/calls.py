@@ -21,6 +21,7 @@ import contextlib
 import signal
 import threading
 from collections.abc import Callable, Iterator
+from typing import Any
 
 import numpy as np
 
@@ -46,10 +47,10 @@ class SweepInterrupted(KeyboardInterrupt):
     that code which stops on Ctrl-C stops on it too. A sweep with a file or store has saved
     its finished cells before this reaches the caller."""
 
-    def __init__(self, results: object = None, signum: int | None = None) -> None:
+    def __init__(self, results: Any = None, signum: int | None = None) -> None:
         self.signum = signal.SIGINT if signum is None else signum
         super().__init__(f"sweep stopped by {signal.Signals(self.signum).name}")
-        self.results = results
+        self.results: Any = results  # (its form is the interrupted call's)
 
 
 def _raise_on_sigterm(signum: int, frame: object) -> None:
