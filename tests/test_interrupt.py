@@ -30,9 +30,9 @@ ROOT = Path(__file__).resolve().parents[1]
 STOP_S = 5.0
 #: Time allowed the child, numba compilation from a cold cache included.
 CHILD_TIMEOUT_S = 600.0
-#: How long after ``ready`` the signal is sent: cells have finished, the sweep (about 6 s
-#: on two quiet cores) has not.
-SIGNAL_AFTER_S = 1.5
+#: When the signal is sent after ``ready``, as a share of the time the same sweep took in
+#: this process: cells have finished, the sweep has not, on a fast machine or a loaded one.
+SIGNAL_AT = 0.35
 N = 24
 U0 = np.geomspace(0.5, 50.0, N)
 NU = np.linspace(0.3, 2.7, N)
@@ -84,11 +84,16 @@ finally:
 
 @pytest.fixture(scope="module")
 def full() -> fricenv.RegimeMap:
-    """The sweep of every test here, run without a stop."""
-    return fricenv.regime_map("stribeck", U0, NU, settings=SETTINGS, progress=False)
+    """The sweep of every test here, run without a stop (timed, warm)."""
+    fricenv.regime_map("stribeck", U0[:2], NU[:2], settings=SETTINGS, progress=False)
+    start = time.perf_counter()
+    rmap = fricenv.regime_map("stribeck", U0, NU, settings=SETTINGS, progress=False)
+    rmap.meta["seconds"] = time.perf_counter() - start
+    return rmap
 
 
-def _interrupted_child(kind: str, path: Path, signum: int) -> tuple[float, int]:
+def _interrupted_child(kind: str, path: Path, signum: int, full: fricenv.RegimeMap
+                       ) -> tuple[float, int]:
     """Run the sweep ``kind`` in a child, send it ``signum`` once it is sweeping; the
     seconds from the signal until the exception reached the child's own code (the sweep
     stopped and its cells saved), and the child's return code."""
@@ -103,7 +108,7 @@ def _interrupted_child(kind: str, path: Path, signum: int) -> tuple[float, int]:
         if kind == "dask":
             line = child.stdout.readline().strip()
             assert line == "cluster", child.stderr.read()
-        time.sleep(SIGNAL_AFTER_S)
+        time.sleep(SIGNAL_AT * full.meta["seconds"])
         sent = time.perf_counter()
         child.send_signal(signum)
         child.wait(timeout=CHILD_TIMEOUT_S)
@@ -120,7 +125,7 @@ def _interrupted_child(kind: str, path: Path, signum: int) -> tuple[float, int]:
 @pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM])
 def test_a_stopped_regime_map_keeps_its_finished_cells(tmp_path, full, signum) -> None:
     path = tmp_path / "m.npz"
-    latency, code = _interrupted_child("map", path, signum)
+    latency, code = _interrupted_child("map", path, signum, full)
     assert latency <= STOP_S and code != 0
     kept = fricenv.RegimeMap.load(path)
     assert 0 < kept.done.sum() < N * N, "the signal came before any cell or after all"
@@ -138,7 +143,7 @@ def test_a_stopped_regime_map_keeps_its_finished_cells(tmp_path, full, signum) -
 
 def test_stopped_cell_statistics_hand_back_their_finished_cells(tmp_path, full) -> None:
     path = tmp_path / "cells.npz"
-    latency, _ = _interrupted_child("cells", path, signal.SIGINT)
+    latency, _ = _interrupted_child("cells", path, signal.SIGINT, full)
     assert latency <= STOP_S
     with np.load(path) as f:
         labels, stats, period, status = (f[f"arr_{i}"] for i in range(4))
@@ -184,7 +189,7 @@ def test_a_stopped_atlas_keeps_its_finished_cells(tmp_path, monkeypatch, full, k
     from fricenv.atlas import regime_map_dataset
 
     path = tmp_path / "a.zarr"
-    latency, code = _interrupted_child(kind, path, signal.SIGINT)
+    latency, code = _interrupted_child(kind, path, signal.SIGINT, full)
     assert latency <= STOP_S and code != 0
     kept = fricenv.open_atlas(path).load()
     done = kept.label.values != NOT_COMPUTED
