@@ -47,7 +47,7 @@ from ..checks import check_path, got
 from ..params import OscillatorParams
 from ..regimes import Regime
 from ..sweep import ALGORITHM, NOT_COMPUTED, RegimeMap, SweepSettings, plan_cells
-from .core import STATUS_NOT_RUN, VARIABLES, AtlasSpec, variables_from_stats
+from .core import STATUS_NOT_RUN, VARIABLES, AtlasSpec, chunk_slices, variables_from_stats
 
 FORMAT = "fricenv.atlas"
 #: Version 2: chunks carry checksums, metadata documents have theirs in the group's
@@ -456,8 +456,7 @@ def _part_done_chunks(path: Path, stored: StoreCheck
     arrays = {k: _array(path, stored.group, k) for k in VARIABLES}
     out = {}
     for index in sorted(stored.complete):
-        sl = tuple(slice(i * c, (i + 1) * c) for i, c in zip(index, stored.spec.chunks,
-                                                               strict=True))
+        sl = chunk_slices(stored.spec, index)
         if np.any(arrays["label"][sl] == NOT_COMPUTED):
             out[index] = {k: np.asarray(a[sl]) for k, a in arrays.items()}
     return out
