@@ -106,49 +106,62 @@ def new_workspace(budget: tuple[float, float]) -> np.ndarray:
 def run_stoppable(run: Callable[[], object], abort: Callable[[], None],
                   stop_requested: Callable[[], bool] | None = None) -> bool:
     """Run ``run()`` (a ``nogil`` kernel call) in a worker thread while the calling thread
-    waits in ``JOIN_POLL`` joins, where signals reach it.
+    waits in ``JOIN_POLL`` waits, where signals reach it.
 
     ``abort()`` tells the running kernel to stop (it lowers a budget slot the kernel reads
     every ``BUDGET_CHECK_STEPS`` steps); it is called again at every poll until the kernel
     has returned, since a kernel may overwrite the slot once in a race with it. When the
     waiting thread gets an exception (``KeyboardInterrupt`` on Ctrl-C, or whatever a signal
-    handler raises), the kernel is stopped and joined, then the exception propagates; a
-    second Ctrl-C meanwhile does not cut the join short, so the caller's arrays are never
-    written after this returns. ``stop_requested()``, polled at every join, stops the kernel
+    handler raises), the kernel is stopped and waited for, then the exception propagates; a
+    second Ctrl-C meanwhile does not cut the wait short, so the caller's arrays are never
+    written after this returns. ``stop_requested()``, polled at every wait, stops the kernel
     the same way but returns normally. Returns whether ``run()`` ran to its end unasked;
     an exception raised by ``run()`` itself propagates.
+
+    The wait is on an event the worker sets once ``run()`` has returned, not on
+    ``Thread.join``: on Python 3.11 a ``KeyboardInterrupt`` raised inside ``join`` can mark
+    a thread that is still running as finished (CPython's bpo-45274 handler releases the
+    lock the live thread holds), and the caller would then read arrays the kernel is still
+    writing.
     """
-    box: dict[str, BaseException] = {}
+    box: dict[str, object] = {}
+    returned = threading.Event()
 
     def target() -> None:
+        # (dict.setdefault is atomic: a signal before this line cancels the run instead)
+        if box.setdefault("phase", "began") != "began":
+            return
         try:
             run()
         except BaseException as error:  # handed to the calling thread
             box["error"] = error
+        finally:
+            returned.set()
 
-    worker = threading.Thread(target=target, name="fricenv-kernel", daemon=True)
-    worker.start()
     stopped = False
     try:
-        while worker.is_alive():
-            worker.join(JOIN_POLL)
-            if stop_requested is not None and worker.is_alive() and stop_requested():
+        threading.Thread(target=target, name="fricenv-kernel", daemon=True).start()
+        while not returned.wait(JOIN_POLL):
+            if stop_requested is not None and stop_requested():
                 stopped = True
-                _stop(worker, abort)
+                _stop(returned, abort)
     except BaseException:
-        _stop(worker, abort)
+        if box.setdefault("phase", "cancelled") == "began":
+            _stop(returned, abort)
         raise
-    if "error" in box:
-        raise box["error"]
+    error = box.get("error")
+    if isinstance(error, BaseException):
+        raise error
     return not stopped
 
 
-def _stop(worker: threading.Thread, abort: Callable[[], None]) -> None:
-    """Ask the kernel in ``worker`` to stop until it has (further Ctrl-Cs are dropped)."""
-    while worker.is_alive():
+def _stop(returned: threading.Event, abort: Callable[[], None]) -> None:
+    """Ask the running kernel to stop until it has returned (``returned`` is set);
+    further Ctrl-Cs are dropped."""
+    while not returned.is_set():
         try:
             abort()
-            worker.join(ABORT_POLL)
+            returned.wait(ABORT_POLL)
         except KeyboardInterrupt:
             continue
 

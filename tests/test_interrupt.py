@@ -13,6 +13,7 @@ import os
 import signal
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -215,3 +216,51 @@ def test_a_stopped_atlas_keeps_its_finished_cells(tmp_path, monkeypatch, full, k
     assert sum(ran) == N * N - done.sum()  # only the rest
     for name in whole.data_vars:
         np.testing.assert_array_equal(resumed[name].values, whole[name].values)
+
+
+def test_a_signal_never_returns_before_the_kernel_has() -> None:
+    """``run_stoppable`` hands control back only once ``run()`` has returned, however the
+    signal falls: on Python 3.11 an exception raised inside ``Thread.join`` marks a live
+    thread as finished, and the caller then read cells the kernel was still writing."""
+    from fricenv.calls import run_stoppable
+
+    class Signalled(Exception):
+        pass
+
+    def handler(signum, frame):
+        raise Signalled
+
+    previous = signal.signal(signal.SIGUSR1, handler)
+    main = threading.get_ident()
+    try:
+        for delay in (0.0, 0.01, 0.05, 0.1, 0.2):
+            began, returned = _signalled_run(run_stoppable, Signalled, main, delay)
+            assert returned or not began, f"returned while the kernel ran (signal at {delay} s)"
+    finally:
+        signal.signal(signal.SIGUSR1, previous)
+
+
+def _signalled_run(run_stoppable, signalled: type[Exception], main: int, delay: float
+                   ) -> tuple[bool, bool]:
+    """``run_stoppable`` of a kernel that is still writing 0.2 s after its abort, with
+    SIGUSR1 sent to the main thread ``delay`` seconds after the kernel begins (0: from
+    before the call, so it may fall before the kernel has begun); whether the kernel
+    began, and whether it had returned when the call did."""
+    began, asked, returned = (threading.Event() for _ in range(3))
+    timer = threading.Timer(delay, signal.pthread_kill, (main, signal.SIGUSR1))
+
+    def run() -> None:
+        began.set()
+        if delay > 0.0:
+            timer.start()
+        asked.wait(10.0)
+        time.sleep(0.2)
+        returned.set()
+
+    with pytest.raises(signalled):
+        if delay == 0.0:
+            timer.start()
+        run_stoppable(run, asked.set)
+        time.sleep(1.0)  # (not reached: the signal comes first)
+    timer.join()
+    return began.is_set(), returned.is_set()
