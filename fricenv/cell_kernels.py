@@ -34,7 +34,7 @@ def _event_cap(t_span: float, rate: float) -> int:
     return int(min(rate * t_span + 1000.0, 2.0e9))
 
 
-@kernel(inline=True)
+@kernel(takes_kernels=True)
 def _advance_in_cell(advance_ws, P: np.ndarray, S: np.ndarray, t_span: float,
                      stats: np.ndarray, method: int, rtol: float, atol: float,
                      max_events: int, work: np.ndarray) -> int:
@@ -54,7 +54,7 @@ def _advance_in_cell(advance_ws, P: np.ndarray, S: np.ndarray, t_span: float,
     return status
 
 
-@kernel(inline=True, allocates=True)
+@kernel(takes_kernels=True, allocates=True)
 def _run_cell_with(advance_ws, P: np.ndarray, x0: float, v0: float, t_trans: float,
                    t_seg: float, n_seg: int, tries: int, method: int, rtol: float, atol: float,
                    rate: float, m_max: int, tol: float, steps_tau: float, steps_cell: float,
@@ -149,7 +149,7 @@ def _run_cell_event(P, x0, v0, t_trans, t_seg, n_seg, tries, method, rtol, atol,
                           work)
 
 
-@kernel(inline=True, allocates=True)
+@kernel(takes_kernels=True, allocates=True)
 def _cells_with(run_cell, P_cells: np.ndarray, t_trans: np.ndarray, t_seg: np.ndarray,
                 n_seg: np.ndarray, tries: np.ndarray, x0: float, v0: float, method: int,
                 rtol: float, atol: float, rate: float, m_max: int, tol: float,

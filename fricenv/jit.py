@@ -17,8 +17,17 @@ parent array bounce between cores. The caller keeps every array alive for the du
 the call, so no count is needed. A kernel that allocates (``np.empty``, ``.copy()``) says so
 with ``allocates=True`` and keeps the runtime.
 
-The compilation flags decide the machine code, and with it the last bit of a result:
-changing a kernel's ``inline`` or ``fastmath`` changes what it computes, not only how fast.
+Kernels are compiled one by one, and LLVM inlines small callees where it pays. numba's
+IR-level inlining (``inline="always"``) is kept for one case only: a generic body that takes
+another kernel as an argument (``step_single_with(advance_ws, ...)``). Compiled on its own,
+such a function holds the kernel it was passed as a run-time address, which numba's cache
+refuses ("uses dynamic globals"): every process would compile it again. Inlined at the IR
+level into its small named callers (``step_single_exact``), the passed kernel becomes a
+plain call that caches. Everywhere else IR inlining only multiplies compile time and
+memory: numba types the inlined body anew at every call site.
+
+``fastmath`` flags decide the machine code, and with it the last bit of a result, so only
+sums whose order does not matter may carry them.
 
 Threading layer
 ---------------
@@ -68,6 +77,7 @@ from typing import Any
 
 import numba
 from numba import njit
+from numba.core import types
 
 #: The file name numba's TBB extension asks the loader for (its soname), per platform.
 TBB_LIBRARY = {"win32": "tbb12.dll", "darwin": "libtbb.12.dylib"}.get(sys.platform,
@@ -231,13 +241,14 @@ def threading_info() -> ThreadingInfo:
         max_threads=int(config.NUMBA_NUM_THREADS))
 
 
-def kernel(fn: Callable | None = None, *, inline: bool = False, allocates: bool = False,
-           parallel: bool = False, fastmath: set[str] | None = None,
+def kernel(fn: Callable | None = None, *, takes_kernels: bool = False,
+           allocates: bool = False, parallel: bool = False, fastmath: set[str] | None = None,
            nogil: bool = False) -> Any:
     """Compile ``fn`` as a fricenv kernel; usable bare (``@kernel``) or with options.
 
-    ``inline``: numba inlines the function into each caller at its IR level (small hot
-    helpers, and generic bodies that take another kernel as an argument). ``allocates``:
+    ``takes_kernels``: ``fn`` is a generic body that takes other kernels as arguments; numba
+    inlines it at its IR level into each caller, so that the callers cache (see the module
+    docstring). ``allocates``:
     keep numba's reference-counting runtime (see the module docstring). ``parallel``: the
     function holds a ``prange`` loop. ``fastmath``: LLVM fast-math flags for this function
     only (e.g. ``{"reassoc", "contract"}`` for sums whose order may change). ``nogil``:
@@ -247,7 +258,7 @@ def kernel(fn: Callable | None = None, *, inline: bool = False, allocates: bool 
     options: dict[str, Any] = {"cache": True, "error_model": "numpy"}
     if not allocates:
         options["_nrt"] = False
-    if inline:
+    if takes_kernels:
         options["inline"] = "always"
     if parallel:
         options["parallel"] = True
@@ -256,4 +267,29 @@ def kernel(fn: Callable | None = None, *, inline: bool = False, allocates: bool 
     if nogil:
         options["nogil"] = True
     decorate = njit(**options)
-    return decorate if fn is None else decorate(fn)
+
+    def build(f: Callable) -> Any:
+        dispatcher = decorate(f)
+        if not takes_kernels:  # (inlined into its callers: never compiled on its own)
+            _compile_unliteral(dispatcher)
+        return dispatcher
+
+    return build if fn is None else build(fn)
+
+
+def _compile_unliteral(dispatcher: Any) -> None:
+    """Compile ``dispatcher``, when another kernel calls it, for its arguments' plain types.
+
+    A module constant passed as an argument (``_cget(cx, W_I_E1)``, ``_scan_cap(P, False)``)
+    reaches numba as a literal type, and numba compiles the callee anew for each literal
+    value: one kernel became six specialisations, each a full compile. Kernels never
+    depend on a literal argument, so calls from compiled code resolve to one signature per
+    kernel. (numba offers no option for this; the dispatcher's call template is the one
+    place every such call passes.)"""
+    template = dispatcher.get_call_template
+
+    def get_call_template(args: tuple, kws: dict) -> Any:
+        return template(tuple(types.unliteral(a) for a in args),
+                        {k: types.unliteral(v) for k, v in kws.items()})
+
+    dispatcher.get_call_template = get_call_template

@@ -62,7 +62,7 @@ def _final_state(P: np.ndarray, t_end: float, method: int, rtol: float, atol: fl
     st = np.empty(N_STATS)
     core.initial_state(P, 0.0, 0.0, S)
     core.reset_stats(st)
-    core.advance(P, S, t_end, st, method, rtol, atol, 10**8)
+    core.advance(P, S, t_end, st, method, rtol, atol, 10**8, core.new_workspace())
     return S[S_X], S[S_V]
 
 

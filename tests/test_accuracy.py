@@ -221,7 +221,8 @@ def test_near_resonance_is_accurate(lam: float, eta: float, nu: float) -> None:
     for code in (METHOD_EXACT, METHOD_EVENT):
         S = OscillatorState.start(p).to_array()
         stats = np.zeros(N_STATS)
-        assert core.advance(p.to_array(), S, t_end, stats, code, 1e-10, 1e-12, 10**6) == 0
+        assert core.advance(p.to_array(), S, t_end, stats, code, 1e-10, 1e-12, 10**6,
+                            core.new_workspace()) == 0
         ends.append(S)
     np.testing.assert_array_equal(ends[0], ends[1])
 
@@ -393,7 +394,8 @@ def _recorded_vr2(p, t_span: float, rtol: float) -> tuple[float, float]:
     two = np.zeros(2)
     status = core.record(p.to_array(), S, np.array([0.0, t_span]), stats, METHOD_EVENT, rtol,
                          rtol, 100, two.copy(), two.copy(), two.copy(), np.zeros(100),
-                         np.zeros(100, dtype=np.int64), np.zeros(100), np.zeros(2, np.int64))
+                         np.zeros(100, dtype=np.int8), np.zeros(100), np.zeros(2, np.int64),
+                         core.new_workspace())
     assert status == 0
     return stats[ST_VR2_INT], stats[ST_N_STEPS]
 

@@ -645,7 +645,7 @@ def _intervals(P, work, n, dt):
     for _ in range(n):
         core.reset_stats(stats)
         if work is None:
-            status = core.advance(P, S, dt, stats, 0, 1e-9, 1e-9, 10_000)
+            status = core.advance(P, S, dt, stats, 0, 1e-9, 1e-9, 10_000, core.new_workspace())
         else:
             status = core.advance_ws(P, S, dt, stats, 0, 1e-9, 1e-9, 10_000, work)
         assert status == 0
@@ -691,7 +691,7 @@ def test_vr2_quadrature_against_a_fine_trajectory(kw):
         for k in range(20):
             core.reset_stats(stats)
             if work is None:
-                core.advance(P, S, dt, stats, 0, 1e-9, 1e-9, 10_000)
+                core.advance(P, S, dt, stats, 0, 1e-9, 1e-9, 10_000, core.new_workspace())
             else:
                 core.advance_ws(P, S, dt, stats, 0, 1e-9, 1e-9, 10_000, work)
             y = (tr.v[k * 2000:(k + 1) * 2000 + 1] - p.V) ** 2

@@ -25,25 +25,24 @@ from .constants import _STATUS_NEAR_RESONANCE, LAM_CONDITIONED
 from .context import closed_form_conditioned
 from .event import _run_event
 from .exact import _run_exact
-from .recording import Recording
-from .workspace import fresh_workspace
+from .recording import Recording, stats_only
 
 
-@kernel(inline=True)
+@kernel
 def advance_exact_ws(P, S, t_span, stats, method, rtol, atol, max_events, work):
     """``advance_ws`` with the closed form alone (``method``, ``rtol`` and ``atol`` are not
     read): _STATUS_NEAR_RESONANCE, nothing changed, if a tone of P is too close to
     resonance for it (see :func:`method_for`)."""
-    return _run_exact(P, S, t_span, stats, max_events, None, work)
+    return _run_exact(P, S, t_span, stats, max_events, stats_only(work), work)
 
 
-@kernel(inline=True)
+@kernel
 def advance_event_ws(P, S, t_span, stats, method, rtol, atol, max_events, work):
     """``advance_ws`` with the event method alone (``method`` is not read)."""
-    return _run_event(P, S, t_span, stats, max_events, rtol, atol, None, work)
+    return _run_event(P, S, t_span, stats, max_events, rtol, atol, stats_only(work), work)
 
 
-@kernel(inline=True)
+@kernel
 def advance_ws(P, S, t_span, stats, method, rtol, atol, max_events, work):
     """``advance`` with a caller-owned workspace (see ``new_workspace``).
 
@@ -59,25 +58,19 @@ def advance_ws(P, S, t_span, stats, method, rtol, atol, max_events, work):
 
 
 @kernel(allocates=True, nogil=True)
-def advance_exact(P, S, t_span, stats, method, rtol, atol, max_events, work=None):
+def advance_exact(P, S, t_span, stats, method, rtol, atol, max_events, work):
     """``advance`` with the closed form alone (see ``advance_exact_ws``)."""
-    if work is None:
-        return advance_exact_ws(P, S, t_span, stats, method, rtol, atol, max_events,
-                                fresh_workspace())
     return advance_exact_ws(P, S, t_span, stats, method, rtol, atol, max_events, work)
 
 
 @kernel(allocates=True, nogil=True)
-def advance_event(P, S, t_span, stats, method, rtol, atol, max_events, work=None):
+def advance_event(P, S, t_span, stats, method, rtol, atol, max_events, work):
     """``advance`` with the event method alone."""
-    if work is None:
-        return advance_event_ws(P, S, t_span, stats, method, rtol, atol, max_events,
-                                fresh_workspace())
     return advance_event_ws(P, S, t_span, stats, method, rtol, atol, max_events, work)
 
 
 @kernel(allocates=True, nogil=True)
-def advance(P, S, t_span, stats, method, rtol, atol, max_events, work=None):
+def advance(P, S, t_span, stats, method, rtol, atol, max_events, work):
     """Advance the state ``S`` in place by ``t_span``, accumulating ``stats``; no trajectory.
 
     ``method`` is METHOD_EXACT (Coulomb law only; the caller checks; a call with a tone
@@ -87,38 +80,31 @@ def advance(P, S, t_span, stats, method, rtol, atol, max_events, work=None):
     calls without a jump in the force. Returns a STATUS_* code; at most ``max_events``
     switches are allowed in the call (STATUS_EVENT_CAP beyond), and at most the step
     budget of the workspace (STATUS_STEP_BUDGET beyond, see MAX_STEPS_PER_TAU). ``work``:
-    a fresh workspace (``new_workspace``) to run in, e.g. with a budget of its own; default
-    one with the default budget. The GIL is released while it runs.
+    a fresh workspace (``new_workspace``) to run in, whose budget slots bound the call. The
+    GIL is released while it runs.
     """
-    if work is None:
-        return advance_ws(P, S, t_span, stats, method, rtol, atol, max_events,
-                          fresh_workspace())
     return advance_ws(P, S, t_span, stats, method, rtol, atol, max_events, work)
 
 
 @kernel(allocates=True, nogil=True)
 def record_exact(P, S, out_t, stats, method, rtol, atol, max_events, out_x, out_v, out_mode,
-                 ev_t, ev_kind, ev_x, counts, work=None):
+                 ev_t, ev_kind, ev_x, counts, work):
     """``record`` with the closed form alone (see ``advance_exact_ws``)."""
     rec = Recording(out_t, out_x, out_v, out_mode, ev_t, ev_kind, ev_x, counts)
     t_span = out_t[out_t.shape[0] - 1] - out_t[0]
-    if work is None:
-        return _run_exact(P, S, t_span, stats, max_events, rec, fresh_workspace())
     return _run_exact(P, S, t_span, stats, max_events, rec, work)
 
 
 @kernel(allocates=True, nogil=True)
 def record_event(P, S, out_t, stats, method, rtol, atol, max_events, out_x, out_v, out_mode,
-                 ev_t, ev_kind, ev_x, counts, work=None):
+                 ev_t, ev_kind, ev_x, counts, work):
     """``record`` with the event method alone."""
     rec = Recording(out_t, out_x, out_v, out_mode, ev_t, ev_kind, ev_x, counts)
     t_span = out_t[out_t.shape[0] - 1] - out_t[0]
-    if work is None:
-        return _run_event(P, S, t_span, stats, max_events, rtol, atol, rec, fresh_workspace())
     return _run_event(P, S, t_span, stats, max_events, rtol, atol, rec, work)
 
 
-@kernel(inline=True)
+@kernel
 def _record_ws(P, S, stats, method, rtol, atol, max_events, rec, work):
     """``record``'s body, in the workspace ``work``."""
     t_span = rec.out_t[rec.out_t.shape[0] - 1] - rec.out_t[0]
@@ -131,13 +117,11 @@ def _record_ws(P, S, stats, method, rtol, atol, max_events, rec, work):
 
 @kernel(allocates=True, nogil=True)
 def record(P, S, out_t, stats, method, rtol, atol, max_events, out_x, out_v, out_mode, ev_t,
-           ev_kind, ev_x, counts, work=None):
+           ev_kind, ev_x, counts, work):
     """Like ``advance`` over [out_t[0], out_t[-1]], recording the state at ``out_t`` and the
     events (time, kind, x); ``counts`` returns (events recorded, outputs written). ``work``
     as in ``advance``."""
     rec = Recording(out_t, out_x, out_v, out_mode, ev_t, ev_kind, ev_x, counts)
-    if work is None:
-        return _record_ws(P, S, stats, method, rtol, atol, max_events, rec, fresh_workspace())
     return _record_ws(P, S, stats, method, rtol, atol, max_events, rec, work)
 
 

@@ -40,7 +40,7 @@ from .workspace import (
 
 # Closed form of a Coulomb slip step
 # ----------------------------------------------------------------------------------------
-@kernel(inline=True)
+@kernel
 def _homog(tau, lam, p2):
     """Transition matrix of x'' + lam x' + x = 0 over tau, for every damping.
 
@@ -72,7 +72,7 @@ def _homog(tau, lam, p2):
         es = 0.5 * (slow - fast) / q
     return ec + 0.5 * lam * es, es, -es, ec - 0.5 * lam * es
 
-@kernel(inline=True)
+@kernel
 def _particular(cx, tau, c1, s1, c2, s2, sd):
     """Particular solution (x_p, v_p) at relative time tau, tone phases (c_i, s_i) there."""
     xp = -sd * cx[C_XFK]
@@ -93,7 +93,7 @@ def _particular(cx, tau, c1, s1, c2, s2, sd):
             vp += cx[C_W2] * (cx[C_KS2] * c2 - cx[C_KC2] * s2)
     return xp, vp
 
-@kernel(inline=True)
+@kernel
 def _slip_start(cx, x, v, c1, s1, c2, s2, sd):
     """Start a closed-form slip step at (x, v) with tone phases (c_i, s_i)."""
     cx[C_XA] = x
@@ -107,7 +107,7 @@ def _slip_start(cx, x, v, c1, s1, c2, s2, sd):
     cx[C_DX] = x - xp
     cx[C_DV] = v - vp
 
-@kernel(inline=True)
+@kernel
 def _rotate(cx, cr1, sr1, cr2, sr2):
     """Tone phases at the step start advanced by the rotations (cr_i, sr_i)."""
     c1 = cx[C_C1A] * cr1 - cx[C_S1A] * sr1
@@ -116,14 +116,14 @@ def _rotate(cx, cr1, sr1, cr2, sr2):
     s2 = cx[C_S2A] * cr2 + cx[C_C2A] * sr2
     return c1, s1, c2, s2
 
-@kernel(inline=True)
+@kernel
 def _rotate_by(cx, tau):
     """Tone phases at the step start advanced by tau (both tones)."""
     cr1, sr1 = _sincos(cx[C_W1] * tau)
     cr2, sr2 = _sincos(cx[C_W2] * tau)
     return _rotate(cx, cr1, sr1, cr2, sr2)
 
-@kernel(inline=True)
+@kernel
 def _forcing(cx, c1, s1, c2, s2):
     """g, g' and g'' for tone phases (c_i, s_i)."""
     u1 = cx[C_U1]
@@ -135,7 +135,7 @@ def _forcing(cx, c1, s1, c2, s2):
     gdd = -u1 * w1 * w1 * c1 - u2 * w2 * w2 * c2
     return g, gd, gdd
 
-@kernel(inline=True)
+@kernel
 def _slip_with(cx, tau, h11, h12, h21, h22, c1, s1, c2, s2):
     """Closed-form slip state at relative time tau: x, v, acceleration and jerk."""
     sd = cx[C_SD]
@@ -152,7 +152,7 @@ def _slip_at(cx, tau):
     x, v, acc, jerk, _, _, _, _ = _slip_and_phases_at(cx, tau)
     return x, v, acc, jerk
 
-@kernel(inline=True)
+@kernel
 def _slip_and_phases_at(cx, tau):
     """``_slip_at`` plus the tones' cos/sin there (a switch needs both)."""
     h11, h12, h21, h22 = _homog(tau, cx[C_LAM], cx[C_P2])
@@ -160,7 +160,7 @@ def _slip_and_phases_at(cx, tau):
     x, v, acc, jerk = _slip_with(cx, tau, h11, h12, h21, h22, c1, s1, c2, s2)
     return x, v, acc, jerk, c1, s1, c2, s2
 
-@kernel(inline=True)
+@kernel
 def _slip_mid_and_end(cx, tau):
     """v at tau / 2 and the state and tones' cos/sin at tau, from one evaluation at tau / 2:
     the transition over tau is its square and the rotations are doubled (a few ulps), so
@@ -185,7 +185,7 @@ def _stick_at(cx, tau):
     g, gd, gdd = _forcing(cx, c1, s1, c2, s2)
     return x, -cx[C_LAM] * cx[C_V] - x + g, -cx[C_V] + gd, gdd
 
-@kernel(inline=True)
+@kernel
 def _jerk(cx, v, a, s1, s2):
     """v'' in slip from v, v' and the tones' sines (the friction law's slope included)."""
     vr = v - cx[C_V]

@@ -6,7 +6,7 @@ from .constants import GRAZE_REL
 from .workspace import C_LAM, C_U1, C_U2, C_V, C_W1, C_W2, C_XFK, C_XFS
 
 
-@kernel(inline=True)
+@kernel
 def _start_slope(cx, fresh, h0, d0, x, v):
     """h' at a slip step's start, for the contact search.
 
@@ -27,7 +27,7 @@ def _start_slope(cx, fresh, h0, d0, x, v):
 #: ``_unresolved_return``'s answer where h is resolved (the contact search goes on)
 _RESOLVED = -2.0
 
-@kernel(inline=True)
+@kernel
 def _unresolved_return(L, h0, d0, q0, h1, tol):
     """Contact time of a slip step that starts on the switching surface heading off it while
     h = sd (v - V) never reads above rounding (``tol``): -1 (no contact in the step) or
@@ -51,7 +51,7 @@ def _unresolved_return(L, h0, d0, q0, h1, tol):
         return -1.0 if h1 >= -tol else L
     return -1.0 if h1 >= -tol else _RESOLVED
 
-@kernel(inline=True)
+@kernel(takes_kernels=True)
 def _contact_time(root, cx, kind, L, h0, d0, q0, h1, d1, q1, t_ext, h_ext, q_ext):
     """First relative time in (0, L] where h = sd (v - V) reaches 0, or -1 (0: at once).
 
@@ -90,7 +90,7 @@ def _contact_time(root, cx, kind, L, h0, d0, q0, h1, d1, q1, t_ext, h_ext, q_ext
         return root(cx, kind, 0.0, 0.0, L, h0, h1, d0, d1, q0, q1)
     return -1.0
 
-@kernel(inline=True)
+@kernel
 def _force_tie(cx, x):
     """How far |f| may pass x_fs and still be taken as x_fs: the rounding of f's terms.
 

@@ -42,7 +42,7 @@ from .workspace import (
 )
 
 
-@kernel(inline=True)
+@kernel
 def _tone_d2(w, lam):
     """1 - w^2, lam w and d2 = |1 - w^2 + i lam w|^2, the tone's response denominator."""
     re = 1.0 - w * w

@@ -43,7 +43,7 @@ from .constants import (
 from .contacts import _contact_outcome, _contact_time, _start_slope, _stick_outcome
 from .context import _scan_cap, _setup_context
 from .proofs import _extremum_matters, _v_one_extremum
-from .recording import _log_event, _write_output
+from .recording import _log_event, _write_output, recording
 from .roots import K_DENSE_H, K_DENSE_V, _extremum_dense, _root_dense
 from .rosenbrock import _ros4_step
 from .slip import _acc, _carry, _end_phases, _rhs_acc, _set_phases
@@ -79,23 +79,21 @@ from .workspace import (
 )
 
 
-@kernel(inline=True)
+@kernel
 def _output_due(rec, j_out, origin, t, step_end):
     """Is output instant ``j_out`` inside the step (t, t + step_end] (to the time
-    resolution)? Never when not recording."""
-    if rec is None:
-        return False
+    resolution)? Never when not recording (``rec`` has no instant)."""
     return j_out < rec.out_t.shape[0] and rec.out_t[j_out] - origin <= t + step_end + (
         TIME_REL_TOL * max(1.0, abs(t)))
 
 
-@kernel(inline=True)
+@kernel
 def _output_tau(rec, j_out, origin, t, step_end):
     """Output instant ``j_out`` relative to the step's start t, within [0, step_end]."""
     return min(max(rec.out_t[j_out] - origin - t, 0.0), step_end)
 
 
-@kernel(inline=True)
+@kernel
 def _stiff_step(cx, stats, t, t_stop, x, v, acc, ph1, ph2, sd, h, cap, rtol, atol, h_ros,
                 ros_backoff, ros_skip):
     """A Rosenbrock slip step, where the slip is stiff (the cubic law's slope |df/dv|
@@ -149,7 +147,7 @@ def _stiff_step(cx, stats, t, t_stop, x, v, acc, ph1, ph2, sd, h, cap, rtol, ato
     return taken, k_stiff, t, x, v, acc, ph1, ph2, h_ros, ros_backoff, ros_skip
 
 
-@kernel(inline=True)
+@kernel
 def _taylor_trial(cx, t, t_stop, h, cap_slip, k_stiff):
     """Length of a Taylor slip step whose series is in ``cx``: its natural length ``h``
     (floored at the time resolution), halved until v provably has one extremum at most.
@@ -179,7 +177,7 @@ def _taylor_trial(cx, t, t_stop, h, cap_slip, k_stiff):
     return hstep, v1, a1, j1, m2
 
 
-@kernel(inline=True)
+@kernel
 def _taylor_contact(cx, stats, fresh, hstep, x, v, sd, v1, a1, j1, m2):
     """Where the Taylor step [0, hstep] from (x, v) first reaches v = V: (te, -1 if
     never; t_ext, v_ext: v's interior extremum if searched, -1 otherwise)."""
@@ -206,7 +204,7 @@ def _taylor_contact(cx, stats, fresh, hstep, x, v, sd, v1, a1, j1, m2):
     return te, t_ext, v_ext
 
 
-@kernel(inline=True)
+@kernel
 def _taylor_outputs(rec, j_out, origin, t, step_end, x1, v1, mode, cx):
     """Write the output instants inside the Taylor step (t, t + step_end] from its series;
     the next output's index."""
@@ -224,7 +222,7 @@ def _taylor_outputs(rec, j_out, origin, t, step_end, x1, v1, mode, cx):
     return j_out
 
 
-@kernel(inline=True)
+@kernel
 def _taylor_step(cx, stats, rec, j_out, origin, t, t_stop, x, v, ph1, ph2, sd, h, cap_slip,
                  k_stiff, fresh, rtol, atol):
     """One Taylor slip step from (x, v) in direction ``sd`` (the tones' cos/sin at its
@@ -281,7 +279,7 @@ def _taylor_step(cx, stats, rec, j_out, origin, t, t_stop, x, v, ph1, ph2, sd, h
     return False, 0, h, j_out, t, x, v, acc, ph1, ph2, sd
 
 
-@kernel(inline=True)
+@kernel
 def _event_stick_step(cx, stats, rec, j_out, origin, t, t_stop, x, v, acc, ph1, ph2, mode, cap):
     """One exact stick step from x (the tones' phase angles ph_i), up to the stick's end
     if it comes first, with its outputs and statistics. Returns (event kind (0: none),
@@ -327,7 +325,7 @@ def _event_stick_step(cx, stats, rec, j_out, origin, t, t_stop, x, v, acc, ph1, 
 def _run_event(P, S, t_span, stats, max_events, rtol, atol, rec, cx):
     """Advance S by t_span: Taylor-series steps in slip, exact stick; see ``advance``.
 
-    ``rec``: a :class:`~fricenv.core.recording.Recording` to fill, or None (stats only,
+    ``rec``: a :class:`~fricenv.core.recording.Recording` to fill (empty: stats only,
     where stiff stretches may take Rosenbrock steps).
     """
     _setup_context(P, cx)
@@ -342,7 +340,7 @@ def _run_event(P, S, t_span, stats, max_events, rtol, atol, rec, cx):
     # continued from t = 1e12 would be off by 1e-5 in x after 50 units of tau).
     t_start = S[S_T]
     t_stop = t_span
-    origin = rec.out_t[0] if rec is not None else 0.0
+    origin = rec.out_t[0] if recording(rec) else 0.0
     x = S[S_X]
     v = S[S_V]
     mode = S[S_MODE]
@@ -364,7 +362,7 @@ def _run_event(P, S, t_span, stats, max_events, rtol, atol, rec, cx):
     n_win0 = 0.0
     n_scan = SCAN_ALLOWANCE / cap
     j_out = 1
-    if rec is not None:
+    if recording(rec):
         _write_output(rec, 0, x, v, mode)
         rec.counts[1] = 1
     _note_v(stats, v)
@@ -389,7 +387,7 @@ def _run_event(P, S, t_span, stats, max_events, rtol, atol, rec, cx):
             sd = mode
             taken = False
             k_stiff = 0.0
-            if rec is None:
+            if not recording(rec):
                 taken, k_stiff, t, x, v, acc, ph1, ph2, h_ros, ros_backoff, ros_skip = (
                     _stiff_step(cx, stats, t, t_stop, x, v, acc, ph1, ph2, sd, h, cap, rtol,
                                 atol, h_ros, ros_backoff, ros_skip))
@@ -424,7 +422,7 @@ def _run_event(P, S, t_span, stats, max_events, rtol, atol, rec, cx):
         if not (math.isfinite(x) and math.isfinite(v)):
             status = STATUS_NONFINITE
     # any output times left at the very end (rounding of the last step)
-    if rec is not None:
+    if recording(rec):
         while status == STATUS_OK and j_out < rec.out_t.shape[0]:
             _write_output(rec, j_out, x, v, mode)
             j_out += 1

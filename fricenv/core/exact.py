@@ -38,7 +38,7 @@ from .constants import _STATUS_NEAR_RESONANCE, COUNT_SLACK, GRID_REL_TOL, SCAN_A
 from .contacts import _contact_outcome, _contact_time, _start_slope, _stick_outcome
 from .context import _scan_cap, _setup_context
 from .proofs import _extremum_matters, _one_extremum_at_most
-from .recording import _log_event, _write_output
+from .recording import _log_event, _write_output, recording
 from .roots import K_SLIP_H, K_SLIP_V, _extremum_closed, _root_closed
 from .state import _end_call, _note_v, _note_x
 from .stats import _slip_stats, _x_turn_closed
@@ -94,7 +94,7 @@ from .workspace import (
 )
 
 
-@kernel(inline=True)
+@kernel
 def _start_phases(S, cx):
     """The tones' cos/sin at the call's start: from the workspace's cache when the phase
     angles are those the last call ended on (four libm calls spared), else computed."""
@@ -111,50 +111,50 @@ def _start_phases(S, cx):
     return c1, s1, c2, s2
 
 
-@kernel(inline=True)
+@kernel
 def _run_exact(P, S, t_span, stats, max_events, rec, cx):
     """Advance S by t_span with the closed-form solver; see ``advance``. Changes nothing
     and returns _STATUS_NEAR_RESONANCE when a tone is too close to resonance for it.
 
-    ``rec``: a :class:`~fricenv.core.recording.Recording` to fill, or None (stats only).
+    ``rec``: a :class:`~fricenv.core.recording.Recording` to fill (empty: stats only).
     A stats-only call that reads no extrema is first tried as one whole-call step when
     the scan would split it into several steps, or when it starts stuck (the stick proof
     is cheaper than a scan step). A slip call the scan covers in one step gains nothing
     from it: the (v - V)^2 constants a retuned tone needs cost more than that step.
-    Otherwise, or when its proof fails, the scan runs. Kept small and
-    inlined, so a whole-call step never pays the call into the scan's large function.
+    Otherwise, or when its proof fails, the scan runs.
     """
     _setup_context(P, cx)
     if cx[W_T_KEY + T_NEAR_RES] != 0.0 or cx[W_T_KEY2 + T_NEAR_RES] != 0.0:
         return _STATUS_NEAR_RESONANCE
     c1, s1, c2, s2 = _start_phases(S, cx)
     cap = _scan_cap(P, cx[W_SKIP_EXTREMA] == 1.0)
-    if (rec is None and cx[W_SKIP_EXTREMA] == 1.0 and (t_span > cap or S[S_MODE] == 0.0)
+    if (not recording(rec) and cx[W_SKIP_EXTREMA] == 1.0 and (t_span > cap or S[S_MODE] == 0.0)
             and _whole_interval(cx, S, t_span, stats, c1, s1, c2, s2)):
         return STATUS_OK
     return _scan_exact(S, t_span, stats, max_events, rec, cx, cap, c1, s1, c2, s2)
 
 
-@kernel(inline=True)
+@kernel
 def _grid(rec, t_span):
     """The call's output grid: its origin, number of intervals and regular interval
     length (a stats-only call is one interval, [0, t_span])."""
-    if rec is None:
+    if not recording(rec):
         return 0.0, 1, t_span
     n_int = rec.out_t.shape[0] - 1
     return rec.out_t[0], n_int, rec.out_t[1] - rec.out_t[0] if n_int > 0 else t_span
 
 
-@kernel(inline=True)
+@kernel
 def _grid_interval(rec, j, n_int, origin, t_stop):
     """Output interval ``j`` [ta, tb] in the call's time (the last one ends at t_stop)."""
-    ta = rec.out_t[j] - origin if rec is not None else 0.0
-    tb = t_stop if j == n_int - 1 else (rec.out_t[j + 1] - origin if rec is not None
-                                        else t_stop)
+    if not recording(rec):
+        return 0.0, t_stop
+    ta = rec.out_t[j] - origin
+    tb = t_stop if j == n_int - 1 else rec.out_t[j + 1] - origin
     return ta, tb
 
 
-@kernel(inline=True)
+@kernel
 def _regular_step(cx, dt_reg, cap):
     """Number and length of the equal scan steps of a regular output interval, and their
     transition constants (``reg``: the homogeneous transition and the tones' rotation over
@@ -190,7 +190,7 @@ def _regular_step(cx, dt_reg, cap):
     return m_reg, reg, rot
 
 
-@kernel(inline=True)
+@kernel
 def _closed_acc(cx, mode, x, v, c1, c2):
     """Slip acceleration of the Coulomb law in direction ``mode`` (0 in stick)."""
     if mode == 0.0:
@@ -198,7 +198,7 @@ def _closed_acc(cx, mode, x, v, c1, c2):
     return -cx[C_LAM] * v - x - mode * cx[C_XFK] + cx[C_U1] * c1 + cx[C_U2] * c2
 
 
-@kernel(inline=True)
+@kernel
 def _slip_trial(cx, L, cap, on_grid, reg, rot, sd, h0, d0, j0, vdd, vddd):
     """Length of a closed-form slip step from the start in ``cx`` (``_slip_start``): L,
     halved until the step may go to the contact search (``_one_extremum_at_most``).
@@ -230,7 +230,7 @@ def _slip_trial(cx, L, cap, on_grid, reg, rot, sd, h0, d0, j0, vdd, vddd):
     return L, halved, on_grid, v_mid, x1, v1, a1, j1, nc1, ns1, nc2, ns2
 
 
-@kernel(inline=True)
+@kernel
 def _slip_v_extremum(cx, stats, sd, L, v, v1, acc, a1, j0, j1, h0, h1, vdd, c1, s1, c2, s2,
                      nc1, ns1, nc2, ns2):
     """v's interior extremum on a slip step where the contact search or the statistics
@@ -260,7 +260,7 @@ def _slip_v_extremum(cx, stats, sd, L, v, v1, acc, a1, j0, j1, h0, h1, vdd, c1, 
     return t_ext, v_ext, h_ext, q_ext
 
 
-@kernel(inline=True)
+@kernel
 def _slip_step(cx, stats, fresh, L, cap, on_grid, reg, rot, x, v, acc, c1, s1, c2, s2, sd):
     """One closed-form slip step of at most L from (x, v) in direction ``sd``, tones at
     (c_i, s_i), up to a contact if one comes first.
@@ -304,7 +304,7 @@ def _slip_step(cx, stats, fresh, L, cap, on_grid, reg, rot, x, v, acc, c1, s1, c
     return L, halved, on_grid, 0, sd, x1, v_end, a1, nc1, ns1, nc2, ns2
 
 
-@kernel(inline=True)
+@kernel
 def _stick_step(cx, stats, L, cap, on_grid, rot, x, v, acc, c1, s1, c2, s2, mode):
     """One exact stick step of at most L from x, tones at (c_i, s_i), up to the stick's
     end if it comes first; returns as ``_slip_step``."""
@@ -334,7 +334,7 @@ def _scan_exact(S, t_span, stats, max_events, rec, cx, cap, c1, s1, c2, s2):
     the tones' cos/sin at the start.
 
     Steps are aligned with the output grid (``rec.out_t``, or the single interval [t, t +
-    t_span] when ``rec`` is None), each output interval split into equal scan steps whose
+    t_span] when ``rec`` is empty), each output interval split into equal scan steps whose
     transition constants are computed once, so recording costs nothing extra. An interval
     of length L takes m = ceil(L / cap) scan steps where the scan alone would take L / cap:
     the grid's m - L / cap (under one step an instant) are not charged to the step budget,
@@ -420,7 +420,7 @@ def _scan_exact(S, t_span, stats, max_events, rec, cx, cap, c1, s1, c2, s2):
                 break
         if status != STATUS_OK:
             break
-        if rec is not None:
+        if recording(rec):
             _write_output(rec, j + 1, x, v, mode)
             rec.counts[1] = j + 2
             n_grid += max(0.0, m - length / cap)

@@ -12,7 +12,7 @@ from .constants import MIN_SPLIT
 from .workspace import C_GDD, C_XFS, W_SKIP_EXTREMA
 
 
-@kernel(inline=True)
+@kernel
 def _stays_positive(k0, d0, k1, d1, L, M):
     """Proof that k > 0 on [0, L] from k, k' at both ends and a bound M on |k''|.
 
@@ -30,7 +30,7 @@ def _stays_positive(k0, d0, k1, d1, L, M):
         return True
     return k0 + t * (d0 - 0.5 * M * t) > 0.0
 
-@kernel(inline=True)
+@kernel
 def _sign_kept(k0, k1, L, M):
     """Proof that k keeps one strict sign on [0, L] from its end values and |k'| <= M."""
     if k0 > 0.0 and k1 > 0.0:
@@ -39,7 +39,7 @@ def _sign_kept(k0, k1, L, M):
         return -(k0 + k1) > M * L
     return False
 
-@kernel(inline=True)
+@kernel
 def _one_extremum_at_most(h0, d0, h1, d1, hdd0, hdd1, L, M2, M3, cap):
     """May a slip step [0, L] go to the contact search, which handles one extremum of h?
 
@@ -51,7 +51,7 @@ def _one_extremum_at_most(h0, d0, h1, d1, hdd0, hdd1, L, M2, M3, cap):
     return (_stays_positive(h0, d0, h1, d1, L, M2) or _monotone(d0, hdd0, d1, hdd1, L, M3)
             or _sign_kept(hdd0, hdd1, L, M3) or L <= MIN_SPLIT * cap)
 
-@kernel(inline=True)
+@kernel
 def _monotone(d0, dd0, d1, dd1, L, M):
     """Proof that a function keeps a monotone course on [0, L]: its derivative (d0, d1 at
     the ends, with derivatives dd0, dd1 and |third derivative| <= M) keeps one sign. The
@@ -60,14 +60,14 @@ def _monotone(d0, dd0, d1, dd1, L, M):
     return _stays_positive(d0, dd0, d1, dd1, L, M) or _stays_positive(-d0, -dd0, -d1, -dd1,
                                                                      L, M)
 
-@kernel(inline=True)
+@kernel
 def _v_one_extremum(a0, j0, a1, j1, L, m3):
     """Proof that v has at most one extremum on [0, L]: v' keeps its sign, or v'' does
     (v' monotone), given v', v'' at both ends and |v'''| <= m3."""
     s = 1.0 if a0 + a1 >= 0.0 else -1.0
     return _stays_positive(s * a0, s * j0, s * a1, s * j1, L, m3) or _sign_kept(j0, j1, L, m3)
 
-@kernel(inline=True)
+@kernel
 def _extremum_matters(cx, stats, sd, v0, v1, a0, a1, L, V, vdd_max):
     """Can the interior extremum of v on this step change v's extrema or touch v = V?
 
@@ -85,7 +85,7 @@ def _extremum_matters(cx, stats, sd, v0, v1, a0, a1, L, V, vdd_max):
         return False
     return not _stays_positive(sd * (v0 - V), sd * a0, sd * (v1 - V), sd * a1, L, vdd_max)
 
-@kernel(inline=True)
+@kernel
 def _stick_held(cx, L, f0, fd0, f1, fd1):
     """Proof that |f| <= xfs holds on a whole stick step [0, L] (f'' = g'' in stick)."""
     xfs = cx[C_XFS]

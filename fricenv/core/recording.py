@@ -1,8 +1,9 @@
 """What a recording run writes: the state on an output grid and every switching event.
 
-The arrays travel together as one :class:`Recording`; a stats-only run passes ``None``
-instead, and numba then compiles the runner without any of the recording code (a branch on
-``rec is not None`` is decided when the function is compiled, not when it runs).
+The arrays travel together as one :class:`Recording`. A stats-only run passes an empty one
+(:func:`stats_only`: no output instant, no event buffer), so that one compiled runner serves
+both kinds of call; the runners branch on :func:`recording` at run time, once per call or
+per event.
 """
 
 from __future__ import annotations
@@ -34,7 +35,21 @@ class Recording(NamedTuple):
     counts: np.ndarray
 
 
-@kernel(inline=True)
+@kernel
+def stats_only(work):
+    """The empty :class:`Recording` of a stats-only call: zero-length views of the workspace
+    ``work`` (so making one allocates nothing), of the dtypes a recording run's arrays have."""
+    f = work[:0]
+    return Recording(f, f, f, f, f, work.view(np.int8)[:0], f, work.view(np.int64)[:0])
+
+
+@kernel
+def recording(rec):
+    """Whether ``rec`` records (a recording run has at least its start's output instant)."""
+    return rec.out_t.shape[0] > 0
+
+
+@kernel
 def _record_event(rec, t, kind, x):
     """Append an event to ``rec``; False when its buffer is full."""
     n = rec.counts[0]
@@ -47,11 +62,11 @@ def _record_event(rec, t, kind, x):
     return True
 
 
-@kernel(inline=True)
+@kernel
 def _log_event(rec, t, kind, x, n_events, max_events):
     """Record switch number ``n_events`` when recording; the run's status after it."""
     status = STATUS_OK
-    if rec is not None:
+    if recording(rec):
         if not _record_event(rec, t, kind, x):
             status = STATUS_BUFFER_FULL
     if n_events > max_events:
@@ -59,10 +74,10 @@ def _log_event(rec, t, kind, x, n_events, max_events):
     return status
 
 
-@kernel(inline=True)
+@kernel
 def _write_output(rec, j, x, v, mode):
     """The state at output instant ``j``, when recording."""
-    if rec is not None:
+    if recording(rec):
         rec.out_x[j] = x
         rec.out_v[j] = v
         rec.out_mode[j] = mode

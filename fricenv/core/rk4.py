@@ -52,9 +52,8 @@ def run_rk4(P, S, t_span, dt, out_t, stats, out_x, out_v, out_mode):
     v = S[S_V]
     ph1 = S[S_PHI1]
     ph2 = S[S_PHI2]
-    n_out = 0
-    if out_t is not None:
-        n_out = out_t.shape[0]
+    n_out = out_t.shape[0]
+    if n_out > 0:
         out_x[0] = x
         out_v[0] = v
         out_mode[0] = 1.0 if v > V else (-1.0 if v < V else 0.0)
@@ -79,18 +78,17 @@ def run_rk4(P, S, t_span, dt, out_t, stats, out_x, out_v, out_mode):
         ph2n = _wrap(ph2 + hh * w2)
         an = _sgn_acc(P, xn, vn, ph1n, ph2n)
         tn = t0 + (i + 1) * dt if i < n - 1 else t0 + t_span
-        if out_t is not None:
-            while j < n_out and out_t[j] <= tn + GRID_REL_TOL * max(1.0, abs(tn)):
-                th = (out_t[j] - t) / hh
-                h00 = (1.0 + 2.0 * th) * (1.0 - th) * (1.0 - th)
-                h10 = th * (1.0 - th) * (1.0 - th)
-                h01 = th * th * (3.0 - 2.0 * th)
-                h11 = th * th * (th - 1.0)
-                out_x[j] = h00 * x + h10 * hh * v + h01 * xn + h11 * hh * vn
-                vj = h00 * v + h10 * hh * k1v + h01 * vn + h11 * hh * an
-                out_v[j] = vj
-                out_mode[j] = 1.0 if vj > V else (-1.0 if vj < V else 0.0)
-                j += 1
+        while j < n_out and out_t[j] <= tn + GRID_REL_TOL * max(1.0, abs(tn)):
+            th = (out_t[j] - t) / hh
+            h00 = (1.0 + 2.0 * th) * (1.0 - th) * (1.0 - th)
+            h10 = th * (1.0 - th) * (1.0 - th)
+            h01 = th * th * (3.0 - 2.0 * th)
+            h11 = th * th * (th - 1.0)
+            out_x[j] = h00 * x + h10 * hh * v + h01 * xn + h11 * hh * vn
+            vj = h00 * v + h10 * hh * k1v + h01 * vn + h11 * hh * an
+            out_v[j] = vj
+            out_mode[j] = 1.0 if vj > V else (-1.0 if vj < V else 0.0)
+            j += 1
         if (v - V) * (vn - V) < 0.0:
             stats[ST_N_REVERSAL] += 1.0
         vr0 = v - V

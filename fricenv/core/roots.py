@@ -46,7 +46,7 @@ def _feval_dense(cx, kind, tau):
     return v, dv, ddv
 
 
-@kernel(inline=True)
+@kernel
 def _hermite_root(flo, fhi, dlo, dhi, qlo, qhi, H):
     """Fraction of a bracket of length H where the quintic Hermite interpolant of F (value,
     slope dlo/dhi and curvature qlo/qhi at both ends) vanishes: two Halley steps on it from
@@ -74,7 +74,7 @@ def _hermite_root(flo, fhi, dlo, dhi, qlo, qhi, H):
     return s
 
 
-@kernel(inline=True)
+@kernel(takes_kernels=True)
 def _bracket_with(feval, cx, kind, deriv, offset, lo, hi, flo, fhi, dlo, dhi, qlo, qhi,
                   rel_tol):
     """Shrink a bracket [lo, hi] of a root of F to rounding level; return (lo, hi).

@@ -37,7 +37,7 @@ def _rhs_acc(cx, sd, x, v, ph1, ph2):
     return _acc(cx[C_LAM], cx[C_V], sd * cx[C_XFK], cx[C_B1], cx[C_B3], cx[C_U1], cx[C_U2],
                 x, v, ph1, ph2)
 
-@kernel(inline=True)
+@kernel
 def _acc(lam, V, sxfk, b1, b3, u1, u2, x, v, ph1, ph2):
     """Slip acceleration from scalars; terms a configuration zeroes are skipped."""
     a = -lam * v - x - sxfk
@@ -58,14 +58,14 @@ def _set_phases(cx, ph1, ph2):
     cx[C_CP2] = math.cos(ph2)
     cx[C_SP2] = math.sin(ph2)
 
-@kernel(inline=True)
+@kernel
 def _step_inputs(cx, sd):
     """What a Taylor or Rosenbrock slip step reads from the context, as scalars (kept
     in registers: the stages then never reload the array)."""
     return (cx[C_LAM], cx[C_V], sd * cx[C_XFK], cx[C_B1], cx[C_B3], cx[C_U1], cx[C_U2],
             cx[C_CP1], cx[C_SP1], cx[C_CP2], cx[C_SP2])
 
-@kernel(inline=True)
+@kernel
 def _end_phases(cx, cp1, sp1, cp2, sp2, ce1, se1, ce2, se2):
     """Tone phases (cos/sin) at a step's end from its start and the rotations (ce_i, se_i);
     stored in cx[C_CE1..C_SE2] for the next step. Returns the forcing's cosines there."""
@@ -77,7 +77,7 @@ def _end_phases(cx, cp1, sp1, cp2, sp2, ce1, se1, ce2, se2):
     cx[C_SE2] = sp2 * ce2 + cp2 * se2
     return c_end1, c_end2
 
-@kernel(inline=True)
+@kernel
 def _carry(cx, t, x1, v1, a1, ph1, ph2, h):
     """Move to the end of an accepted slip step of length h: its (t, x, v, v', phases);
     the end's tone cos/sin become the next step's start (renormalised)."""

@@ -20,14 +20,14 @@ def reset_stats(stats):
     stats[ST_X_MAX] = -np.inf
     stats[ST_X_MIN] = np.inf
 
-@kernel(inline=True)
+@kernel
 def _note_v(stats, v):
     if v > stats[ST_V_MAX]:
         stats[ST_V_MAX] = v
     if v < stats[ST_V_MIN]:
         stats[ST_V_MIN] = v
 
-@kernel(inline=True)
+@kernel
 def _note_x(stats, x):
     if x > stats[ST_X_MAX]:
         stats[ST_X_MAX] = x
@@ -62,7 +62,7 @@ def initial_mode(P, x, v, phi1, phi2):
         return 0.0
     return 1.0 if f > 0.0 else -1.0
 
-@kernel(inline=True)
+@kernel
 def _end_call(S, cx, t, x, v, mode, ph1, c1, s1, ph2, c2, s2):
     """Write the state reached back to S, and the tones' cos/sin to the workspace's cache
     (keyed on the phase angles, so the next call starting there skips four libm calls)."""

@@ -12,7 +12,7 @@ from .taylor import _dense_x
 from .workspace import C_XA, W_SKIP_EXTREMA, W_SKIP_VR2
 
 
-@kernel(inline=True)
+@kernel
 def _x_turn_closed(cx, a, b, va, vb):
     """x where v of the closed-form slip step changes sign in [a, b] (v = va, vb there)."""
     t = _bracket_closed(cx, K_SLIP_V, 0, 0.0, a, b, va, vb, math.nan, math.nan, math.nan,
@@ -21,7 +21,7 @@ def _x_turn_closed(cx, a, b, va, vb):
     return x
 
 
-@kernel(inline=True)
+@kernel
 def _x_turn_dense(cx, a, b, va, vb):
     """x where v of the current Taylor step changes sign in [a, b] (v = va, vb there)."""
     t = _bracket_dense(cx, K_DENSE_V, 0, 0.0, a, b, va, vb, math.nan, math.nan, math.nan,
@@ -29,7 +29,7 @@ def _x_turn_dense(cx, a, b, va, vb):
     return _dense_x(cx, t)
 
 
-@kernel(inline=True)
+@kernel(takes_kernels=True)
 def _x_extrema_between(x_turn, cx, stats, a, b, va, vb, vabs):
     """Displacement extremum where v changes sign on a monotone piece [a, b] of v
     (``x_turn``: ``_x_turn_closed`` or ``_x_turn_dense``, the step's family).
@@ -46,7 +46,7 @@ def _x_extrema_between(x_turn, cx, stats, a, b, va, vb, vabs):
         _note_x(stats, x_turn(cx, a, b, va, vb))
 
 
-@kernel(inline=True)
+@kernel(takes_kernels=True)
 def _slip_extrema(x_turn, cx, stats, tau_e, t_ext, v_ext, v0, v1, x1):
     """Extrema of v and x over a slip step [0, tau_e] (t_ext: v's interior extremum;
     ``x_turn`` as in ``_x_extrema_between``)."""
@@ -62,7 +62,7 @@ def _slip_extrema(x_turn, cx, stats, tau_e, t_ext, v_ext, v0, v1, x1):
     else:
         _x_extrema_between(x_turn, cx, stats, 0.0, tau_e, v0, v1, max(abs(v0), abs(v1)))
 
-@kernel(inline=True)
+@kernel(takes_kernels=True)
 def _slip_stats(x_turn, cx, stats, tau_e, t_ext, v_ext, v0, a0, j0, v1, a1, j1, x1, v_mid, V):
     """Extrema and the (v - V)^2 integral over a slip step [0, tau_e].
 
@@ -89,7 +89,7 @@ def _slip_stats(x_turn, cx, stats, tau_e, t_ext, v_ext, v0, a0, j0, v1, a1, j1, 
                                       + tau_e * ((1.0 / 35.0) * (dy0 - dy1)
                                                  + tau_e * (ddy0 + ddy1) / 840.0))
 
-@kernel(inline=True)
+@kernel
 def _vr2_from_values(h, r0, r1, mean):
     """Integral of r^2 over a step of length h from r = v - V at both ends and its mean
     (from the displacement): exact for r quadratic in time.

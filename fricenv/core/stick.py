@@ -18,7 +18,7 @@ from .trig import _renorm
 from .workspace import C_C1A, C_C2A, C_GDDD, C_LAM, C_S1A, C_S2A, C_V, C_XA, C_XFS
 
 
-@kernel(inline=True)
+@kernel
 def _stick_start(cx, x, c1, s1, c2, s2):
     """Start a stick step at x with tone phases (c_i, s_i); f, f', f'' there."""
     cx[C_XA] = x
@@ -31,7 +31,7 @@ def _stick_start(cx, x, c1, s1, c2, s2):
     return -cx[C_LAM] * V - x + g0, -V + gd0, gdd0
 
 
-@kernel(inline=True)
+@kernel
 def _stick_trial(cx, L, cap, on_grid, rot, monotone, f0, fd0, fdd0):
     """Length of a stick step from the start in ``cx`` (``_stick_start``; f, f', f''
     there): L, halved until |f| <= x_fs provably holds on the whole step, or f provably has
@@ -69,7 +69,7 @@ def _stick_trial(cx, L, cap, on_grid, rot, monotone, f0, fd0, fdd0):
     return L, halved, on_grid, held, x1, f1, fd1, gdd1, nc1, ns1, nc2, ns2
 
 
-@kernel(inline=True)
+@kernel
 def _stick_exit_time(cx, L, f0, fd0, fdd0, f1, fd1, fdd1):
     """First relative time in [0, L] where |f| exceeds xfs during a stick, or -1.
 

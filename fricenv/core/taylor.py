@@ -154,7 +154,7 @@ def _dense_x(cx, tau):
         p = p * tau + cx[C_TX + k]
     return p
 
-@kernel(inline=True)
+@kernel
 def _dense_bounds(cx, L):
     """Bounds on |v''| and |v'''| over [0, L] of the current Taylor step's polynomial."""
     n = int(cx[C_TN])

@@ -9,7 +9,7 @@ from .constants import TWO_PI
 from .workspace import TAYLOR_MAX_ORDER
 
 
-@kernel(inline=True)
+@kernel
 def _wrap(phi):
     if 0.0 <= phi < TWO_PI:
         return phi
@@ -63,7 +63,7 @@ def _sincos_long(t):
         c, s = c * c - s * s, 2.0 * s * c
     return c, s
 
-@kernel(inline=True)
+@kernel
 def _renorm(c, s):
     k = 1.5 - 0.5 * (c * c + s * s)
     return c * k, s * k

@@ -75,7 +75,7 @@ from .workspace import (
 )
 
 
-@kernel(inline=True)
+@kernel
 def _e1(s, es):
     """E(s) = (e^s - 1) / s from s and es = e^s (complex), in real arithmetic.
 
@@ -97,16 +97,16 @@ def _e1(s, es):
     inv = 1.0 / r2
     return complex((nr * a + ni * b) * inv, (ni * a - nr * b) * inv)
 
-@kernel(inline=True)
+@kernel
 def _cget(cx, k):
     return complex(cx[k], cx[k + 1])
 
-@kernel(inline=True)
+@kernel
 def _cset(cx, k, z):
     cx[k] = z.real
     cx[k + 1] = z.imag
 
-@kernel(inline=True)
+@kernel
 def _interval_constants(cx, T, lam, p2):
     """The whole-call transition and rotations for span T, each recomputed only when its
     own key changed (retuning a tone redoes that tone's rotation alone)."""
@@ -135,7 +135,7 @@ def _interval_constants(cx, T, lam, p2):
             cx[base + 3] = hs
             cx[W_I_KEY_W1 + i] = w
 
-@kernel(inline=True)
+@kernel
 def _interval_e(cx, T):
     """The E values of the (v - V)^2 integral involving the tones (after
     ``_interval_constants``), recomputed for a retuned tone only."""
@@ -162,7 +162,7 @@ def _interval_e(cx, T):
     cx[W_I_KEY_E1] = cx[C_W1]
     cx[W_I_KEY_E2] = cx[C_W2]
 
-@kernel(inline=True)
+@kernel
 def _arc_passes_zero(c0, s0, cm, sm, c1, s1, alpha, eps):
     """Does the counter-clockwise arc of length alpha >= 0 from direction (c0, s0) through
     (cm, sm) (its midpoint) to (c1, s1) pass the angle 0? Borderline cases, within eps
@@ -177,7 +177,7 @@ def _arc_passes_zero(c0, s0, cm, sm, c1, s1, alpha, eps):
         return (s0 <= eps and sm >= -eps) or (sm <= eps and s1 >= -eps)
     return s0 <= eps and s1 >= -eps
 
-@kernel(inline=True)
+@kernel
 def _lowest(amp, y0, y1, c0, s0, cm, sm, c1, s1, alpha):
     """Lowest value over the call of a sinusoid amp cos(psi) whose direction amp (cos psi,
     sin psi) sweeps the arc alpha from (c0, s0) through (cm, sm) to (c1, s1), with end
@@ -187,7 +187,7 @@ def _lowest(amp, y0, y1, c0, s0, cm, sm, c1, s1, alpha):
         return -amp
     return min(y0, y1)
 
-@kernel(inline=True)
+@kernel
 def _tone_dir(w, kc, ks, c, s):
     """Direction of a tone's particular velocity w (ks cos phi - kc sin phi): its value and
     the quadrature component."""

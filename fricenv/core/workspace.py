@@ -129,7 +129,7 @@ def fresh_workspace(extrema=True, vr2=True):
     return work
 
 
-@kernel(inline=True)
+@kernel
 def _budget_check(cx, t, n_call, t_win, n_win0, n_scan):
     """Check a runner's step budget (in ``cx``) before its step number ``n_call`` (from
     1), taken from call time ``t``: (over budget, t_win, n_win0, n_check). The runner

@@ -58,7 +58,7 @@ from fricenv.jit import kernel
 CHUNK = 8
 
 
-@kernel(inline=True)
+@kernel
 def _plant_rows(table, i):
     """Plant ``i``'s parameters, state, excitation, stats and workspace: views of its row."""
     row = table[i]
@@ -66,7 +66,7 @@ def _plant_rows(table, i):
             row[T_WORK:])
 
 
-@kernel(inline=True)
+@kernel(takes_kernels=True)
 def _plant_step(advance_ws, i, table, cfg, A, obs, res, flags, counters, max_steps,
                 mode) -> int:
     """Body of the batch step for plant ``i`` (see ``step_batch``).
@@ -150,7 +150,7 @@ def _count(flags, counters, n_rows, ivars) -> int:
     return n_failed
 
 
-@kernel(inline=True)
+@kernel(takes_kernels=True)
 def step_range_with(advance_ws, lo, hi, table, cfg, A, obs, res, flags, counters, draws,
                     bounds, max_steps, mode) -> None:
     """Step plants ``lo`` to ``hi - 1`` (the body of both batch kernels).
@@ -165,7 +165,7 @@ def step_range_with(advance_ws, lo, hi, table, cfg, A, obs, res, flags, counters
             _start_next(i, table, cfg, obs, counters, draws, bounds)
 
 
-@kernel(inline=True)
+@kernel(takes_kernels=True)
 def step_batch_with(step_range, table, cfg, A, obs, res, flags, counters, draws, bounds,
                     ivars) -> int:
     """Step N plants with autoreset in one call.
@@ -194,7 +194,7 @@ def step_batch_with(step_range, table, cfg, A, obs, res, flags, counters, draws,
     return _count(flags, counters, draws.shape[1], ivars)
 
 
-@kernel(inline=True)
+@kernel
 def _region(worker, n_workers, n):
     """Plants [lo, hi) of the region that ``worker`` shares with its partner (workers 2r
     and 2r + 1 share region r; with an odd count the last worker has a region alone), sized
@@ -203,7 +203,7 @@ def _region(worker, n_workers, n):
     return first * n // n_workers, min(first + 2, n_workers) * n // n_workers
 
 
-@kernel(inline=True)
+@kernel
 def _cells(lo, hi):
     """How the region [lo, hi) is cut into claimable cells: (big, n_cells).
 
@@ -223,7 +223,7 @@ def _cells(lo, hi):
     return big, n_chunks + (2 if big > 0 else 0)
 
 
-@kernel(inline=True)
+@kernel
 def _cell(lo, hi, big, n_cells, done, from_back):
     """Plants [start, end) of a worker's ``done``-th claim in the region [lo, hi), cut as
     ``_cells`` says.
@@ -244,7 +244,7 @@ def _cell(lo, hi, big, n_cells, done, from_back):
     return start, min(hi - big, start + CHUNK)
 
 
-@kernel(inline=True)
+@kernel(takes_kernels=True)
 def step_batch_parallel_with(step_range, table, cfg, A, obs, res, flags, counters, draws,
                              bounds, ivars) -> int:
     """``step_batch`` on ``ivars[4]`` workers (one ``prange`` iteration each) that share

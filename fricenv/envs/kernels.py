@@ -29,6 +29,7 @@ from fricenv.core import (
     W_S2,
     advance,
     advance_ws,
+    fresh_workspace,
     initial_mode,
     initial_state,
     reset_stats,
@@ -169,7 +170,7 @@ def actions_finite(a) -> bool:
     return True
 
 
-@kernel(inline=True)
+@kernel
 def set_excitation(P, ctrl, cfg) -> None:
     """Write the tone amplitudes and the second tone's frequency from (u0, nu).
 
@@ -181,28 +182,28 @@ def set_excitation(P, ctrl, cfg) -> None:
     P[P_W2] = ctrl[1] * P[P_W1]
 
 
-@kernel(inline=True)
+@kernel
 def apply_action(ctrl, cfg, a) -> None:
     """Map a normalised action in [-1, 1] (clipped) to (u0, nu), absolute or incremental."""
     mode = int(cfg[C_ACTION_MODE])
     incremental = cfg[C_INCREMENTAL] != 0.0
     j = 0
     if mode != MODE_FREQUENCY:
-        ai = _clip(a[j], -1.0, 1.0)
+        ai = _clip(np.float64(a[j]), -1.0, 1.0)
         if incremental:
             ctrl[0] = _clip(ctrl[0] + ai * cfg[C_DU], cfg[C_U_LO], cfg[C_U_HI])
         else:
             ctrl[0] = cfg[C_U_LO] + 0.5 * (ai + 1.0) * (cfg[C_U_HI] - cfg[C_U_LO])
         j = 1
     if mode != MODE_AMPLITUDE:
-        ai = _clip(a[j], -1.0, 1.0)
+        ai = _clip(np.float64(a[j]), -1.0, 1.0)
         if incremental:
             ctrl[1] = _clip(ctrl[1] + ai * cfg[C_DNU], cfg[C_NU_LO], cfg[C_NU_HI])
         else:
             ctrl[1] = cfg[C_NU_LO] + 0.5 * (ai + 1.0) * (cfg[C_NU_HI] - cfg[C_NU_LO])
 
 
-@kernel(inline=True)
+@kernel
 def _method(P, cfg) -> int:
     m = int(cfg[C_METHOD])
     if m != METHOD_AUTO:
@@ -212,7 +213,7 @@ def _method(P, cfg) -> int:
     return METHOD_EVENT
 
 
-@kernel(inline=True)
+@kernel(takes_kernels=True)
 def control_interval(advance_ws, P, S, ctrl, cfg, a, stats, res, work) -> int:
     """Apply action ``a``, advance one control interval by the core's entry kernel
     ``advance_ws`` (see :mod:`fricenv.envs.steppers`), fill the reward terms in ``res``.
@@ -248,7 +249,7 @@ def control_interval(advance_ws, P, S, ctrl, cfg, a, stats, res, work) -> int:
     return 0
 
 
-@kernel(inline=True)
+@kernel
 def _cos_sin(phi, work, key, c, s):
     """cos and sin of ``phi``, from the core's cache when it holds this very angle."""
     if phi == work[key]:
@@ -256,7 +257,7 @@ def _cos_sin(phi, work, key, c, s):
     return math.cos(phi), math.sin(phi)
 
 
-@kernel(inline=True)
+@kernel
 def write_obs(P, S, ctrl, cfg, obs, work) -> bool:
     """Write the float32 observation; True when the state left the observation box.
 
@@ -297,7 +298,7 @@ def start_episode(P, S, ctrl, cfg, P_new, init, obs, work) -> None:
     write_obs(P, S, ctrl, cfg, obs, work)
 
 
-@kernel(inline=True)
+@kernel
 def _scaled(u, bounds, k):
     return bounds[0, k] + (bounds[1, k] - bounds[0, k]) * u[k]
 
@@ -332,7 +333,7 @@ def episode_from_uniforms(u, bounds, cfg, P_out, init_out) -> None:
     init_out[I_NU] = nu
 
 
-@kernel(inline=True)
+@kernel(takes_kernels=True)
 def step_single_with(advance_ws, P, S, ctrl, cfg, a, stats, obs, res, work) -> int:
     """One step of the single environment (one dispatch per step keeps it cheap)."""
     if not actions_finite(a):
@@ -344,7 +345,7 @@ def step_single_with(advance_ws, P, S, ctrl, cfg, a, stats, obs, res, work) -> i
     return 0
 
 
-@kernel(inline=True, allocates=True)
+@kernel(takes_kernels=True, allocates=True)
 def sample_interval_with(advance, P, S, ctrl, cfg, a, stats, t_out, v_out, stick_out) -> int:
     """The coming interval's velocity at ``len(t_out)`` instants (the renderer's trace and
     ``StickSlipEnv.sample_interval``).
@@ -360,10 +361,11 @@ def sample_interval_with(advance, P, S, ctrl, cfg, a, stats, t_out, v_out, stick
     h = cfg[C_DT] / n
     m = _method(Pc, cfg)
     t0 = Sc[S_T]
+    work = fresh_workspace()
     for k in range(n):
         reset_stats(stats)
         status = advance(Pc, Sc, h, stats, m, cfg[C_RTOL], cfg[C_ATOL],
-                         int(cfg[C_MAX_EVENTS]))
+                         int(cfg[C_MAX_EVENTS]), work)
         if status != 0:
             return status
         t_out[k] = t0 + (k + 1) * h

@@ -42,13 +42,13 @@ MAX_HORIZON = 1 << 16
 STATUS_LEFT_BOX = -2
 
 
-@kernel(inline=True)
+@kernel
 def _left_box(P, S, cfg) -> bool:
     """The env's termination test (``kernels.write_obs``) on the state alone."""
     return abs(S[S_X]) > cfg[K.C_X_LIM] or abs(S[S_V] - P[P_V]) > cfg[K.C_V_LIM]
 
 
-@kernel(inline=True)
+@kernel(takes_kernels=True)
 def _sample_with(advance_ws, k, plants, cmds, src, cfg, ucfg, act, actuated, A, table,
                  cmd_rows, stats, res, zero, rewards, stick, length, status) -> None:
     """Roll sample ``k`` out by the core's entry kernel ``advance_ws`` (the body of the
@@ -110,7 +110,7 @@ def _sample_any(k, plants, cmds, src, cfg, ucfg, act, actuated, A, table, cmd_ro
                  cmd_rows, stats, res, zero, rewards, stick, length, status)
 
 
-@kernel(inline=True)
+@kernel(takes_kernels=True)
 def _rollout_with(sample, plants, cmds, src, cfg, ucfg, act, actuated, A, table, cmd_rows,
                   stats, res, zero, rewards, stick, length, status) -> None:
     """Roll every sample out with ``sample`` (one of ``_sample_*``), in parallel.
@@ -130,7 +130,7 @@ def _rollout_with(sample, plants, cmds, src, cfg, ucfg, act, actuated, A, table,
                zero, rewards, stick, length, status)
 
 
-@kernel(inline=True)
+@kernel(takes_kernels=True)
 def _serial_with(sample, plants, cmds, src, cfg, ucfg, act, actuated, A, table, cmd_rows,
                  stats, res, zero, rewards, stick, length, status) -> None:
     """``_rollout_with`` on the calling thread (for callers that run plants in threads of

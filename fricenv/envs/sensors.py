@@ -206,7 +206,7 @@ def no_actuator() -> np.ndarray:
 
 
 # -- actuator kernels -----------------------------------------------------------------------
-@kernel(inline=True)
+@kernel
 def _follow(applied, command, alpha, rate, lo, hi):
     """The applied setting after one interval: the lag's step towards ``command``, then the
     rate limit, then the range (an exact ``command`` when neither holds it back)."""
@@ -218,7 +218,7 @@ def _follow(applied, command, alpha, rate, lo, hi):
     return lo if target < lo else (hi if target > hi else target)
 
 
-@kernel(inline=True)
+@kernel
 def actuate(ctrl, cmd, cfg, a, act) -> None:
     """One interval of the actuator for one plant.
 
