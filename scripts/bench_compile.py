@@ -454,8 +454,10 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
             ap.error(f"argument --cache-dir: {args.cache_dir} is a file, not a folder")
     if args.json is not None:
         path = Path(args.json).expanduser()
-        if path.is_dir() or not path.resolve().parent.is_dir():
-            ap.error(f"argument --json: cannot write a file at {args.json!r}")
+        if path.is_dir():
+            ap.error(f"argument --json: {args.json!r} is a folder, not a file")
+        if not path.resolve().parent.is_dir():
+            ap.error(f"argument --json: the folder of {args.json!r} does not exist")
         args.json = path
     return args
 

@@ -46,8 +46,9 @@ def _fake_tree(path: Path, init: str = "") -> Path:
     (["--cache-dir", "{tmp}/afile"], "argument --cache-dir: {tmp}/afile is a file"),
     (["--cache-dir", "{tmp}/c", "--inherit-cache"],
      "argument --inherit-cache: not allowed with argument --cache-dir"),
-    (["--json", "{tmp}"], "argument --json: cannot write a file at '{tmp}'"),
-    (["--json", "{tmp}/no/r.json"], "argument --json: cannot write a file at '{tmp}/no/r.json'"),
+    (["--json", "{tmp}"], "argument --json: '{tmp}' is a folder, not a file"),
+    (["--json", "{tmp}/no/r.json"],
+     "argument --json: the folder of '{tmp}/no/r.json' does not exist"),
 ])
 def test_bad_arguments_are_refused_by_name(argv, needle, tmp_path, capsys) -> None:
     """Exit 2 with a message naming the option and the value, before any child runs or
@@ -245,3 +246,14 @@ def test_a_shared_cache_dir_compiles_only_the_first_time(tmp_path) -> None:
     assert second["compiles"] == 0
     names = {e["name"] for e in first["events"]}
     assert any(n.startswith("fricenv.") for n in names)
+
+
+def test_registered_as_fricenv_bench_compile(capsys) -> None:
+    from fricenv.cli.bench import main
+
+    assert main(["compile", "--help"], prog="fricenv bench") == 0
+    out = capsys.readouterr().out
+    assert "usage: " in out and "--workloads NAME" in out
+    assert "--cache-dir DIR" in out and "  map-stribeck " in out
+    assert main(["compile", "--repeat", "0"], prog="fricenv bench") == 2
+    assert "argument --repeat" in capsys.readouterr().err
