@@ -253,7 +253,7 @@ def _vector(tmp: Path) -> None:
 
     env = StickSlipVectorEnv(num_envs=VECTOR_PLANTS, scene="paper")
     env.reset(seed=0)
-    env.step(np.zeros(env.action_space.shape, dtype=env.action_space.dtype))
+    env.step(np.zeros_like(env.action_space.sample()))
     env.close()
 
 
@@ -293,10 +293,10 @@ def _map_workload(law: str) -> Callable[[Path], None]:
 
 
 def _atlas(tmp: Path) -> None:
-    import fricenv
+    from fricenv.atlas import atlas  # fricenv.atlas, the callable package
 
-    fricenv.atlas("coulomb", {"u0": [0.5, 2.0], "nu": [0.5, 1.0]}, path=tmp / "a.zarr",
-                  chunks=4, settings=_small_settings(), progress=False)
+    atlas("coulomb", {"u0": [0.5, 2.0], "nu": [0.5, 1.0]}, path=tmp / "a.zarr",
+          chunks=4, settings=_small_settings(), progress=False)
 
 
 def _mpc(tmp: Path) -> None:
@@ -504,7 +504,7 @@ def collect(args: argparse.Namespace) -> list[dict[str, Any]]:
     labels = tree_labels(args.tree)
     if args.cache_dir is not None:
         args.cache_dir.mkdir(parents=True, exist_ok=True)
-    runs = []
+    runs: list[dict[str, Any]] = []
     total = args.repeat * len(args.workloads) * len(args.tree)
     for rep in range(args.repeat):
         for name in args.workloads:
