@@ -149,13 +149,13 @@ class KernelTotal:
     name: str
     self_s: float = 0.0
     inclusive_s: float = 0.0
-    compiles: int = 0
+    compiles: float = 0.0  # signatures compiled, per run
     workloads: set[str] = field(default_factory=set)
 
 
 def kernel_totals(by_workload: Mapping[str, Iterable[Compile]],
                   runs: int = 1) -> list[KernelTotal]:
-    """Per dispatcher: self and inclusive time and compilations, per run (divided by
+    """Per dispatcher: self and inclusive time and compilations per run (divided by
     ``runs``, the repeats pooled in ``by_workload``), and the workloads that compiled it;
     largest self time first. A recursive compilation's inclusive time counts once, at its
     outermost level."""
@@ -172,6 +172,7 @@ def kernel_totals(by_workload: Mapping[str, Iterable[Compile]],
     for k in totals.values():
         k.self_s /= runs
         k.inclusive_s /= runs
+        k.compiles /= runs
     return sorted(totals.values(), key=lambda k: (-k.self_s, k.name))
 
 
@@ -215,7 +216,7 @@ def results_table(cells: Mapping[str, Mapping[str, Mapping[str, float] | None]],
 def top_table(totals: Sequence[KernelTotal], n: int = TOP_KERNELS) -> str:
     """The ``n`` kernels with the largest compile self time."""
     rows = [[str(i), f"`{k.name}`", f"{k.self_s:.2f}", f"{k.inclusive_s:.2f}",
-             str(k.compiles), str(len(k.workloads))]
+             f"{k.compiles:g}", str(len(k.workloads))]
             for i, k in enumerate(totals[:n], 1)]
     return markdown_table(["#", "kernel", "self s", "inclusive s", "compiles", "workloads"],
                           rows, numeric_from=2)
@@ -550,8 +551,8 @@ def report(runs: Sequence[Mapping[str, Any]], args: argparse.Namespace) -> str:
                 c for c in pair_compiles(r["events"]) if c.phase != "warm")
         title = "" if len(labels) == 1 else f" ({label})"
         out += ["", f"Top {TOP_KERNELS} kernels by compile self time{title}, seconds per "
-                "run, summed over the workloads (compiles: signatures compiled; workloads: "
-                "how many compiled it):", "",
+                "run, summed over the workloads (compiles: signatures compiled per run; "
+                "workloads: how many compiled it):", "",
                 top_table(kernel_totals(by_workload, args.repeat))]
         warm = sorted({r["workload"] for r in ok if r["warm_compiles"]})
         if warm:
