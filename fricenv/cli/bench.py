@@ -20,6 +20,7 @@ BENCHMARKS = {
     "sweep": "regime-map cells against an event-driven SciPy loop; full panels",
     "env": "environment step cost against Pendulum-v1; vector env; PPO's share",
     "control": "Stribeck and viscous steps against Pendulum-v1; MPC decision time",
+    "compile": "cold start: first calls in fresh processes; numba compile time by kernel",
 }
 
 
