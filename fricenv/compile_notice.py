@@ -187,7 +187,7 @@ def describe(needs: Iterable[tuple[str, str]]) -> str | None:
     cold = [(w, m) for w, m in dict.fromkeys(needs) if not is_cached(w, m)]
     if not cold:
         return None
-    seconds = sum(COMPILE_SECONDS.get(w, 60.0) for w, _ in cold)
+    seconds = sum(COMPILE_SECONDS[w] for w, _ in cold)
     what = ", ".join(f"{w} ({m})" for w, m in cold)
     return (f"compiling numba kernels for {what}: about {_duration(seconds)} on 2 cores, "
             f"once; cached in {cache_location()} (fricenv warmup compiles ahead)")

@@ -26,17 +26,21 @@ Needs = list[tuple[str, str]]
 @contextlib.contextmanager
 def log_to_stderr(quiet: bool = False) -> Iterator[None]:
     """Print the ``fricenv`` logger's INFO lines (the compile notice) to stderr for the
-    duration of a command; ``quiet``: warnings only. Restores the logger afterwards."""
+    duration of a command; ``quiet``: warnings only. Not passed on to the root logger (a
+    command that configures logging would print them twice). Restores the logger
+    afterwards."""
     handler = logging.StreamHandler(sys.stderr)
     handler.setFormatter(logging.Formatter("fricenv: %(message)s"))
-    level = LOGGER.level
+    level, propagate = LOGGER.level, LOGGER.propagate
     LOGGER.addHandler(handler)
     LOGGER.setLevel(logging.WARNING if quiet else logging.INFO)
+    LOGGER.propagate = False
     try:
         yield
     finally:
         LOGGER.removeHandler(handler)
         LOGGER.setLevel(level)
+        LOGGER.propagate = propagate
 
 
 def announce(needs: Iterable[tuple[str, str]] | Callable[[], Iterable[tuple[str, str]]],
