@@ -59,17 +59,21 @@ ENTRY_KERNELS: dict[str, dict[str, tuple[str, ...]]] = {
     },
 }
 
-#: About how long each workload's kernels take to compile from an empty cache, in seconds,
-#: measured on a 2-core x86-64 machine (``fricenv warmup --jobs 1``; the event method's
-#: kernels take about as long as the closed form's). Only for the notice: the real time
-#: varies with the machine and with what is already cached.
+#: About how long each workload's kernels take to compile from an empty cache, in seconds
+#: of wall-clock time on an idle 2-core x86-64 machine. Measured one part per fresh process
+#: and cache (``fricenv.warmup.run_part``) on such a machine shared with other jobs (load
+#: about 3.5), and scaled by 1/1.75 for the share of a core each compile got: a Coulomb
+#: ``simulate`` part (time history and ``run_stats``) took 103 s, a Stribeck one 63 s, a
+#: ``sweep`` part 200-220 s, ``env`` of the paper scene 147 s, and ``vector_env`` with its
+#: threaded kernel 385 s. Only for the notice: the time varies with the machine and with
+#: what is already cached (kernels that workloads share compile once).
 COMPILE_SECONDS: dict[str, float] = {
-    "simulate": 40.0,
-    "run_stats": 30.0,
-    "sweep": 60.0,
-    "env": 60.0,
-    "vector_env": 60.0,
-    "vector_env:parallel": 40.0,
+    "simulate": 35.0,
+    "run_stats": 25.0,
+    "sweep": 120.0,
+    "env": 85.0,
+    "vector_env": 120.0,
+    "vector_env:parallel": 100.0,
 }
 
 #: The ``CELL_KERNELS`` keys (core method codes) by method name.

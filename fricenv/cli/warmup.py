@@ -14,6 +14,7 @@ import argparse
 import importlib
 import multiprocessing
 import sys
+import time
 from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import Future, ProcessPoolExecutor, as_completed
 
@@ -80,13 +81,15 @@ def _in_workers(todo: list[Part], parallel: bool,
             yield futures[future], future.result()
 
 
-def table(took: dict[str, float], cached: dict[str, bool]) -> str:
-    """The seconds per part, in the parts' order, and whether each was cached before."""
-    width = max(len("part"), *map(len, took))
-    lines = [f"{'part':<{width}}  {'seconds':>8}  before"]
-    lines += [f"{name:<{width}}  {seconds:8.1f}  {'cached' if cached[name] else 'compiled'}"
+def table(took: dict[str, float], cached: dict[str, bool], wall: float) -> str:
+    """The seconds per part, in the parts' order, whether its kernels were loaded from the
+    cache or compiled, their sum and the wall-clock time of the whole run."""
+    width = max(len("wall clock"), *map(len, took))
+    lines = [f"{'part':<{width}}  {'seconds':>8}  kernels"]
+    lines += [f"{name:<{width}}  {seconds:8.1f}  {'loaded' if cached[name] else 'compiled'}"
               for name, seconds in took.items()]
     lines.append(f"{'total':<{width}}  {sum(took.values()):8.1f}")
+    lines.append(f"{'wall clock':<{width}}  {wall:8.1f}")
     return "\n".join(lines)
 
 
@@ -108,6 +111,7 @@ def main(argv: Sequence[str] | None = None, prog: str | None = None) -> int:
     runs = (_in_process(todo, parallel) if args.jobs == 1
             else _in_workers(todo, parallel, args.jobs))
     took: dict[str, float] = {}
+    start = time.perf_counter()
     from tqdm.auto import tqdm
 
     with tqdm(total=len(todo), disable=args.quiet, unit="part", file=sys.stderr,
@@ -117,6 +121,7 @@ def main(argv: Sequence[str] | None = None, prog: str | None = None) -> int:
             bar.set_postfix_str(f"{name} {seconds:.1f} s")
             bar.update()
     if not args.quiet:
-        print(table({p.name: took[p.name] for p in todo}, cached))
+        print(table({p.name: took[p.name] for p in todo}, cached,
+                    time.perf_counter() - start))
         print(f"numba cache: {compile_notice.cache_location()}")
     return 0
