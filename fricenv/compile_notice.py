@@ -60,21 +60,23 @@ ENTRY_KERNELS: dict[str, dict[str, tuple[str, ...]]] = {
 }
 
 #: About how long each workload's kernels take to compile from an empty cache, in seconds
-#: of wall-clock time on an idle 2-core x86-64 machine. Measured one part per fresh process
-#: and cache (``fricenv.warmup.run_part``) on such a machine shared with other jobs (load
-#: about 3.5), and scaled by 1/1.75 for the share of a core each compile got: a Coulomb
+#: of wall-clock time on a 2-core x86-64 machine, for the notice only: the time varies with
+#: the machine, its load and what is already cached (kernels that workloads share compile
+#: once). Measured one part per fresh process and cache (``fricenv.warmup.run_part``) on
+#: such a machine shared with other jobs, and rounded down for that load: a Coulomb
 #: ``simulate`` part (time history and ``run_stats``) took 103 s, a Stribeck one 63 s, a
-#: ``sweep`` part 200-220 s, ``env`` of the paper scene 147 s, and ``vector_env`` with its
-#: threaded kernel 385 s. Only for the notice: the time varies with the machine and with
-#: what is already cached (kernels that workloads share compile once).
+#: ``sweep`` part 200-220 s, ``env`` of the paper scene 147 s, ``vector_env`` with its
+#: threaded kernel 385 s; the RK4 kernel 3 s.
 COMPILE_SECONDS: dict[str, float] = {
-    "simulate": 35.0,
-    "run_stats": 25.0,
+    "simulate": 50.0,
+    "run_stats": 45.0,
     "sweep": 120.0,
     "env": 85.0,
     "vector_env": 120.0,
     "vector_env:parallel": 100.0,
 }
+#: Where one method's kernels take far from their workload's ``COMPILE_SECONDS``.
+METHOD_SECONDS: dict[tuple[str, str], float] = {("simulate", "rk4"): 5.0}
 
 #: The ``CELL_KERNELS`` keys (core method codes) by method name.
 _METHOD_CODES = {"exact": "METHOD_EXACT", "event": "METHOD_EVENT"}
@@ -191,7 +193,7 @@ def describe(needs: Iterable[tuple[str, str]]) -> str | None:
     cold = [(w, m) for w, m in dict.fromkeys(needs) if not is_cached(w, m)]
     if not cold:
         return None
-    seconds = sum(COMPILE_SECONDS[w] for w, _ in cold)
+    seconds = sum(METHOD_SECONDS.get((w, m), COMPILE_SECONDS[w]) for w, m in cold)
     what = ", ".join(f"{w} ({m})" for w, m in cold)
     return (f"compiling numba kernels for {what}: about {_duration(seconds)} on 2 cores, "
             f"once; cached in {cache_location()} (fricenv warmup compiles ahead)")

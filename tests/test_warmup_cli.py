@@ -172,7 +172,7 @@ def test_the_command_says_once_that_it_compiles_and_nothing_when_warm(tmp_path):
     assert cold.count(NOTICE) == 1, cold
     line = next(line for line in cold.splitlines() if NOTICE in line)
     assert line.startswith("fricenv: ") and "simulate (rk4)" in line
-    assert str(cache) in line and re.search(r"about \d+ (s|min)", line)
+    assert str(cache) in line and "about 5 s" in line
     warm = python("", cache, *argv).stderr
     assert NOTICE not in warm, warm
 
@@ -189,7 +189,8 @@ def test_commands_with_parsers_of_their_own_are_announced(monkeypatch, caplog):
     assert not _notice.announce_command("train", ["--scene", "moon"])  # its parser says why
     cold.add(("sweep", "exact"))
     assert _notice.announce_command("reproduce", ["--only", "2"])
-    assert not _notice.announce_command("reproduce", ["--only", "4-7"])
+    cold.clear()
+    assert not _notice.announce_command("reproduce", [])
     assert [r.getMessage().count(NOTICE) for r in caplog.records] == [1, 1]
     assert "vector_env (event)" in caplog.records[0].getMessage()
 

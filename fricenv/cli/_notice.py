@@ -86,13 +86,14 @@ def _scene_needs(workloads: Sequence[str], scenes: Iterable[str]) -> Needs:
 
 def reproduce_needs(argv: Sequence[str]) -> Needs:
     """``fricenv reproduce``: the amplitude figures (2, 3) sweep Coulomb cells, the time
-    histories (4-7) simulate Coulomb plants, the maps (8-10) sweep each figure's law."""
+    histories (4-7) simulate Coulomb plants and sweep their cells, the maps (8-10) sweep
+    each figure's law."""
     from fricenv.reproduce.common import MAP_FIGURES
 
     only = {s.strip() for s in _sniff(argv, ("--only", {"default": "2,3,4-7,8-10"}))
             .only.split(",")}
     needs: Needs = []
-    if only & {"2", "3"}:
+    if only & {"2", "3", "4-7"}:
         needs += _law_needs("sweep", ["coulomb"])
     if "4-7" in only:
         needs += _law_needs("simulate", ["coulomb"])
