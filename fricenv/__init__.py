@@ -1,5 +1,7 @@
 """fricenv: exact event-driven simulation of a two-tone forced dry-friction oscillator."""
 
+import logging as _logging
+
 # First, before any module with compiled kernels: keys their numba cache on the whole
 # package's source (see _numba_cache).
 from . import _numba_cache  # noqa: F401
@@ -21,6 +23,10 @@ from .simulate import (
 )
 from .sweep import RegimeMap, SweepSettings, cell_statistics, regime_map
 from .warmup import warmup
+
+# The package logs (the compile notice of fricenv.compile_notice) through the "fricenv"
+# logger; as a library it adds only a NullHandler: the application decides what is shown.
+_logging.getLogger(__name__).addHandler(_logging.NullHandler())
 
 __all__ = [
     "EVENT_NAMES",

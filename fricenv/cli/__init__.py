@@ -4,6 +4,10 @@
 modules of their own (``fricenv.reproduce``, ``agents.train``, ``agents.evaluate``,
 ``fricenv.atlas``) keep their own parsers; this module only dispatches, so
 ``python -m agents.train`` and ``fricenv train`` accept the same options.
+
+Before a command's first kernel call compiles (tens of seconds from an empty numba cache),
+it prints one line to stderr saying so (:mod:`fricenv.compile_notice`; ``--quiet``, where a
+command has it, silences it).
 """
 
 from __future__ import annotations
@@ -23,6 +27,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "train": ("agents.train", "train a stick-slip suppression agent (stable-baselines3)"),
     "evaluate": ("agents.evaluate", "evaluate trained agents against the baselines"),
     "bench": ("fricenv.cli.bench", "run a benchmark: solvers, sweep or env"),
+    "warmup": ("fricenv.cli.warmup", "compile the kernels into numba's cache ahead of use"),
 }
 
 
@@ -64,7 +69,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     if not argv or argv[0] not in COMMANDS:
         parser.parse_args(argv[:1] or ["--help"])  # --help, --version, or a clear error
         return 2
-    status = command_main(argv[0])(argv[1:], prog=f"fricenv {argv[0]}")
+    from fricenv.cli import _notice
+
+    with _notice.log_to_stderr(quiet="--quiet" in argv[1:]):
+        _notice.announce_command(argv[0], argv[1:])
+        status = command_main(argv[0])(argv[1:], prog=f"fricenv {argv[0]}")
     return status if isinstance(status, int) else 0
 
 

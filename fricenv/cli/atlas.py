@@ -5,6 +5,9 @@ from __future__ import annotations
 import argparse
 from collections.abc import Sequence
 
+from fricenv.cli import _notice
+from fricenv.compile_notice import method_for_law
+
 
 def main(argv: Sequence[str] | None = None, prog: str | None = None) -> int:
     try:
@@ -14,4 +17,6 @@ def main(argv: Sequence[str] | None = None, prog: str | None = None) -> int:
         p.error(f"the atlas needs the scale extra (pip install 'fricenv[scale]'): {e}")
     p = argparse.ArgumentParser(prog=prog, description=cli.__doc__.split("\n\n")[0])
     cli.add_arguments(p)
-    return cli.run(p.parse_args(argv))
+    args = p.parse_args(argv)
+    _notice.announce(lambda: [("sweep", method_for_law(args.law or "coulomb"))])
+    return cli.run(args)

@@ -14,6 +14,8 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
+from fricenv.cli import _notice
+
 #: benchmark name -> what it measures
 BENCHMARKS = {
     "solvers": "accuracy and cost of every method against RK4 and SciPy",
@@ -21,6 +23,15 @@ BENCHMARKS = {
     "env": "environment step cost against Pendulum-v1; vector env; PPO's share",
     "control": "Stribeck and viscous steps against Pendulum-v1; MPC decision time",
     "compile": "cold start: first calls in fresh processes; numba compile time by kernel",
+}
+
+#: benchmark name -> the (workload, method) pairs of ``fricenv.compile_notice`` it runs
+#: first (for the compile notice; the scripts may compile more later).
+BENCHMARK_NEEDS: dict[str, list[tuple[str, str]]] = {
+    "solvers": [("simulate", "exact"), ("simulate", "event"), ("simulate", "rk4")],
+    "sweep": [("sweep", "exact")],
+    "env": [("env", "exact"), ("vector_env", "exact")],
+    "control": [("env", "event")],
 }
 
 
@@ -41,6 +52,8 @@ def main(argv: Sequence[str] | None = None, prog: str | None = None) -> int:
     if not script.is_file():
         p.error(f"{script} not found: the benchmarks run from a clone of the repository "
                 "(pip install -e .), as they need its tests' SciPy reference")
+    if not {"-h", "--help"} & set(argv[1:]):
+        _notice.announce(BENCHMARK_NEEDS[args.name])
     name = f"{prog or 'fricenv bench'} {args.name}"
     saved = sys.argv
     sys.argv = [name, *argv[1:]]

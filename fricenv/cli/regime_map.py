@@ -13,7 +13,9 @@ import time
 from collections.abc import Sequence
 from pathlib import Path
 
+from fricenv.cli import _notice
 from fricenv.cli._args import add_plant_arguments, grid, out_dir, plant
+from fricenv.compile_notice import method_for_law
 
 
 def build_parser(prog: str | None = None) -> argparse.ArgumentParser:
@@ -40,6 +42,7 @@ def main(argv: Sequence[str] | None = None, prog: str | None = None) -> int:
     try:
         params = plant(args)
         args.out.mkdir(parents=True, exist_ok=True)
+        _notice.announce(lambda: [("sweep", method_for_law(params.law))])
         t0 = time.perf_counter()
         m = fricenv.regime_map(params, args.u0, args.nu, path=args.out / "map.npz",
                                resume=not args.restart, n_threads=args.threads,

@@ -15,9 +15,10 @@ from pathlib import Path
 
 import numpy as np
 
+from fricenv.cli import _notice
 from fricenv.cli._args import add_plant_arguments, number, out_dir, plant
 from fricenv.layout import METHODS
-from fricenv.simulate import Trajectory
+from fricenv.simulate import Trajectory, resolve_method
 
 
 def build_parser(prog: str | None = None) -> argparse.ArgumentParser:
@@ -58,6 +59,7 @@ def main(argv: Sequence[str] | None = None, prog: str | None = None) -> int:
 
     try:
         params = plant(args)
+        _notice.announce(lambda: [("simulate", resolve_method(params, args.method))])
         tr = fricenv.simulate(params, args.t_end, method=args.method, dt_out=args.dt_out)
     except (TypeError, ValueError) as e:
         parser.error(str(e))

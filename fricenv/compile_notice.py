@@ -1,0 +1,215 @@
+"""Say so before fricenv's kernels compile, instead of going quiet for a minute.
+
+numba compiles a kernel on its first call and keeps the machine code in its on-disk cache
+(:mod:`fricenv._numba_cache`). From an empty cache, or after any edit of the package's
+source, the first call of a workload stalls for tens of seconds with nothing on the
+screen. This module tells, without compiling or loading anything, whether a workload's
+entry kernels are already in the cache (it reads the index file numba keeps beside each
+cached function), and logs one line through the ``fricenv`` logger when they are not:
+what compiles, about how long it takes, and where the cache is. The package adds a
+``NullHandler`` only, so the Python API stays quiet unless the application configures
+logging; the ``fricenv`` command prints these lines to stderr.
+"""
+
+from __future__ import annotations
+
+import importlib
+import logging
+import os
+from collections.abc import Iterable
+from pathlib import Path
+from typing import Any
+
+logger = logging.getLogger(__name__)
+
+#: Each workload's entry kernels (the dispatchers Python calls first, which compile
+#: everything they call), per core method: ``"exact"`` (the closed form), ``"event"``,
+#: ``"any"`` (both, chosen per plant at run time) or ``"rk4"``. ``"module:attribute"``
+#: names, the attribute possibly dotted, resolved only when a check runs: the one place to
+#: change when a kernel is renamed (a test resolves every name). ``"vector_env:parallel"``
+#: is the threaded step of the vector environment, compiled only from
+#: ``PARALLEL_MIN_ENVS`` environments.
+ENTRY_KERNELS: dict[str, dict[str, tuple[str, ...]]] = {
+    "simulate": {  # a time history (``simulate``)
+        "exact": ("fricenv.core:record_exact",),
+        "event": ("fricenv.core:record_event",),
+        "rk4": ("fricenv.core:run_rk4",),
+    },
+    "run_stats": {  # statistics without a trajectory (``run_stats``)
+        "exact": ("fricenv.core:advance_exact",),
+        "event": ("fricenv.core:advance_event",),
+    },
+    "sweep": {
+        "exact": ("fricenv.cell_kernels:CELL_KERNELS.exact",),
+        "event": ("fricenv.cell_kernels:CELL_KERNELS.event",),
+    },
+    "env": {
+        method: (f"fricenv.envs.steppers:{method.upper()}.step_single",
+                 "fricenv.envs.kernels:start_episode")
+        for method in ("exact", "event", "any")
+    },
+    "vector_env": {
+        method: (f"fricenv.envs.steppers:{method.upper()}.step_batch",
+                 "fricenv.envs.batch:start_batch")
+        for method in ("exact", "event", "any")
+    },
+    "vector_env:parallel": {
+        method: (f"fricenv.envs.steppers:{method.upper()}.step_batch_parallel",)
+        for method in ("exact", "event", "any")
+    },
+}
+
+#: About how long each workload's kernels take to compile from an empty cache, in seconds
+#: of wall-clock time on a 2-core x86-64 machine, for the notice only: the time varies with
+#: the machine, its load and what is already cached (kernels that workloads share compile
+#: once). Measured one part per fresh process and cache (``fricenv.warmup.run_part``) on
+#: such a machine shared with other jobs, and rounded down for that load: a Coulomb
+#: ``simulate`` part (time history and ``run_stats``) took 103 s, a Stribeck one 63 s, a
+#: ``sweep`` part 200-220 s, ``env`` of the paper scene 147 s, ``vector_env`` with its
+#: threaded kernel 385 s; the RK4 kernel 3 s.
+COMPILE_SECONDS: dict[str, float] = {
+    "simulate": 50.0,
+    "run_stats": 45.0,
+    "sweep": 120.0,
+    "env": 85.0,
+    "vector_env": 120.0,
+    "vector_env:parallel": 100.0,
+}
+#: Where one method's kernels take far from their workload's ``COMPILE_SECONDS``.
+METHOD_SECONDS: dict[tuple[str, str], float] = {("simulate", "rk4"): 5.0}
+
+#: The ``CELL_KERNELS`` keys (core method codes) by method name.
+_METHOD_CODES = {"exact": "METHOD_EXACT", "event": "METHOD_EVENT"}
+
+
+def resolve(name: str) -> Any:
+    """The object a ``"module:attribute.attribute"`` name of ``ENTRY_KERNELS`` stands for
+    (``ImportError``/``AttributeError``/``KeyError`` if it no longer exists). A dict
+    attribute takes a method name, e.g. ``CELL_KERNELS.exact``."""
+    module_name, _, path = name.partition(":")
+    obj: Any = importlib.import_module(module_name)
+    for part in path.split("."):
+        if isinstance(obj, dict):
+            from . import layout
+
+            obj = obj[getattr(layout, _METHOD_CODES[part])]
+        else:
+            obj = getattr(obj, part)
+    return obj
+
+
+def dispatcher_cached(dispatcher: Any) -> bool:
+    """Whether numba's cache holds machine code of ``dispatcher`` for this process: its
+    index file exists, carries the current source stamp and numba version (numba's
+    ``_load_index`` returns ``{}`` otherwise), and lists an entry for this machine and this
+    function's bytecode. Reads the index only: compiles and loads nothing. A function
+    compiled in this process already counts as cached."""
+    if getattr(dispatcher, "overloads", None):
+        return True
+    cache: Any = getattr(dispatcher, "_cache", None)
+    cache_file = getattr(cache, "_cache_file", None)
+    if cache_file is None:  # not a cached function: it compiles in every process
+        return False
+    try:
+        index = cache_file._load_index()
+    except Exception:  # an unreadable index: numba recompiles, and so says this
+        return False
+    if not index:
+        return False
+    try:
+        here = cache._index_key(None, dispatcher.targetctx.codegen())[1:]
+    except Exception:  # another numba's internals: an index entry is the best we know
+        return True
+    return any(isinstance(key, tuple) and key[1:] == here for key in index)
+
+
+def missing_kernels(workload: str, method: str) -> list[str]:
+    """The entry kernels of ``workload`` run by ``method`` that are not in the cache (a
+    name that no longer resolves counts as missing: better a notice too many than a
+    silent compile)."""
+    try:
+        names = ENTRY_KERNELS[workload][method]
+    except KeyError:
+        raise ValueError(f"no entry kernels for workload {workload!r} with method "
+                         f"{method!r}; expected one of {sorted(ENTRY_KERNELS)} with its "
+                         f"methods") from None
+    missing = []
+    for name in names:
+        try:
+            cached = dispatcher_cached(resolve(name))
+        except (ImportError, AttributeError, KeyError):
+            logger.debug("entry kernel %s not found", name)
+            cached = False
+        if not cached:
+            missing.append(name)
+    return missing
+
+
+def is_cached(workload: str, method: str) -> bool:
+    """Whether the first call of ``workload`` by ``method`` loads its kernels from the
+    cache rather than compiling them (see :func:`dispatcher_cached`)."""
+    return not missing_kernels(workload, method)
+
+
+def method_for_law(law: str) -> str:
+    """The core method that runs a plant of friction law ``law`` (the closed form for
+    Coulomb plants away from resonance, else the event method)."""
+    return "exact" if str(law).lower() == "coulomb" else "event"
+
+
+def method_for_scene(scene: str) -> str:
+    """The method set of the entry kernels the environments of ``scene`` run, with the
+    scene's default settings: ``"exact"``, ``"event"`` or ``"any"``."""
+    from .envs import kernels as K
+    from .envs.setup import EnvSetup
+    from .envs.steppers import steppers_for_plants
+
+    setup = EnvSetup.build(scene)
+    return steppers_for_plants(setup.kernel_cfg[K.C_METHOD], setup.scene.params.to_array(),
+                               setup.draw_lo, setup.draw_hi).name
+
+
+def cache_location() -> str:
+    """Where numba keeps fricenv's compiled kernels: ``NUMBA_CACHE_DIR`` if set, else the
+    ``__pycache__`` folders beside the package's sources (or numba's per-user fallback
+    where those are not writable)."""
+    import numba
+
+    configured = getattr(numba.config, "CACHE_DIR", "")
+    if configured:
+        return str(configured)
+    try:
+        path = resolve(ENTRY_KERNELS["simulate"]["exact"][0])._cache.cache_path
+    except Exception:
+        path = str(Path(__file__).parent / "__pycache__")
+    if Path(path).resolve().is_relative_to(Path(__file__).resolve().parent):
+        return f"__pycache__ folders under {Path(__file__).parent}"
+    return os.fspath(path)
+
+
+def describe(needs: Iterable[tuple[str, str]]) -> str | None:
+    """The notice for the ``(workload, method)`` pairs about to run, or None when all their
+    kernels are cached."""
+    cold = [(w, m) for w, m in dict.fromkeys(needs) if not is_cached(w, m)]
+    if not cold:
+        return None
+    seconds = sum(METHOD_SECONDS.get((w, m), COMPILE_SECONDS[w]) for w, m in cold)
+    what = ", ".join(f"{w} ({m})" for w, m in cold)
+    return (f"compiling numba kernels for {what}: about {_duration(seconds)} on 2 cores, "
+            f"once; cached in {cache_location()} (fricenv warmup compiles ahead)")
+
+
+def announce(needs: Iterable[tuple[str, str]]) -> bool:
+    """Log :func:`describe`'s notice at INFO on the ``fricenv`` logger, if anything will
+    compile; whether it did."""
+    message = describe(needs)
+    if message is None:
+        return False
+    logger.info(message)
+    return True
+
+
+def _duration(seconds: float) -> str:
+    if seconds < 90:
+        return f"{seconds:.0f} s"
+    return f"{seconds / 60:.0f} min"

@@ -1,0 +1,213 @@
+"""``fricenv warmup`` and the compile notice: parts in worker processes, the cache check
+that compiles nothing, and one line on stderr before a command compiles."""
+
+from __future__ import annotations
+
+import logging
+import os
+import re
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+import fricenv
+from fricenv import _numba_cache, compile_notice
+from fricenv.cli import _notice, main
+from fricenv.warmup import Part, parts
+
+ROOT = Path(fricenv.__file__).resolve().parent.parent
+NOTICE = "compiling numba kernels"
+#: How long a stand-in part waits for the other worker to start its part (generous: two
+#: spawned interpreters each import fricenv on a busy machine).
+RENDEZVOUS_SECONDS = 120.0
+
+
+def run(capsys, *argv: str) -> tuple[int, str, str]:
+    try:
+        code = main(list(argv))
+    except SystemExit as e:
+        code = e.code if isinstance(e.code, int) else 1
+    out = capsys.readouterr()
+    return code, out.out, out.err
+
+
+def python(code: str, cache: Path, *args: str) -> subprocess.CompletedProcess[str]:
+    """``code`` (or ``-m`` with ``args``) in a fresh interpreter running this tree's
+    fricenv with ``cache`` as its numba cache."""
+    env = {**os.environ, "PYTHONPATH": str(ROOT), "NUMBA_CACHE_DIR": str(cache)}
+    argv = [sys.executable, *args] if not code else [sys.executable, "-c", code]
+    return subprocess.run(argv, capture_output=True, text=True, env=env, cwd=cache.parent,
+                          check=True, timeout=600)
+
+
+def rendezvous_part(part: Part, parallel: bool) -> float:
+    """A stand-in for ``run_part``: leaves this process's id and waits until another
+    process has left its own, which only happens if two parts run at once."""
+    folder = Path(os.environ["FRICENV_TEST_RENDEZVOUS"])
+    (folder / f"{part.name.replace(':', '_')}.{os.getpid()}").touch()
+    deadline = time.monotonic() + RENDEZVOUS_SECONDS
+    while len(list(folder.iterdir())) < 2:
+        if time.monotonic() > deadline:
+            raise TimeoutError("the other part never started")
+        time.sleep(0.05)
+    return 0.25
+
+
+@pytest.mark.parametrize(("argv", "named"), [
+    (["--laws", "coulomb", "frictionless"], ["--laws", "'frictionless'"]),
+    (["--workloads", "simulation"], ["--workloads", "'simulation'"]),
+    (["--scenes", "moon"], ["--scenes", "'moon'"]),
+    (["--jobs", "0"], ["--jobs", "'0'"]),
+    (["--jobs", "two"], ["--jobs", "'two'"]),
+])
+def test_bad_arguments_are_usage_errors_naming_the_value(capsys, argv, named):
+    code, out, err = run(capsys, "warmup", *argv)
+    assert code == 2
+    for text in named:
+        assert text in err
+    assert out == ""
+
+
+def test_parts_are_one_per_law_and_workload_and_per_scene():
+    assert [p.name for p in parts(["coulomb", "stribeck"], ["sweep", "simulate", "env"],
+                                  ["paper"])] == [
+        "simulate:coulomb", "sweep:coulomb", "simulate:stribeck", "sweep:stribeck",
+        "env:paper"]
+    with pytest.raises(ValueError, match="'moon'"):
+        parts(scenes=["moon"])
+
+
+def test_print_digest_is_the_cache_stamp(capsys):
+    code, out, _ = run(capsys, "warmup", "--print-digest")
+    assert code == 0
+    assert out.strip() == _numba_cache.source_digest(Path(fricenv.__file__).parent)
+    assert re.fullmatch(r"[0-9a-f]{64}", out.strip())
+
+
+def test_jobs_run_parts_in_separate_processes_and_report_each(capsys, monkeypatch, tmp_path):
+    monkeypatch.setattr(sys.modules["fricenv.warmup"], "run_part", rendezvous_part)
+    monkeypatch.setenv("FRICENV_TEST_RENDEZVOUS", str(tmp_path))
+    code, out, _ = run(capsys, "warmup", "--workloads", "simulate", "--laws", "coulomb",
+                       "stribeck", "--jobs", "2")
+    assert code == 0
+    pids = {int(f.suffix[1:]) for f in tmp_path.iterdir()}
+    assert len(pids) == 2 and os.getpid() not in pids
+    assert {f.stem for f in tmp_path.iterdir()} == {"simulate_coulomb", "simulate_stribeck"}
+    for name in ("simulate:coulomb", "simulate:stribeck"):
+        assert re.search(rf"^{name}\s+0\.2\s", out, re.MULTILINE), out
+    assert re.search(r"^total\s+0\.5\b", out, re.MULTILINE), out
+
+
+def test_quiet_prints_nothing(capsys, monkeypatch):
+    ran = []
+    monkeypatch.setattr(sys.modules["fricenv.warmup"], "run_part",
+                        lambda part, parallel: ran.append(part.name) or 0.0)
+    monkeypatch.setattr(compile_notice, "is_cached", lambda workload, method: False)
+    code, out, err = run(capsys, "warmup", "--workloads", "sweep", "--quiet")
+    assert (code, out, err) == (0, "", "")
+    assert ran == ["sweep:coulomb"]
+    code, out, err = run(capsys, "warmup", "--workloads", "sweep")
+    assert err.count(NOTICE) == 1 and "sweep (exact)" in err
+    assert "sweep:coulomb" in out
+
+
+def test_every_entry_kernel_resolves_to_a_cached_dispatcher():
+    """The one mapping of workloads to entry kernels still names real kernels."""
+    for workload, methods in compile_notice.ENTRY_KERNELS.items():
+        assert workload in compile_notice.COMPILE_SECONDS
+        for names in methods.values():
+            for name in names:
+                kernel = compile_notice.resolve(name)
+                assert kernel._cache._cache_file is not None, name
+
+
+def test_the_cache_check_reads_the_index_only(tmp_path):
+    """Cold in an empty cache, cached once the kernel ran there (the cheap RK4 kernel),
+    and the check itself compiles nothing."""
+    cache = tmp_path / "cache"
+    check = ("from fricenv import compile_notice as c, core\n"
+             "print(c.is_cached('simulate', 'rk4'), len(core.run_rk4.overloads))")
+    assert python(check, cache).stdout.split() == ["False", "0"]
+    python("import fricenv\n"
+           "fricenv.simulate(fricenv.OscillatorParams(), 1.0, method='rk4', dt_out=0.5)",
+           cache)
+    assert python(check, cache).stdout.split() == ["True", "0"]
+
+
+def test_the_cache_check_follows_numbas_index(monkeypatch):
+    """The index numba returns decides (``{}`` for another source stamp or version)."""
+    kernel = compile_notice.resolve(compile_notice.ENTRY_KERNELS["sweep"]["event"][0])
+    monkeypatch.setattr(kernel, "overloads", {})  # (as if not compiled in this process)
+    cache_file = kernel._cache._cache_file
+    monkeypatch.setattr(cache_file, "_load_index", lambda: {})
+    assert not compile_notice.is_cached("sweep", "event")
+    here = kernel._cache._index_key(None, kernel.targetctx.codegen())
+    monkeypatch.setattr(cache_file, "_load_index", lambda: {("sig", *here[1:]): "x.nbc"})
+    assert compile_notice.is_cached("sweep", "event")
+    other = ("sig", ("another machine",), here[2])
+    monkeypatch.setattr(cache_file, "_load_index", lambda: {other: "x.nbc"})
+    assert not compile_notice.is_cached("sweep", "event")
+
+
+@pytest.mark.slow
+def test_a_warmup_fills_the_cache_its_check_reads(tmp_path):
+    cache = tmp_path / "cache"
+    check = ("from fricenv.warmup import Part, is_cached\n"
+             "print(is_cached(Part('simulate', 'coulomb')))")
+    assert python(check, cache).stdout.split() == ["False"]
+    done = python("", cache, "-m", "fricenv.cli", "warmup", "--workloads", "simulate")
+    assert done.stderr.count(NOTICE) == 1
+    assert re.search(r"^simulate:coulomb\s+\d+\.\d\s+compiled$", done.stdout, re.MULTILINE)
+    assert python(check, cache).stdout.split() == ["True"]
+
+
+def test_the_command_says_once_that_it_compiles_and_nothing_when_warm(tmp_path):
+    cache = tmp_path / "cache"
+    argv = ["-m", "fricenv.cli", "simulate", "--method", "rk4", "--t-end", "1",
+            "--out", str(tmp_path / "out")]
+    cold = python("", cache, *argv).stderr
+    assert cold.count(NOTICE) == 1, cold
+    line = next(line for line in cold.splitlines() if NOTICE in line)
+    assert line.startswith("fricenv: ") and "simulate (rk4)" in line
+    assert str(cache) in line and "about 5 s" in line
+    warm = python("", cache, *argv).stderr
+    assert NOTICE not in warm, warm
+
+
+def test_commands_with_parsers_of_their_own_are_announced(monkeypatch, caplog):
+    cold: set[tuple[str, str]] = set()
+    monkeypatch.setattr(compile_notice, "is_cached", lambda w, m: (w, m) not in cold)
+    caplog.set_level(logging.INFO, logger="fricenv")
+    argv = ["--algo", "ppo", "--scene", "stribeck"]
+    assert not _notice.announce_command("train", argv)
+    cold.add(("vector_env", "event"))
+    assert _notice.announce_command("train", argv)
+    assert not _notice.announce_command("train", [*argv, "--help"])
+    assert not _notice.announce_command("train", ["--scene", "moon"])  # its parser says why
+    cold.add(("sweep", "exact"))
+    assert _notice.announce_command("reproduce", ["--only", "2"])
+    cold.clear()
+    assert not _notice.announce_command("reproduce", [])
+    assert [r.getMessage().count(NOTICE) for r in caplog.records] == [1, 1]
+    assert "vector_env (event)" in caplog.records[0].getMessage()
+
+
+def test_the_python_api_stays_quiet(tmp_path):
+    """A notice is logged (a handler the application adds sees it), but nothing is printed
+    unless the application configures logging."""
+    cache = tmp_path / "cache"
+    code = ("import logging, fricenv\n"
+            "from fricenv import compile_notice\n"
+            "log = logging.getLogger('fricenv')\n"
+            "assert any(isinstance(h, logging.NullHandler) for h in log.handlers)\n"
+            "print(compile_notice.announce([('simulate', 'rk4')]))\n"
+            "logging.basicConfig(level=logging.INFO, format='%(name)s %(message)s')\n"
+            "compile_notice.announce([('simulate', 'rk4')])\n")
+    quiet = python(code.replace("logging.basicConfig", "pass  #"), cache)
+    assert quiet.stdout.split() == ["True"] and quiet.stderr == ""
+    configured = python(code, cache)
+    assert configured.stderr.count(NOTICE) == 1
+    assert configured.stderr.startswith("fricenv.compile_notice ")
