@@ -62,18 +62,17 @@ ENTRY_KERNELS: dict[str, dict[str, tuple[str, ...]]] = {
 #: About how long each workload's kernels take to compile from an empty cache, in seconds
 #: of wall-clock time on a 2-core x86-64 machine, for the notice only: the time varies with
 #: the machine, its load and what is already cached (kernels that workloads share compile
-#: once). Measured one part per fresh process and cache (``fricenv.warmup.run_part``) on
-#: such a machine shared with other jobs, and rounded down for that load: a Coulomb
-#: ``simulate`` part (time history and ``run_stats``) took 103 s, a Stribeck one 63 s, a
-#: ``sweep`` part 200-220 s, ``env`` of the paper scene 147 s, ``vector_env`` with its
-#: threaded kernel 385 s; the RK4 kernel 3 s.
+#: once). Measured by ``fricenv bench compile`` (one workload per fresh process and cache;
+#: docs/performance.md, "Cold start"): a Coulomb ``simulate`` 20 s, the first step of the
+#: paper scene's env 25-49 s and of the Stribeck scene's 21 s, a 16-plant vector env 24 s, a
+#: 3 x 3 Coulomb map 23 s; the RK4 kernel 3 s.
 COMPILE_SECONDS: dict[str, float] = {
-    "simulate": 50.0,
-    "run_stats": 45.0,
-    "sweep": 120.0,
-    "env": 85.0,
-    "vector_env": 120.0,
-    "vector_env:parallel": 100.0,
+    "simulate": 20.0,
+    "run_stats": 20.0,
+    "sweep": 25.0,
+    "env": 25.0,
+    "vector_env": 25.0,
+    "vector_env:parallel": 30.0,
 }
 #: Where one method's kernels take far from their workload's ``COMPILE_SECONDS``.
 METHOD_SECONDS: dict[tuple[str, str], float] = {("simulate", "rk4"): 5.0}

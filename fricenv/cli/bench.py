@@ -1,4 +1,4 @@
-"""``fricenv bench solvers|sweep|env|control``: the benchmark scripts of a source checkout.
+"""``fricenv bench NAME``: the benchmark scripts of a source checkout.
 
 The benchmarks compare fricenv with an independent SciPy solution that lives with the
 tests, so they run from a clone of the repository (``scripts/bench_*.py``), not from an
@@ -32,6 +32,7 @@ BENCHMARK_NEEDS: dict[str, list[tuple[str, str]]] = {
     "sweep": [("sweep", "exact")],
     "env": [("env", "exact"), ("vector_env", "exact")],
     "control": [("env", "event")],
+    "compile": [],  # (each workload compiles in a child process with a cache of its own)
 }
 
 
