@@ -18,13 +18,19 @@ the call, so no count is needed. A kernel that allocates (``np.empty``, ``.copy(
 with ``allocates=True`` and keeps the runtime.
 
 Kernels are compiled one by one, and LLVM inlines small callees where it pays. numba's
-IR-level inlining (``inline="always"``) is kept for one case only: a generic body that takes
-another kernel as an argument (``step_single_with(advance_ws, ...)``). Compiled on its own,
-such a function holds the kernel it was passed as a run-time address, which numba's cache
-refuses ("uses dynamic globals"): every process would compile it again. Inlined at the IR
-level into its small named callers (``step_single_exact``), the passed kernel becomes a
-plain call that caches. Everywhere else IR inlining only multiplies compile time and
-memory: numba types the inlined body anew at every call site.
+IR-level inlining (``inline="always"``) is kept for two cases:
+
+- a generic body that takes another kernel as an argument (``takes_kernels``, as in
+  ``step_single_with(advance_ws, ...)``). Compiled on its own, such a function holds the
+  kernel it was passed as a run-time address, which numba's cache refuses ("uses dynamic
+  globals"): every process would compile it again. Inlined at the IR level into its small
+  named callers (``step_single_exact``), the passed kernel becomes a plain call that
+  caches;
+- a body with a single call site, inside a step loop (``called_once``): typed once either
+  way, so inlining it there costs no compile time.
+
+Everywhere else IR inlining only multiplies compile time and memory: numba types the
+inlined body anew at every call site.
 
 ``fastmath`` flags decide the machine code, and with it the last bit of a result, so only
 sums whose order does not matter may carry them.
@@ -242,13 +248,17 @@ def threading_info() -> ThreadingInfo:
 
 
 def kernel(fn: Callable | None = None, *, takes_kernels: bool = False,
-           allocates: bool = False, parallel: bool = False, fastmath: set[str] | None = None,
-           nogil: bool = False) -> Any:
+           called_once: bool = False, allocates: bool = False, parallel: bool = False,
+           fastmath: set[str] | None = None, nogil: bool = False) -> Any:
     """Compile ``fn`` as a fricenv kernel; usable bare (``@kernel``) or with options.
 
     ``takes_kernels``: ``fn`` is a generic body that takes other kernels as arguments; numba
     inlines it at its IR level into each caller, so that the callers cache (see the module
-    docstring). ``allocates``:
+    docstring). ``called_once``: ``fn`` is called from one place in the package, a step
+    loop, and numba inlines it there at its IR level too: its body is typed once either way,
+    so this costs no compile time, and it spares a call per step that LLVM does not inline
+    for a body of this size (the closed form's slip and stick steps: 1.6 times the time of
+    a long ``run_stats`` when called). ``allocates``:
     keep numba's reference-counting runtime (see the module docstring). ``parallel``: the
     function holds a ``prange`` loop. ``fastmath``: LLVM fast-math flags for this function
     only (e.g. ``{"reassoc", "contract"}`` for sums whose order may change). ``nogil``:
@@ -258,7 +268,7 @@ def kernel(fn: Callable | None = None, *, takes_kernels: bool = False,
     options: dict[str, Any] = {"cache": True, "error_model": "numpy"}
     if not allocates:
         options["_nrt"] = False
-    if takes_kernels:
+    if takes_kernels or called_once:
         options["inline"] = "always"
     if parallel:
         options["parallel"] = True
@@ -270,7 +280,7 @@ def kernel(fn: Callable | None = None, *, takes_kernels: bool = False,
 
     def build(f: Callable) -> Any:
         dispatcher = decorate(f)
-        if not takes_kernels:  # (inlined into its callers: never compiled on its own)
+        if not (takes_kernels or called_once):  # (inlined: never compiled on its own)
             _compile_unliteral(dispatcher)
         return dispatcher
 

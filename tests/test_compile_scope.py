@@ -114,3 +114,18 @@ def test_each_environment_runs_the_narrowest_kernels_for_its_plants() -> None:
     assert vec.unwrapped._steppers is steppers.EXACT
     vec.reset(seed=0, options={"b1": 0.1})  # the plants' law changes: so do the kernels
     assert vec.unwrapped._steppers is not steppers.EXACT
+
+
+def test_a_kernel_inlined_as_called_once_has_one_call_site() -> None:
+    """``kernel(called_once=True)`` inlines at numba's IR level, which costs no compile
+    time only while the body has a single caller to be typed in."""
+    import re
+
+    sources = [p.read_text() for p in Path(fricenv.__file__).resolve().parent.rglob("*.py")]
+    once = [m.group(1) for s in sources for m in re.finditer(
+        r"@kernel\([^)]*called_once=True[^)]*\)\s*\ndef (\w+)\(", s)]
+    assert once
+    text = "\n".join(sources)
+    for name in once:
+        calls = re.findall(rf"(?<![\w.]){name}\(", text)
+        assert len(calls) == 2, f"{name}: {len(calls) - 1} call sites"  # (and its def)

@@ -198,7 +198,7 @@ def _closed_acc(cx, mode, x, v, c1, c2):
     return -cx[C_LAM] * v - x - mode * cx[C_XFK] + cx[C_U1] * c1 + cx[C_U2] * c2
 
 
-@kernel
+@kernel(called_once=True)
 def _slip_trial(cx, L, cap, on_grid, reg, rot, sd, h0, d0, j0, vdd, vddd):
     """Length of a closed-form slip step from the start in ``cx`` (``_slip_start``): L,
     halved until the step may go to the contact search (``_one_extremum_at_most``).
@@ -230,7 +230,7 @@ def _slip_trial(cx, L, cap, on_grid, reg, rot, sd, h0, d0, j0, vdd, vddd):
     return L, halved, on_grid, v_mid, x1, v1, a1, j1, nc1, ns1, nc2, ns2
 
 
-@kernel
+@kernel(called_once=True)
 def _slip_v_extremum(cx, stats, sd, L, v, v1, acc, a1, j0, j1, h0, h1, vdd, c1, s1, c2, s2,
                      nc1, ns1, nc2, ns2):
     """v's interior extremum on a slip step where the contact search or the statistics
@@ -260,7 +260,7 @@ def _slip_v_extremum(cx, stats, sd, L, v, v1, acc, a1, j0, j1, h0, h1, vdd, c1, 
     return t_ext, v_ext, h_ext, q_ext
 
 
-@kernel
+@kernel(called_once=True)
 def _slip_step(cx, stats, fresh, L, cap, on_grid, reg, rot, x, v, acc, c1, s1, c2, s2, sd):
     """One closed-form slip step of at most L from (x, v) in direction ``sd``, tones at
     (c_i, s_i), up to a contact if one comes first.
@@ -304,7 +304,7 @@ def _slip_step(cx, stats, fresh, L, cap, on_grid, reg, rot, x, v, acc, c1, s1, c
     return L, halved, on_grid, 0, sd, x1, v_end, a1, nc1, ns1, nc2, ns2
 
 
-@kernel
+@kernel(called_once=True)
 def _stick_step(cx, stats, L, cap, on_grid, rot, x, v, acc, c1, s1, c2, s2, mode):
     """One exact stick step of at most L from x, tones at (c_i, s_i), up to the stick's
     end if it comes first; returns as ``_slip_step``."""
