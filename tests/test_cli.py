@@ -7,18 +7,10 @@ import sys
 
 import numpy as np
 import pytest
+from clirun import run
 
 import fricenv
-from fricenv.cli import COMMANDS, main
-
-
-def run(capsys, *argv: str) -> tuple[int, str, str]:
-    try:
-        code = main(list(argv))
-    except SystemExit as e:
-        code = e.code if isinstance(e.code, int) else 1
-    out = capsys.readouterr()
-    return code, out.out, out.err
+from fricenv.cli import COMMANDS
 
 
 def test_console_script_lists_every_command():

@@ -12,10 +12,11 @@ import time
 from pathlib import Path
 
 import pytest
+from clirun import run
 
 import fricenv
 from fricenv import _numba_cache, compile_notice
-from fricenv.cli import _notice, main
+from fricenv.cli import _notice
 from fricenv.warmup import Part, parts
 
 ROOT = Path(fricenv.__file__).resolve().parent.parent
@@ -23,15 +24,6 @@ NOTICE = "compiling numba kernels"
 #: How long a stand-in part waits for the other worker to start its part (generous: two
 #: spawned interpreters each import fricenv on a busy machine).
 RENDEZVOUS_SECONDS = 120.0
-
-
-def run(capsys, *argv: str) -> tuple[int, str, str]:
-    try:
-        code = main(list(argv))
-    except SystemExit as e:
-        code = e.code if isinstance(e.code, int) else 1
-    out = capsys.readouterr()
-    return code, out.out, out.err
 
 
 def python(code: str, cache: Path, *args: str) -> subprocess.CompletedProcess[str]:
