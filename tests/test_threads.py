@@ -50,6 +50,7 @@ def _run(script: str, tmp_path: Path, layer: str | None = None) -> str:
                          env=env, timeout=TIMEOUT, cwd=tmp_path)
     assert out.returncode == 0, (f"exit code {out.returncode}\n{out.stdout[-2000:]}\n"
                                  f"{out.stderr[-4000:]}")
+    assert "already using GNU OpenMP" not in out.stderr, out.stderr[-4000:]
     return out.stdout
 
 
@@ -153,6 +154,7 @@ def test_dask_worker_with_two_threads_equals_the_local_atlas(tmp_path):
 
 _FORK = _TWO_THREADS + """
 import multiprocessing as mp
+import numba
 from fricenv import OscillatorParams
 
 PLANT = OscillatorParams.preset("coulomb", eta=1.0)
@@ -185,16 +187,30 @@ if __name__ == "__main__":
     leave.set()
     holder.join()
     assert there == here, (there, here)
-    print("same")
+    print("same", numba.threading_layer())
 """
 
 
 @pytest.mark.skipif(sys.platform == "win32", reason="no fork on Windows")
 @pytest.mark.parametrize("layer", LAYERS)
 def test_fork_pools_work_after_parallel_kernels_in_threads(tmp_path, layer):
-    out = _run(_FORK, tmp_path, layer)
-    assert "same" in out
-    assert "already using GNU OpenMP" not in out
+    """Process pools started by fork after parallel kernels ran in the parent (numba's
+    GNU OpenMP layer is not fork-safe: its forked workers hang or crash), on a fork-safe
+    layer."""
+    same, used = _run(_FORK, tmp_path, layer).split()[-2:]
+    assert same == "same"
+    assert used in ("tbb", "workqueue")
+
+
+def test_the_layer_asked_for_is_fork_safe() -> None:
+    """What fricenv asks numba for on import (``fricenv.jit``)."""
+    import numba
+
+    import fricenv  # noqa: F401  (its import sets the layer)
+
+    if os.environ.get("NUMBA_THREADING_LAYER"):
+        pytest.skip("the user chose the threading layer")
+    assert numba.config.THREADING_LAYER in ("safe", "forksafe")
 
 
 _INFO = """
