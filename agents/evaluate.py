@@ -1,6 +1,6 @@
 """Evaluate trained agents against the baselines; write a markdown table and plots.
 
-    python -m agents.evaluate --scene self_excited --runs runs/ppo_self_excited_s* \\
+    python -m fricenv_agents.evaluate --scene self_excited --runs runs/ppo_self_excited_s* \\
         --seeds 5 --episodes 10 --out docs/results
 
 Every controller runs the same episodes: evaluation seed k (k < ``--seeds``) starts
@@ -34,7 +34,11 @@ from typing import Any
 
 import numpy as np
 
-from agents.baselines import (
+from fricenv.checks import check_output_dir
+from fricenv.envs import kernels as K
+from fricenv.envs.scenes import Scene
+
+from .baselines import (
     BASELINES,
     ActionMap,
     Baseline,
@@ -42,25 +46,23 @@ from agents.baselines import (
     make_baseline,
     search_best_constant,
 )
-from agents.common import (
+from .cli import HelpFormatter
+from .layout import (
     MAX_PLANTS,
     SCENE_ENV_IDS,
     SEARCH_SEED_BASE,
     SEED_STRIDE,
+    eval_env_seed,
+)
+from .rollouts import (
     Controller,
     EpisodeMetrics,
-    HelpFormatter,
     TrainedController,
-    eval_env_seed,
     fmt_pm,
-    load_controller,
-    locate_model,
     rollout,
     summarize,
 )
-from fricenv.checks import check_output_dir
-from fricenv.envs import kernels as K
-from fricenv.envs.scenes import Scene
+from .runs import load_controller, locate_model
 
 LABELS = {"ppo": "PPO", "sac": "SAC"}
 OBS_SHAPE = (K.N_OBS,)  #: every scene's observation
@@ -136,7 +138,7 @@ def trained_entries(paths: list[Path], scene: str,
     """Group run folders of ``scene`` by algorithm (model files stay on their own rows);
     also return the runs' common env kwargs. ``ValueError`` for a model that does not fit
     the scene. ``loaded``: what ``load_models`` returned, to load nothing twice."""
-    from agents.baselines import ActionMap
+    from .baselines import ActionMap
 
     loaded = loaded if loaded is not None else load_models(paths)
     groups: dict[str, list[tuple[Any, dict, Path]]] = {}
@@ -448,12 +450,12 @@ def learning_curves(entries: list[Entry], baselines: list[Entry], path: Path) ->
 # -- CLI --------------------------------------------------------------------------------------
 def build_parser(prog: str | None = None) -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
-        prog=prog or "python -m agents.evaluate", description=__doc__.split("\n\n")[0],
+        prog=prog or "python -m fricenv_agents.evaluate", description=__doc__.split("\n\n")[0],
         formatter_class=HelpFormatter)
     p.add_argument("--scene", nargs="+", choices=sorted(SCENE_ENV_IDS), default=None,
                    help="scene(s) to evaluate (default: those of the runs)")
     p.add_argument("--runs", nargs="*", type=Path, default=[],
-                   help="run folders of agents.train (grouped by algorithm)")
+                   help="run folders of fricenv_agents.train (grouped by algorithm)")
     p.add_argument("--models", nargs="*", type=Path, default=[],
                    help="model files (<algo>_*.zip, optional <stem>_vecnormalize.pkl and "
                         "<stem>.yml beside them)")

@@ -67,7 +67,7 @@ WORKLOADS: dict[str, str] = {
     "run_stats": "fricenv.run_stats, Coulomb law",
     **{f"map-{law}": f"3 x 3 fricenv.regime_map, {law} law" for law in MAP_LAWS},
     "atlas": "one chunk of fricenv.atlas, 2 x 2 cells, into a Zarr store",
-    "mpc": "one MPC (MPPI) decision, agents.mpc, self-excited scene",
+    "mpc": "one MPC (MPPI) decision, fricenv_agents.mpc, self-excited scene",
 }
 
 # Metrics of a run: key, column title, format.
@@ -301,7 +301,8 @@ def _atlas(tmp: Path) -> None:
 
 
 def _mpc(tmp: Path) -> None:
-    from agents.mpc import MPPIController  # agents/ of the tree, on PYTHONPATH
+    from fricenv_agents.mpc import MPPIController  # agents/ of the tree, on PYTHONPATH
+
     from fricenv.envs.vector import StickSlipVectorEnv
 
     env = StickSlipVectorEnv(num_envs=1, scene="self_excited")

@@ -15,23 +15,25 @@ import yaml
 
 pytest.importorskip("stable_baselines3")
 
-from agents import baselines as B  # noqa: E402
-from agents import evaluate as E  # noqa: E402
-from agents import train as T  # noqa: E402
-from agents.common import (  # noqa: E402
+from fricenv_agents import baselines as B  # noqa: E402
+from fricenv_agents import evaluate as E  # noqa: E402
+from fricenv_agents import train as T  # noqa: E402
+from fricenv_agents.config import (  # noqa: E402
+    apply_overrides,
+    load_hyperparams,
+    split_hyperparams,
+)
+from fricenv_agents.layout import (  # noqa: E402
     ALGOS,
     MAX_TRAIN_SEED,
     SCENE_ENV_IDS,
     SEED_STRIDE,
-    apply_overrides,
     callback_env_seed,
     eval_env_seed,
-    load_controller,
-    load_hyperparams,
-    rollout,
-    split_hyperparams,
     train_env_seed,
 )
+from fricenv_agents.rollouts import rollout  # noqa: E402
+from fricenv_agents.runs import load_controller  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENES = sorted(SCENE_ENV_IDS)
@@ -47,7 +49,7 @@ def _cli(module: str, *args: str) -> subprocess.CompletedProcess:
 def ppo_run(tmp_path_factory) -> Path:
     """A few hundred PPO steps through the real command line (a subprocess)."""
     run = tmp_path_factory.mktemp("runs") / "ppo_smoke"
-    res = _cli("agents.train", "--algo", "ppo", "--scene", "self_excited", "--seed", "3",
+    res = _cli("fricenv_agents.train", "--algo", "ppo", "--scene", "self_excited", "--seed", "3",
                "-n", "256", "--run-dir", str(run), "--no-progress", "--eval-freq", "128",
                "--eval-episodes", "2",
                "-params", "n_envs:4", "n_steps:32", "batch_size:64", "n_epochs:1")
@@ -83,8 +85,8 @@ def test_smoke_training_sac_on_the_paper_scene(tmp_path):
     from stable_baselines3 import SAC
 
     run = tmp_path / "sac"
-    res = _cli("agents.train", "--algo", "sac", "--scene", "paper", "--seed", "1", "-n", "200",
-               "--run-dir", str(run), "--no-progress", "--eval-freq", "0",
+    res = _cli("fricenv_agents.train", "--algo", "sac", "--scene", "paper", "--seed", "1",
+               "-n", "200", "--run-dir", str(run), "--no-progress", "--eval-freq", "0",
                "--eval-episodes", "1", "-params", "n_envs:2", "learning_starts:50",
                "batch_size:32", "buffer_size:1000")
     assert res.returncode == 0, res.stderr
@@ -288,10 +290,10 @@ def test_training_plants_are_the_runs_own_block(tmp_path, monkeypatch):
 
 
 def test_cli_errors_as_users_see_them():
-    res = _cli("agents.train", "--algo", "a2c", "--scene", "self_excited")
+    res = _cli("fricenv_agents.train", "--algo", "a2c", "--scene", "self_excited")
     assert res.returncode == 2 and "invalid choice: 'a2c'" in res.stderr
     assert "Traceback" not in res.stderr
-    res = _cli("agents.evaluate", "--scene", "moon")
+    res = _cli("fricenv_agents.evaluate", "--scene", "moon")
     assert res.returncode == 2 and "invalid choice: 'moon'" in res.stderr
 
 
@@ -547,7 +549,7 @@ def test_short_ppo_training_meets_the_bar(tmp_path):
     """300k PPO steps (under a minute here) already cut stick time >= 90 % and beat the
     best constant excitation on return, on evaluation episodes."""
     run = tmp_path / "run"
-    res = _cli("agents.train", "--algo", "ppo", "--scene", "self_excited", "--seed", "0",
+    res = _cli("fricenv_agents.train", "--algo", "ppo", "--scene", "self_excited", "--seed", "0",
                "-n", "300000", "--run-dir", str(run), "--no-progress")
     assert res.returncode == 0, res.stderr
     out = tmp_path / "eval"

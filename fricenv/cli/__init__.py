@@ -1,9 +1,10 @@
 """The ``fricenv`` command: every job of the package behind one entry point.
 
 ``fricenv <command> --help`` describes each command. Commands that have long lived as
-modules of their own (``fricenv.reproduce``, ``agents.train``, ``agents.evaluate``,
+modules of their own (``fricenv.reproduce``, ``fricenv_agents.train``,
+``fricenv_agents.evaluate``,
 ``fricenv.atlas``) keep their own parsers; this module only dispatches, so
-``python -m agents.train`` and ``fricenv train`` accept the same options.
+``python -m fricenv_agents.train`` and ``fricenv train`` accept the same options.
 
 Before a command's first kernel call compiles (tens of seconds from an empty numba cache),
 it prints one line to stderr saying so (:mod:`fricenv.compile_notice`; ``--quiet``, where a
@@ -24,8 +25,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "map": ("fricenv.cli.regime_map", "one regime-map panel over a u0 x nu grid (resumable)"),
     "atlas": ("fricenv.cli.atlas", "regime atlas over any parameter volume (Dask, Zarr)"),
     "reproduce": ("fricenv.reproduce", "the paper's Figs. 2-10 and a report of every claim"),
-    "train": ("agents.train", "train a stick-slip suppression agent (stable-baselines3)"),
-    "evaluate": ("agents.evaluate", "evaluate trained agents against the baselines"),
+    "train": ("fricenv_agents.train", "train a stick-slip suppression agent (stable-baselines3)"),
+    "evaluate": ("fricenv_agents.evaluate", "evaluate trained agents against the baselines"),
     "bench": ("fricenv.cli.bench", "run a benchmark: solvers, sweep or env"),
     "warmup": ("fricenv.cli.warmup", "compile the kernels into numba's cache ahead of use"),
 }
