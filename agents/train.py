@@ -27,7 +27,7 @@ import platform
 import shutil
 import sys
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from datetime import datetime
 from pathlib import Path
 from typing import Any
@@ -37,7 +37,7 @@ import yaml
 
 from fricenv.checks import check_output_dir
 
-from .cli import HelpFormatter
+from .cli import HelpFormatter, Stages
 from .config import (
     RunSpec,
     apply_overrides,
@@ -82,6 +82,8 @@ def build_parser(prog: str | None = None) -> argparse.ArgumentParser:
     p.add_argument("--tensorboard", action="store_true",
                    help="also log to TensorBoard (<run>/tb; needs the tensorboard package)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument("--quiet", action="store_true",
+                   help="no progress bar, stage lines or compile notice on stderr")
     p.add_argument("--threads", type=int, default=1,
                    help="torch threads (small MLPs train fastest on one)")
     return p
@@ -181,13 +183,18 @@ def prepare(args: argparse.Namespace) -> tuple[RunSpec, dict[str, Any], Path]:
     return split_hyperparams(args.algo, raw), raw, hp_file
 
 
-def train(args: argparse.Namespace, prepared: tuple | None = None) -> Path:
-    """Run one training; returns the run folder."""
+def train(args: argparse.Namespace, prepared: tuple | None = None,
+          stage: Callable[[str], None] | None = None) -> Path:
+    """Run one training; returns the run folder. ``stage``: called with a line per stage
+    (building, training, saving)."""
+    stage = stage or (lambda message: None)
+    spec, raw, hp_file = prepared or prepare(args)
+    stage(f"building {spec.n_envs} environment{'s' if spec.n_envs > 1 else ''} of scene "
+          f"{args.scene} and the {args.algo.upper()} model (torch, stable-baselines3)")
     import torch
     from stable_baselines3.common.logger import Logger, make_output_format
     from stable_baselines3.common.vec_env import VecNormalize
 
-    spec, raw, hp_file = prepared or prepare(args)
     seed = args.seed
     existed = args.run_dir is not None and args.run_dir.exists()
     run_dir = _run_dir(args)
@@ -239,7 +246,12 @@ def train(args: argparse.Namespace, prepared: tuple | None = None) -> Path:
     status: dict[str, Any] = {}
     evaluator = PeriodicEval(args.scene, spec.env_kwargs, callback_env_seed(seed),
                              args.eval_episodes, args.eval_freq, run_dir, status)
-    bar = ProgressBar(spec.n_timesteps, status, enabled=not args.no_progress)
+    bar = ProgressBar(spec.n_timesteps, status,
+                      enabled=not (args.no_progress or getattr(args, "quiet", False)))
+    when = (f"first, every {args.eval_freq} steps and last" if args.eval_freq
+            else "first and last")
+    stage(f"training {spec.n_timesteps} steps into {run_dir}; evaluating on "
+          f"{args.eval_episodes} episodes {when}")
     t0 = time.perf_counter()
     interrupted = False
     try:
@@ -258,7 +270,7 @@ def train(args: argparse.Namespace, prepared: tuple | None = None) -> Path:
                             f"({type(e).__name__}: {e}); removed the unfinished run folder "
                             f"{run_dir}") from e
     train_seconds = time.perf_counter() - t0
-
+    stage("saving the model")
     model.save(run_dir / "model.zip")
     if spec.normalize is not None:
         env.save(str(run_dir / "vecnormalize.pkl"))
@@ -288,12 +300,14 @@ def train(args: argparse.Namespace, prepared: tuple | None = None) -> Path:
 def main(argv: Sequence[str] | None = None, prog: str | None = None) -> Path:
     parser = build_parser(prog)
     args = parser.parse_args(argv)
+    stage = Stages(parser.prog, args.quiet)
+    stage("checking the hyperparameters (loads torch and stable-baselines3)")
     try:
         prepared = prepare(args)
     except ValueError as e:  # bad input: a clear message and exit status 2, as argparse does
         parser.error(str(e))
     try:
-        return train(args, prepared)
+        return train(args, prepared, stage)
     except SetupError as e:
         parser.error(str(e))
     except TrainingError as e:  # not a usage error, but no traceback of SB3's insides

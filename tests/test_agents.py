@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -508,8 +509,56 @@ def test_evaluate_a_trained_run_with_learning_curves(ppo_run, tmp_path):
     [table] = E.main(["--runs", str(ppo_run), "--controllers", "zero", "--seeds", "1",
                       "--episodes", "2", "--out", str(out)])
     text = table.read_text()
-    assert "PPO (1 training seed)" in text and "training wall time" in text
+    assert "PPO (1 training seed)" in text
+    # one run: one wall time and one step count, not a range from a value to itself
+    assert re.search(r"training wall time \d+ s per run \(256 steps", text), text
+    assert "Bar" not in text and "met**" not in text  # measurements only, no pass marks
     assert (out / "self_excited_learning_curves.png").exists()
+
+
+@pytest.mark.parametrize(("values", "spec", "text"), [
+    ([152.2, 151.8], ".0f", "152"), ([35.0, 55.4], ".0f", "35–55"), ([256], "", "256"),
+    ([300, 301], "", "300–301")])
+def test_span_gives_one_value_when_all_agree(values, spec, text):
+    assert E._span(values, spec) == text
+
+
+def test_results_pages_state_measurements_only():
+    for page in (ROOT / "docs" / "results").glob("*.md"):
+        text = page.read_text()
+        assert "- Bar (" not in text and "**met**" not in text, page.name
+        assert not re.search(r"\b(\d+)–\1 s\b", text), page.name
+
+
+def test_evaluate_says_what_it_is_doing_unless_quiet(capsys, tmp_path):
+    argv = ["--scene", "self_excited", "--controllers", "zero", "--seeds", "1",
+            "--episodes", "1", "--no-plots"]
+    E.main([*argv, "--out", str(tmp_path / "a")])
+    err = capsys.readouterr().err
+    lines = [line for line in err.splitlines() if line.startswith("python -m")]
+    assert lines[0].startswith("python -m fricenv_agents.evaluate [0 s]: self_excited: "
+                               "running 1 controllers"), err
+    assert "self_excited episodes" in err  # the bar over the batches of episodes
+    assert "wrote" in lines[-1]
+    E.main([*argv, "--out", str(tmp_path / "b"), "--quiet"])
+    captured = capsys.readouterr()
+    assert captured.err == ""
+    assert "zero excitation" in captured.out  # the table still prints
+
+
+def test_train_says_what_it_is_doing_unless_quiet(capsys, tmp_path):
+    argv = ["--algo", "ppo", "--scene", "paper", "-n", "32", "--eval-freq", "0",
+            "--eval-episodes", "1", "-params", "n_envs:4", "n_steps:8", "batch_size:32"]
+    T.main([*argv, "--run-dir", str(tmp_path / "a")])
+    err = capsys.readouterr().err
+    stages = [line.split(": ", 1)[1] for line in err.splitlines()
+              if line.startswith("python -m fricenv_agents.train [")]
+    assert [s.split()[0] for s in stages] == ["checking", "building", "training", "saving"]
+    assert "train: 100%" in err  # the progress bar
+    T.main([*argv, "--run-dir", str(tmp_path / "b"), "--quiet"])
+    captured = capsys.readouterr()
+    assert captured.err == ""
+    assert "training wall time" in captured.out
 
 
 def test_tensorboard_without_the_package_is_a_clear_error(capsys, tmp_path):
