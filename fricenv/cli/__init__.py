@@ -92,7 +92,7 @@ def _listing() -> tuple[dict[str, str], list[str]]:
     not), and the names of those that cannot run."""
     lines = {name: summary for name, (_, summary) in COMMANDS.items()}
     unavailable = []
-    for name in [*plugins(), *(n for n in PLUGIN_SUMMARIES if n not in plugins())]:
+    for name in [*PLUGIN_SUMMARIES, *(n for n in plugins() if n not in PLUGIN_SUMMARIES)]:
         ep = plugins().get(name)
         summary = PLUGIN_SUMMARIES.get(name) or (
             f"from {ep.dist.name}" if ep is not None and ep.dist is not None else "plugin")
