@@ -1,1 +1,10 @@
-"""Training, baselines and evaluation of stick-slip suppression controllers."""
+"""Training, baselines and evaluation of stick-slip suppression controllers.
+
+The folder ``agents/`` installs as ``fricenv_agents``, an import name of its own (other
+distributions install a top-level ``agents``). ``fricenv train`` and ``fricenv evaluate``
+reach :mod:`.train` and :mod:`.evaluate` through the ``fricenv.commands`` entry points.
+Modules by concern: ``layout`` (names, seed layout), ``config`` (hyperparameter files),
+``envs`` (the training environment), ``rollouts`` (controllers, scoring), ``runs`` (run
+folders, loading models), ``callbacks`` (training callbacks), ``cli`` (shared command-line
+pieces), and ``baselines``, ``mpc``, ``benchmark``.
+"""

@@ -30,11 +30,13 @@ from typing import Any
 
 import numpy as np
 
-from agents.common import SEARCH_SEED_BASE, rollout
 from fricenv.envs import kernels as K
 from fricenv.envs.scenes import Scene
 from fricenv.envs.stick_slip import EnvSetup
 from fricenv.sweep import ALGORITHM as SWEEP_ALGORITHM
+
+from .layout import SEARCH_SEED_BASE
+from .rollouts import rollout
 
 BASELINES = ("zero", "random", "best_constant", "feedback")
 #: Bump when the search changes, so stale caches are recomputed.

@@ -1,11 +1,11 @@
 """The control benchmark: every controller on every scene, and how policies generalise.
 
-    python -m agents.benchmark --runs runs/control --out docs/results [--seeds 5]
+    python -m fricenv_agents.benchmark --runs runs/control --out docs/results [--seeds 5]
         [--episodes 10] [--scenes paper self_excited stribeck viscous]
 
 Rows are controllers (zero excitation, random actions, best constant, the feedback rule,
 the exact-model MPC, PPO, SAC), columns scenes. Every controller faces the same held-out
-episodes (``agents.evaluate``'s seed layout: evaluation seed k < ``--seeds``, episodes
+episodes (``fricenv_agents.evaluate``'s seed layout: evaluation seed k < ``--seeds``, episodes
 j < ``--episodes``); a group of trained runs (``<runs>/ppo_<scene>_s<seed>``,
 ``<runs>/sac_<scene>_s<seed>``, one per training seed, made by
 ``scripts/train_control_benchmark.py``) runs every model on every episode.
@@ -21,7 +21,7 @@ PPO and the MPC (bound to the exact state, or under noise planning from the nois
 delayed observation) are shown beside it.
 
 Writes ``control_benchmark.md``, ``control_benchmark.json`` and two figures to ``--out``
-(and the best-constant searches' caches, as ``agents.evaluate`` does).
+(and the best-constant searches' caches, as ``fricenv_agents.evaluate`` does).
 """
 
 from __future__ import annotations
@@ -35,9 +35,12 @@ from typing import Any
 
 import numpy as np
 
-from agents.baselines import BASELINES
-from agents.common import HelpFormatter, fmt_pm, summarize
-from agents.evaluate import (
+from fricenv.checks import check_output_dir
+from fricenv.envs.scenes import SCENES, Scene
+
+from .baselines import BASELINES
+from .cli import HelpFormatter
+from .evaluate import (
     Entry,
     _summary,
     baseline_entries,
@@ -46,9 +49,8 @@ from agents.evaluate import (
     run_entry,
     trained_entries,
 )
-from agents.mpc import MPPIController
-from fricenv.checks import check_output_dir
-from fricenv.envs.scenes import SCENES, Scene
+from .mpc import MPPIController
+from .rollouts import fmt_pm, summarize
 
 BENCH_SCENES = ("paper", "self_excited", "stribeck", "viscous")
 ROW_ORDER = (*BASELINES, "mpc", "ppo", "sac")
@@ -367,7 +369,7 @@ def to_json(results: dict, gen: dict, meta: dict) -> dict:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="python -m agents.benchmark",
+    p = argparse.ArgumentParser(prog="python -m fricenv_agents.benchmark",
                                 description=__doc__.split("\n\n")[0],
                                 formatter_class=HelpFormatter)
     p.add_argument("--runs", type=Path, default=Path("runs/control"),
@@ -406,7 +408,8 @@ def main(argv: Sequence[str] | None = None) -> Path:
         s: evaluate_generalisation(s, args.runs, args.seeds, args.episodes, base)
         for s in args.scenes if run_group(args.runs, "ppo_rand", s)}
     lines = ["# Control benchmark: controllers × scenes", "",
-             "Made by `python -m agents.benchmark` (see its docstring and docs/control.md).",
+             "Made by `python -m fricenv_agents.benchmark` (see its docstring and "
+             "docs/control.md).",
              "", *main_tables(results, args.seeds, args.episodes), *gap_lines(results)]
     if gen:
         lines += generalisation_lines(gen)

@@ -1,6 +1,6 @@
 """Evaluate trained agents against the baselines; write a markdown table and plots.
 
-    python -m agents.evaluate --scene self_excited --runs runs/ppo_self_excited_s* \\
+    python -m fricenv_agents.evaluate --scene self_excited --runs runs/ppo_self_excited_s* \\
         --seeds 5 --episodes 10 --out docs/results
 
 Every controller runs the same episodes: evaluation seed k (k < ``--seeds``) starts
@@ -34,7 +34,11 @@ from typing import Any
 
 import numpy as np
 
-from agents.baselines import (
+from fricenv.checks import check_output_dir
+from fricenv.envs import kernels as K
+from fricenv.envs.scenes import Scene
+
+from .baselines import (
     BASELINES,
     ActionMap,
     Baseline,
@@ -42,25 +46,23 @@ from agents.baselines import (
     make_baseline,
     search_best_constant,
 )
-from agents.common import (
+from .cli import HelpFormatter, Stages
+from .layout import (
     MAX_PLANTS,
     SCENE_ENV_IDS,
     SEARCH_SEED_BASE,
     SEED_STRIDE,
+    eval_env_seed,
+)
+from .rollouts import (
     Controller,
     EpisodeMetrics,
-    HelpFormatter,
     TrainedController,
-    eval_env_seed,
     fmt_pm,
-    load_controller,
-    locate_model,
     rollout,
     summarize,
 )
-from fricenv.checks import check_output_dir
-from fricenv.envs import kernels as K
-from fricenv.envs.scenes import Scene
+from .runs import load_controller, locate_model
 
 LABELS = {"ppo": "PPO", "sac": "SAC"}
 OBS_SHAPE = (K.N_OBS,)  #: every scene's observation
@@ -136,7 +138,7 @@ def trained_entries(paths: list[Path], scene: str,
     """Group run folders of ``scene`` by algorithm (model files stay on their own rows);
     also return the runs' common env kwargs. ``ValueError`` for a model that does not fit
     the scene. ``loaded``: what ``load_models`` returned, to load nothing twice."""
-    from agents.baselines import ActionMap
+    from .baselines import ActionMap
 
     loaded = loaded if loaded is not None else load_models(paths)
     groups: dict[str, list[tuple[Any, dict, Path]]] = {}
@@ -209,7 +211,9 @@ def baseline_entries(names: list[str], scene: str, env_kwargs: dict, out: Path,
 
 # -- running ----------------------------------------------------------------------------------
 def run_entry(entry: Entry, scene: str | Scene, env_kwargs: dict, n_seeds: int,
-              episodes: int) -> None:
+              episodes: int, bar: Any = None) -> None:
+    """Score ``entry`` on every evaluation seed's episodes; ``bar``: a tqdm bar advanced
+    by one per batch of episodes."""
     parts = []
     per_seed: dict[str, list[float]] = {f: [] for f, _, _ in COLUMNS}
     for factory in entry.factories:
@@ -218,6 +222,8 @@ def run_entry(entry: Entry, scene: str | Scene, env_kwargs: dict, n_seeds: int,
             parts.append(m)
             for f, _, _ in COLUMNS:
                 per_seed[f].append(float(getattr(m, f).mean()))
+            if bar is not None:
+                bar.update()
     entry.metrics = EpisodeMetrics.concat(parts)
     entry.seed_means = per_seed
 
@@ -233,6 +239,12 @@ def _summary(entry: Entry) -> dict[str, Any]:
 
 
 # -- writing ----------------------------------------------------------------------------------
+def _span(values: Sequence[float], spec: str) -> str:
+    """``lo–hi`` of ``values`` formatted with ``spec``; one value when they all agree."""
+    lo, hi = format(min(values), spec), format(max(values), spec)
+    return lo if lo == hi else f"{lo}–{hi}"
+
+
 def markdown(scene: str, entries: list[Entry], n_seeds: int, episodes: int,
              plots: list[str], env_kwargs: dict | None = None) -> str:
     sc = ActionMap(scene, env_kwargs).scene  # the scene as evaluated, not the preset
@@ -290,9 +302,8 @@ def markdown(scene: str, entries: list[Entry], n_seeds: int, episodes: int,
         secs = e.info.get("train_seconds") or []
         steps = e.info.get("timesteps") or []
         if secs:
-            done = "?" if not steps else (
-                str(steps[0]) if min(steps) == max(steps) else f"{min(steps)}–{max(steps)}")
-            lines.append(f"- {e.label}: training wall time {min(secs):.0f}–{max(secs):.0f} s "
+            done = _span(steps, "") if steps else "?"
+            lines.append(f"- {e.label}: training wall time {_span(secs, '.0f')} s "
                          f"per run ({done} steps, 2-core CPU).")
         paired = []
         for b in entries:
@@ -308,16 +319,6 @@ def markdown(scene: str, entries: list[Entry], n_seeds: int, episodes: int,
             lines.append(f"- {e.label}, return minus baseline's on the same episodes (mean ± "
                          "standard error; the agent averaged over its models): "
                          + "; ".join(paired) + ".")
-        if zero is not None and best is not None:
-            cut = 1.0 - float(e.scores.stick_fraction.mean()) / z_stick
-            r_e, r_b = float(e.scores.ret.mean()), float(best.scores.ret.mean())
-            ok_time = bool(secs) and max(secs) <= 15 * 60
-            ok = cut >= 0.9 and r_e > r_b and ok_time
-            took = f"max training time {max(secs):.0f} s" if secs else "training time unknown"
-            lines.append(
-                f"- Bar (trained in <= 15 min, stick-time fraction cut >= 90 % against {ref}, "
-                f"return above the best constant): stick cut {100 * cut:.1f} %, "
-                f"return {r_e:.2f} vs {r_b:.2f}, {took} -> **{'met' if ok else 'not met'}**.")
         lines.append("")
     for p in plots:
         lines.append(f"![{p}]({p})")
@@ -448,12 +449,12 @@ def learning_curves(entries: list[Entry], baselines: list[Entry], path: Path) ->
 # -- CLI --------------------------------------------------------------------------------------
 def build_parser(prog: str | None = None) -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
-        prog=prog or "python -m agents.evaluate", description=__doc__.split("\n\n")[0],
+        prog=prog or "python -m fricenv_agents.evaluate", description=__doc__.split("\n\n")[0],
         formatter_class=HelpFormatter)
     p.add_argument("--scene", nargs="+", choices=sorted(SCENE_ENV_IDS), default=None,
                    help="scene(s) to evaluate (default: those of the runs)")
     p.add_argument("--runs", nargs="*", type=Path, default=[],
-                   help="run folders of agents.train (grouped by algorithm)")
+                   help="run folders of fricenv_agents.train (grouped by algorithm)")
     p.add_argument("--models", nargs="*", type=Path, default=[],
                    help="model files (<algo>_*.zip, optional <stem>_vecnormalize.pkl and "
                         "<stem>.yml beside them)")
@@ -467,16 +468,19 @@ def build_parser(prog: str | None = None) -> argparse.ArgumentParser:
                    help="best-constant search: grid points per action dimension")
     p.add_argument("--search-episodes", type=int, default=16,
                    help="best-constant search: episodes per candidate")
+    p.add_argument("--quiet", action="store_true",
+                   help="no progress lines or bars on stderr (the table still prints)")
     return p
 
 
 Prepared = dict[str, tuple[list[Entry], dict]]  #: scene -> trained entries, env kwargs
 
 
-def prepare(args: argparse.Namespace) -> Prepared:
+def prepare(args: argparse.Namespace, stage: Callable[[str], None] | None = None,
+            ) -> Prepared:
     """Check the command line, load the models and check they fit their scenes
     (``ValueError`` if anything is bad, before the output folder is made); returns the
-    scenes to evaluate with their trained entries."""
+    scenes to evaluate with their trained entries. ``stage``: told when loading starts."""
     if args.seeds < 1 or args.episodes < 1:
         raise ValueError("need --seeds >= 1 and --episodes >= 1")
     if args.episodes > MAX_PLANTS or args.seeds > (SEARCH_SEED_BASE - eval_env_seed(0)) // (
@@ -509,27 +513,45 @@ def prepare(args: argparse.Namespace) -> Prepared:
     if not args.runs and not args.models and not args.controllers:
         raise ValueError("nothing to evaluate: give --runs, --models or --controllers")
     paths = [*args.runs, *args.models]
+    if paths and stage is not None:
+        stage(f"loading {len(paths)} model{'s' if len(paths) > 1 else ''} "
+              "(stable-baselines3)")
     loaded = load_models(paths)
     return {scene: trained_entries(paths, scene, loaded) for scene in scenes}
 
 
 def evaluate_scene(scene: str, args: argparse.Namespace,
-                   trained: tuple[list[Entry], dict] | None = None) -> Path:
+                   trained: tuple[list[Entry], dict] | None = None,
+                   stage: Callable[[str], None] | None = None) -> Path:
     """Evaluate and write ``scene``'s outputs; ``trained``: its entry of ``prepare``'s
-    result (else the models are loaded here)."""
+    result (else the models are loaded here); ``stage``: called with a line per stage
+    (and a progress bar over the episodes shows unless ``args.quiet``)."""
+    from tqdm.auto import tqdm
+
+    stage = stage or (lambda message: None)
     t0 = time.perf_counter()
     out: Path = args.out
     out.mkdir(parents=True, exist_ok=True)
     trained_list, env_kwargs = trained or trained_entries([*args.runs, *args.models], scene)
     names = [n for n in BASELINES if n in args.controllers]
     search = {"n_u0": args.grid, "n_nu": args.grid, "episodes": args.search_episodes}
+    if "best_constant" in names:
+        stage(f"{scene}: searching the best constant excitation ({args.grid} x {args.grid} "
+              f"grid, {args.search_episodes} episodes per candidate; cache in {out})")
     baselines = baseline_entries(names, scene, env_kwargs, out, search)
     entries = baselines + trained_list
-    for e in entries:
-        run_entry(e, scene, env_kwargs, args.seeds, args.episodes)
+    stage(f"{scene}: running {len(entries)} controllers on {args.seeds} x {args.episodes} "
+          "held-out episodes")
+    batches = sum(len(e.factories) for e in entries) * args.seeds
+    with tqdm(total=batches, unit="batch", desc=f"{scene} episodes", dynamic_ncols=True,
+              disable=getattr(args, "quiet", False)) as bar:
+        for e in entries:
+            bar.set_postfix_str(e.label, refresh=True)
+            run_entry(e, scene, env_kwargs, args.seeds, args.episodes, bar)
 
     plots: list[str] = []
     if not args.no_plots:
+        stage(f"{scene}: drawing the time history and the learning curves")
         zero = ZeroExcitation(scene, env_kwargs)
         shown: list[tuple[str, Controller]] = [(zero.label, zero)]
         shown += [(e.label, e.factories[0](0)) for e in entries
@@ -562,13 +584,17 @@ def evaluate_scene(scene: str, args: argparse.Namespace,
 def main(argv: Sequence[str] | None = None, prog: str | None = None) -> list[Path]:
     parser = build_parser(prog)
     args = parser.parse_args(argv)
+    stage = Stages(parser.prog, args.quiet)
     try:
-        prepared = prepare(args)
+        prepared = prepare(args, stage)
     except ValueError as e:
         parser.error(str(e))
     made = not args.out.exists()
     try:
-        return [evaluate_scene(scene, args, trained) for scene, trained in prepared.items()]
+        tables = [evaluate_scene(scene, args, trained, stage)
+                  for scene, trained in prepared.items()]
+        stage(f"wrote {', '.join(str(t) for t in tables)} and their json and plots")
+        return tables
     except ValueError as e:  # found only while evaluating: still no traceback, no empty --out
         if made and args.out.is_dir() and not any(args.out.iterdir()):
             args.out.rmdir()

@@ -13,7 +13,7 @@ The model is the plant: the same reward (stick, velocity fluctuation, effort), t
 action mode and ranges, the actuator if the env has one. What the controller needs is
 the plant's state:
 
-- bound to an environment (``bind(env)``, which ``agents.common.rollout`` does for any
+- bound to an environment (``bind(env)``, which ``fricenv_agents.rollouts.rollout`` does for any
   controller that has it), it reads the exact state of every plant, the episode's
   randomised parameters included (``state_arrays()`` / ``get_state()``): the
   "exact-model MPC" of the benchmark. This is the only way it works under partial
@@ -36,13 +36,14 @@ from typing import Any
 
 import numpy as np
 
-from agents.common import MAX_PLANTS, SEARCH_SEED_BASE
 from fricenv.checks import check_bool, check_finite_real, check_int, got
 from fricenv.envs import kernels as K
 from fricenv.envs.rollout import BatchRollout
 from fricenv.envs.scenes import Scene
 from fricenv.envs.state import plants_from_observations
 from fricenv.envs.stick_slip import EnvSetup
+
+from .layout import MAX_PLANTS, SEARCH_SEED_BASE
 
 DEFAULT_HORIZON = 12
 DEFAULT_SAMPLES = 256
@@ -57,7 +58,7 @@ DEFAULT_TEMPERATURE = 0.1
 #: Each later iteration's perturbations are this fraction of the previous ones.
 NOISE_DECAY = 0.5
 #: First plant seed of the episodes the settings were tuned on: after the best-constant
-#: search's block, below no evaluation seed (``agents.common``'s seed layout).
+#: search's block, below no evaluation seed (``fricenv_agents.layout``'s seed layout).
 TUNE_SEED_BASE = SEARCH_SEED_BASE + MAX_PLANTS
 
 

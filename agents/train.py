@@ -1,6 +1,6 @@
 """Train a stick-slip suppression agent with stable-baselines3.
 
-    python -m agents.train --algo ppo --scene self_excited --seed 0 -n 300000
+    python -m fricenv_agents.train --algo ppo --scene self_excited --seed 0 -n 300000
 
 Hyperparameters come from ``agents/hyperparams/<algo>.yml`` (rl-baselines3-zoo style, one
 entry per environment id, i.e. per scene); ``-params key:value`` overrides single entries.
@@ -23,12 +23,11 @@ episode was ever trained on.
 from __future__ import annotations
 
 import argparse
-import csv
 import platform
 import shutil
 import sys
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from datetime import datetime
 from pathlib import Path
 from typing import Any
@@ -36,133 +35,32 @@ from typing import Any
 import numpy as np
 import yaml
 
-from agents.common import (
+from fricenv.checks import check_output_dir
+
+from .cli import HelpFormatter, Stages
+from .config import (
+    RunSpec,
+    apply_overrides,
+    check_hyperparams,
+    load_hyperparams,
+    split_hyperparams,
+)
+from .envs import make_sb3_env
+from .layout import (
     ALGOS,
     MAX_PLANTS,
     SCENE_ENV_IDS,
-    EpisodeMetrics,
-    HelpFormatter,
-    RunSpec,
-    TrainedController,
     algo_class,
-    apply_overrides,
     callback_env_seed,
-    check_hyperparams,
     check_seed,
-    load_hyperparams,
-    make_sb3_env,
-    portable_path,
-    rollout,
-    split_hyperparams,
     train_env_seed,
 )
-from fricenv.checks import check_output_dir
-
-
-def _callbacks() -> tuple[type, type]:
-    """Callback classes (defined lazily so ``--help`` does not import torch)."""
-    from stable_baselines3.common.callbacks import BaseCallback
-
-    class ProgressBar(BaseCallback):
-        """tqdm bar over timesteps with the latest evaluation in the postfix."""
-
-        def __init__(self, total: int, status: dict[str, Any], enabled: bool = True):
-            super().__init__()
-            self.total = total
-            self.status = status
-            self.enabled = enabled
-            self.bar: Any = None  # a tqdm bar from the training's start
-            self._done = 0
-
-        def _on_training_start(self) -> None:
-            from tqdm.auto import tqdm
-
-            self.bar = tqdm(total=self.total, unit="step", disable=not self.enabled,
-                            dynamic_ncols=True, desc="train")
-
-        def _on_step(self) -> bool:
-            step = min(self.num_timesteps, self.total)
-            self.bar.update(step - self._done)
-            self._done = step
-            if self.status.get("dirty"):
-                self.status["dirty"] = False
-                self.bar.set_postfix(eval_return=f"{self.status['return']:.2f}",
-                                     stick=f"{self.status['stick']:.4f}", refresh=False)
-            return True
-
-        def _on_training_end(self) -> None:
-            self.bar.close()
-
-    class PeriodicEval(BaseCallback):
-        """Deterministic evaluation every ``eval_freq`` steps on the same fixed episodes.
-
-        Uses the evaluation code of ``agents.evaluate`` (exact stick fraction, effort,
-        return), so the learning curve and the final table measure the same thing. Results
-        are only logged, never used to pick a checkpoint: the final model is the result.
-        """
-
-        def __init__(self, scene: str, env_kwargs: dict, seed: int, n_episodes: int,
-                     eval_freq: int, run_dir: Path, status: dict[str, Any]):
-            super().__init__()
-            self.scene, self.env_kwargs, self.seed = scene, env_kwargs, seed
-            self.n_episodes, self.eval_freq = n_episodes, eval_freq
-            self.run_dir, self.status = run_dir, status
-            self.next_eval = 0
-            self.rows: list[dict[str, float]] = []
-            self.returns: list[np.ndarray] = []
-            self.lengths: list[np.ndarray] = []
-
-        def _evaluate(self) -> None:
-            ctrl = TrainedController(self.model, self.model.get_vec_normalize_env())
-            m: EpisodeMetrics = rollout(ctrl, self.scene, self.seed, self.n_episodes,
-                                        self.env_kwargs)
-            row = {"timesteps": self.num_timesteps, "time_s": time.perf_counter() - self.t0,
-                   "return_mean": float(m.ret.mean()), "return_std": float(m.ret.std()),
-                   "stick_fraction": float(m.stick_fraction.mean()),
-                   "effort": float(m.effort.mean()),
-                   "rms_vr_fluct": float(m.rms_vr_fluct.mean())}
-            self.rows.append(row)
-            self.returns.append(m.ret)
-            self.lengths.append(m.length)
-            for key in ("return_mean", "stick_fraction", "effort"):
-                self.logger.record(f"eval/{key}", row[key])
-            self.status.update({"return": row["return_mean"], "stick": row["stick_fraction"],
-                                "dirty": True})
-            self._write()
-
-        def _write(self) -> None:
-            np.savez(self.run_dir / "evaluations.npz",
-                     timesteps=np.array([r["timesteps"] for r in self.rows]),
-                     results=np.array(self.returns), ep_lengths=np.array(self.lengths),
-                     stick_fraction=np.array([r["stick_fraction"] for r in self.rows]),
-                     effort=np.array([r["effort"] for r in self.rows]))
-            with open(self.run_dir / "eval_log.csv", "w", newline="") as fh:
-                w = csv.DictWriter(fh, fieldnames=list(self.rows[0]))
-                w.writeheader()
-                w.writerows(self.rows)
-
-        def _on_training_start(self) -> None:
-            self.t0 = time.perf_counter()
-            self.next_eval = self.eval_freq
-            self._evaluate()  # the untrained policy: where the learning curve starts
-
-        def _on_step(self) -> bool:
-            if self.eval_freq > 0 and self.num_timesteps >= self.next_eval:
-                self._evaluate()
-                while self.next_eval <= self.num_timesteps:
-                    self.next_eval += self.eval_freq
-            return True
-
-        def _on_training_end(self) -> None:
-            if not self.rows or self.rows[-1]["timesteps"] != self.num_timesteps:
-                self._evaluate()  # the curve always ends at the final model
-
-    return ProgressBar, PeriodicEval
+from .runs import portable_path
 
 
 def build_parser(prog: str | None = None) -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
-        prog=prog or "python -m agents.train", description=__doc__.split("\n\n")[0],
+        prog=prog or "python -m fricenv_agents.train", description=__doc__.split("\n\n")[0],
         formatter_class=HelpFormatter)
     p.add_argument("--algo", required=True, choices=ALGOS, help="RL algorithm")
     p.add_argument("--scene", required=True, choices=sorted(SCENE_ENV_IDS), help="scene")
@@ -184,6 +82,8 @@ def build_parser(prog: str | None = None) -> argparse.ArgumentParser:
     p.add_argument("--tensorboard", action="store_true",
                    help="also log to TensorBoard (<run>/tb; needs the tensorboard package)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument("--quiet", action="store_true",
+                   help="no progress bar, stage lines or compile notice on stderr")
     p.add_argument("--threads", type=int, default=1,
                    help="torch threads (small MLPs train fastest on one)")
     return p
@@ -283,13 +183,18 @@ def prepare(args: argparse.Namespace) -> tuple[RunSpec, dict[str, Any], Path]:
     return split_hyperparams(args.algo, raw), raw, hp_file
 
 
-def train(args: argparse.Namespace, prepared: tuple | None = None) -> Path:
-    """Run one training; returns the run folder."""
+def train(args: argparse.Namespace, prepared: tuple | None = None,
+          stage: Callable[[str], None] | None = None) -> Path:
+    """Run one training; returns the run folder. ``stage``: called with a line per stage
+    (building, training, saving)."""
+    stage = stage or (lambda message: None)
+    spec, raw, hp_file = prepared or prepare(args)
+    stage(f"building {spec.n_envs} environment{'s' if spec.n_envs > 1 else ''} of scene "
+          f"{args.scene} and the {args.algo.upper()} model (torch, stable-baselines3)")
     import torch
     from stable_baselines3.common.logger import Logger, make_output_format
     from stable_baselines3.common.vec_env import VecNormalize
 
-    spec, raw, hp_file = prepared or prepare(args)
     seed = args.seed
     existed = args.run_dir is not None and args.run_dir.exists()
     run_dir = _run_dir(args)
@@ -329,18 +234,24 @@ def train(args: argparse.Namespace, prepared: tuple | None = None) -> Path:
         "eval_callback_seeds": [callback_env_seed(seed),
                                 callback_env_seed(seed) + args.eval_episodes - 1],
         "eval_freq": args.eval_freq, "eval_episodes": args.eval_episodes,
-        "command": " ".join(["python -m agents.train", *sys.argv[1:]]),
+        "command": " ".join(["python -m fricenv_agents.train", *sys.argv[1:]]),
         "versions": _versions(), "started": datetime.now().isoformat(timespec="seconds"),
         "torch_threads": torch.get_num_threads(),
     }
     cfg_path = run_dir / "config.yml"
     cfg_path.write_text(yaml.safe_dump(config, sort_keys=False))
 
-    ProgressBar, PeriodicEval = _callbacks()
+    from .callbacks import PeriodicEval, ProgressBar
+
     status: dict[str, Any] = {}
     evaluator = PeriodicEval(args.scene, spec.env_kwargs, callback_env_seed(seed),
                              args.eval_episodes, args.eval_freq, run_dir, status)
-    bar = ProgressBar(spec.n_timesteps, status, enabled=not args.no_progress)
+    bar = ProgressBar(spec.n_timesteps, status,
+                      enabled=not (args.no_progress or getattr(args, "quiet", False)))
+    when = (f"first, every {args.eval_freq} steps and last" if args.eval_freq
+            else "first and last")
+    stage(f"training {spec.n_timesteps} steps into {run_dir}; evaluating on "
+          f"{args.eval_episodes} episodes {when}")
     t0 = time.perf_counter()
     interrupted = False
     try:
@@ -359,7 +270,7 @@ def train(args: argparse.Namespace, prepared: tuple | None = None) -> Path:
                             f"({type(e).__name__}: {e}); removed the unfinished run folder "
                             f"{run_dir}") from e
     train_seconds = time.perf_counter() - t0
-
+    stage("saving the model")
     model.save(run_dir / "model.zip")
     if spec.normalize is not None:
         env.save(str(run_dir / "vecnormalize.pkl"))
@@ -389,12 +300,14 @@ def train(args: argparse.Namespace, prepared: tuple | None = None) -> Path:
 def main(argv: Sequence[str] | None = None, prog: str | None = None) -> Path:
     parser = build_parser(prog)
     args = parser.parse_args(argv)
+    stage = Stages(parser.prog, args.quiet)
+    stage("checking the hyperparameters (loads torch and stable-baselines3)")
     try:
         prepared = prepare(args)
     except ValueError as e:  # bad input: a clear message and exit status 2, as argparse does
         parser.error(str(e))
     try:
-        return train(args, prepared)
+        return train(args, prepared, stage)
     except SetupError as e:
         parser.error(str(e))
     except TrainingError as e:  # not a usage error, but no traceback of SB3's insides

@@ -23,6 +23,7 @@ Usage: ``python scripts/bench_compile.py [--tree PATH [--tree PATH]] [--workload
 from __future__ import annotations
 
 import argparse
+import importlib.util
 import json
 import os
 import shutil
@@ -67,7 +68,7 @@ WORKLOADS: dict[str, str] = {
     "run_stats": "fricenv.run_stats, Coulomb law",
     **{f"map-{law}": f"3 x 3 fricenv.regime_map, {law} law" for law in MAP_LAWS},
     "atlas": "one chunk of fricenv.atlas, 2 x 2 cells, into a Zarr store",
-    "mpc": "one MPC (MPPI) decision, agents.mpc, self-excited scene",
+    "mpc": "one MPC (MPPI) decision, fricenv_agents.mpc, self-excited scene",
 }
 
 # Metrics of a run: key, column title, format.
@@ -300,8 +301,25 @@ def _atlas(tmp: Path) -> None:
           chunks=4, settings=_small_settings(), progress=False)
 
 
+def _tree_agents() -> None:
+    """Import the tree's ``agents/`` folder as ``fricenv_agents``, the name it installs
+    under: the installed package may be another checkout's, and only the tree (the
+    child's PYTHONPATH) holds the folder. Older trees' ``agents`` imports still resolve
+    from the tree itself."""
+    folder = Path(os.environ["PYTHONPATH"].split(os.pathsep)[0]) / "agents"
+    spec = importlib.util.spec_from_file_location(
+        "fricenv_agents", folder / "__init__.py", submodule_search_locations=[str(folder)])
+    if spec is None or spec.loader is None:
+        raise RuntimeError(f"no agents package in {folder}")
+    package = importlib.util.module_from_spec(spec)
+    sys.modules["fricenv_agents"] = package
+    spec.loader.exec_module(package)
+
+
 def _mpc(tmp: Path) -> None:
-    from agents.mpc import MPPIController  # agents/ of the tree, on PYTHONPATH
+    _tree_agents()
+    from fricenv_agents.mpc import MPPIController
+
     from fricenv.envs.vector import StickSlipVectorEnv
 
     env = StickSlipVectorEnv(num_envs=1, scene="self_excited")

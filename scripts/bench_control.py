@@ -29,8 +29,8 @@ from collections.abc import Callable
 
 import gymnasium as gym
 import numpy as np
+from fricenv_agents.mpc import DEFAULT_ITERATIONS, MPPIController
 
-from agents.mpc import DEFAULT_ITERATIONS, MPPIController
 from fricenv.envs import register_envs
 from fricenv.envs.vector import StickSlipVectorEnv
 

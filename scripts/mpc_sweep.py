@@ -5,7 +5,7 @@
 
 One setting at a time is varied around the defaults (horizon, samples, iterations,
 temperature, perturbation size), on tuning episodes of their own (plant seeds from
-``agents.mpc.TUNE_SEED_BASE``, never an evaluation episode), with the MPC bound to the
+``fricenv_agents.mpc.TUNE_SEED_BASE``, never an evaluation episode), with the MPC bound to the
 exact plant states. For each setting: the episodes' mean return and stick-time fraction,
 and the wall time of one decision for one plant (median over rounds, numba's threads on).
 Writes ``mpc_sweep.json``, ``mpc_sweep.md`` and ``mpc_sweep.png`` to ``--out``.
@@ -20,8 +20,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from agents.common import rollout
-from agents.mpc import (
+from fricenv_agents.mpc import (
     DEFAULT_HORIZON,
     DEFAULT_ITERATIONS,
     DEFAULT_NOISE_STD,
@@ -30,6 +29,8 @@ from agents.mpc import (
     TUNE_SEED_BASE,
     MPPIController,
 )
+from fricenv_agents.rollouts import rollout
+
 from fricenv.envs.vector import StickSlipVectorEnv
 
 DEFAULTS = {"horizon": DEFAULT_HORIZON, "samples": DEFAULT_SAMPLES,
@@ -102,7 +103,7 @@ def markdown(rows: list[dict[str, Any]], episodes: int, centre: dict[str, Any]) 
         "# MPC settings: return against compute",
         "",
         f"MPPI bound to the exact plant states; {episodes} tuning episodes per scene and "
-        "setting (plant seeds from `agents.mpc.TUNE_SEED_BASE`, none of them an evaluation "
+        "setting (plant seeds from `fricenv_agents.mpc.TUNE_SEED_BASE`, none of them an evaluation "
         "episode). One setting is varied at a time, the others at "
         + ", ".join(f"{k} = {v}" for k, v in centre.items())
         + ". Compute: plant-intervals rolled out per decision (samples x horizon x "
@@ -123,7 +124,7 @@ def markdown(rows: list[dict[str, Any]], episodes: int, centre: dict[str, Any]) 
             f"{r['iterations']} | {r['temperature']:g} | {r['noise_std']:g} | "
             f"{r['return_mean']:.2f} ± {r['return_std']:.2f} | {r['stick_fraction']:.4f} | "
             f"{r['intervals_per_decision']} | {r['decision_ms']:.2f} |")
-    lines += ["", "The MPC's defaults (`agents.mpc`): "
+    lines += ["", "The MPC's defaults (`fricenv_agents.mpc`): "
               + ", ".join(f"{k} = {v}" for k, v in DEFAULTS.items()) + ".", "",
               "![mpc_sweep.png](mpc_sweep.png)", ""]
     return "\n".join(lines)

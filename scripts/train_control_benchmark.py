@@ -1,10 +1,10 @@
-"""Train every policy of the control benchmark (``agents.benchmark``), a few at a time.
+"""Train every policy of the control benchmark (``fricenv_agents.benchmark``), a few at a time.
 
     python scripts/train_control_benchmark.py [--jobs 2] [--seeds 5] [--rand-seeds 5]
         [--algos ppo sac ppo_rand] [--scenes paper self_excited stribeck viscous]
         [--root runs/control] [--dry-run]
 
-Each run is ``python -m agents.train`` with the hyperparameter file's entry for its
+Each run is ``python -m fricenv_agents.train`` with the hyperparameter file's entry for its
 scene, into ``<root>/<group>_<scene>_s<seed>`` (groups: ``ppo``, ``sac``, and
 ``ppo_rand``, PPO trained with ``randomize=True`` for the generalisation study). A run
 whose folder holds a model is skipped; a folder without one (a run cut off) is removed
@@ -41,9 +41,9 @@ def jobs(groups: list[str], scenes: list[str], seeds: int, rand_seeds: int,
         for seed in range(n):
             for scene in scenes:
                 run = root / f"{group}_{scene}_s{seed}"
-                cmd = [sys.executable, "-m", "agents.train", "--algo", algo, "--scene", scene,
-                       "--seed", str(seed), "--run-dir", str(run), "--no-progress",
-                       "--threads", "1", *extra]
+                cmd = [sys.executable, "-m", "fricenv_agents.train", "--algo", algo,
+                       "--scene", scene, "--seed", str(seed), "--run-dir", str(run),
+                       "--no-progress", "--threads", "1", *extra]
                 out.append((run, cmd))
     return out
 

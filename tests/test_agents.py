@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -15,23 +16,25 @@ import yaml
 
 pytest.importorskip("stable_baselines3")
 
-from agents import baselines as B  # noqa: E402
-from agents import evaluate as E  # noqa: E402
-from agents import train as T  # noqa: E402
-from agents.common import (  # noqa: E402
+from fricenv_agents import baselines as B  # noqa: E402
+from fricenv_agents import evaluate as E  # noqa: E402
+from fricenv_agents import train as T  # noqa: E402
+from fricenv_agents.config import (  # noqa: E402
+    apply_overrides,
+    load_hyperparams,
+    split_hyperparams,
+)
+from fricenv_agents.layout import (  # noqa: E402
     ALGOS,
     MAX_TRAIN_SEED,
     SCENE_ENV_IDS,
     SEED_STRIDE,
-    apply_overrides,
     callback_env_seed,
     eval_env_seed,
-    load_controller,
-    load_hyperparams,
-    rollout,
-    split_hyperparams,
     train_env_seed,
 )
+from fricenv_agents.rollouts import rollout  # noqa: E402
+from fricenv_agents.runs import load_controller  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENES = sorted(SCENE_ENV_IDS)
@@ -47,7 +50,7 @@ def _cli(module: str, *args: str) -> subprocess.CompletedProcess:
 def ppo_run(tmp_path_factory) -> Path:
     """A few hundred PPO steps through the real command line (a subprocess)."""
     run = tmp_path_factory.mktemp("runs") / "ppo_smoke"
-    res = _cli("agents.train", "--algo", "ppo", "--scene", "self_excited", "--seed", "3",
+    res = _cli("fricenv_agents.train", "--algo", "ppo", "--scene", "self_excited", "--seed", "3",
                "-n", "256", "--run-dir", str(run), "--no-progress", "--eval-freq", "128",
                "--eval-episodes", "2",
                "-params", "n_envs:4", "n_steps:32", "batch_size:64", "n_epochs:1")
@@ -83,8 +86,8 @@ def test_smoke_training_sac_on_the_paper_scene(tmp_path):
     from stable_baselines3 import SAC
 
     run = tmp_path / "sac"
-    res = _cli("agents.train", "--algo", "sac", "--scene", "paper", "--seed", "1", "-n", "200",
-               "--run-dir", str(run), "--no-progress", "--eval-freq", "0",
+    res = _cli("fricenv_agents.train", "--algo", "sac", "--scene", "paper", "--seed", "1",
+               "-n", "200", "--run-dir", str(run), "--no-progress", "--eval-freq", "0",
                "--eval-episodes", "1", "-params", "n_envs:2", "learning_starts:50",
                "batch_size:32", "buffer_size:1000")
     assert res.returncode == 0, res.stderr
@@ -288,10 +291,10 @@ def test_training_plants_are_the_runs_own_block(tmp_path, monkeypatch):
 
 
 def test_cli_errors_as_users_see_them():
-    res = _cli("agents.train", "--algo", "a2c", "--scene", "self_excited")
+    res = _cli("fricenv_agents.train", "--algo", "a2c", "--scene", "self_excited")
     assert res.returncode == 2 and "invalid choice: 'a2c'" in res.stderr
     assert "Traceback" not in res.stderr
-    res = _cli("agents.evaluate", "--scene", "moon")
+    res = _cli("fricenv_agents.evaluate", "--scene", "moon")
     assert res.returncode == 2 and "invalid choice: 'moon'" in res.stderr
 
 
@@ -506,8 +509,56 @@ def test_evaluate_a_trained_run_with_learning_curves(ppo_run, tmp_path):
     [table] = E.main(["--runs", str(ppo_run), "--controllers", "zero", "--seeds", "1",
                       "--episodes", "2", "--out", str(out)])
     text = table.read_text()
-    assert "PPO (1 training seed)" in text and "training wall time" in text
+    assert "PPO (1 training seed)" in text
+    # one run: one wall time and one step count, not a range from a value to itself
+    assert re.search(r"training wall time \d+ s per run \(256 steps", text), text
+    assert "Bar" not in text and "met**" not in text  # measurements only, no pass marks
     assert (out / "self_excited_learning_curves.png").exists()
+
+
+@pytest.mark.parametrize(("values", "spec", "text"), [
+    ([152.2, 151.8], ".0f", "152"), ([35.0, 55.4], ".0f", "35–55"), ([256], "", "256"),
+    ([300, 301], "", "300–301")])
+def test_span_gives_one_value_when_all_agree(values, spec, text):
+    assert E._span(values, spec) == text
+
+
+def test_results_pages_state_measurements_only():
+    for page in (ROOT / "docs" / "results").glob("*.md"):
+        text = page.read_text()
+        assert "- Bar (" not in text and "**met**" not in text, page.name
+        assert not re.search(r"\b(\d+)–\1 s\b", text), page.name
+
+
+def test_evaluate_says_what_it_is_doing_unless_quiet(capsys, tmp_path):
+    argv = ["--scene", "self_excited", "--controllers", "zero", "--seeds", "1",
+            "--episodes", "1", "--no-plots"]
+    E.main([*argv, "--out", str(tmp_path / "a")])
+    err = capsys.readouterr().err
+    lines = [line for line in err.splitlines() if line.startswith("python -m")]
+    assert lines[0].startswith("python -m fricenv_agents.evaluate [0 s]: self_excited: "
+                               "running 1 controllers"), err
+    assert "self_excited episodes" in err  # the bar over the batches of episodes
+    assert "wrote" in lines[-1]
+    E.main([*argv, "--out", str(tmp_path / "b"), "--quiet"])
+    captured = capsys.readouterr()
+    assert captured.err == ""
+    assert "zero excitation" in captured.out  # the table still prints
+
+
+def test_train_says_what_it_is_doing_unless_quiet(capsys, tmp_path):
+    argv = ["--algo", "ppo", "--scene", "paper", "-n", "32", "--eval-freq", "0",
+            "--eval-episodes", "1", "-params", "n_envs:4", "n_steps:8", "batch_size:32"]
+    T.main([*argv, "--run-dir", str(tmp_path / "a")])
+    err = capsys.readouterr().err
+    stages = [line.split(": ", 1)[1] for line in err.splitlines()
+              if line.startswith("python -m fricenv_agents.train [")]
+    assert [s.split()[0] for s in stages] == ["checking", "building", "training", "saving"]
+    assert "train: 100%" in err  # the progress bar
+    T.main([*argv, "--run-dir", str(tmp_path / "b"), "--quiet"])
+    captured = capsys.readouterr()
+    assert captured.err == ""
+    assert "training wall time" in captured.out
 
 
 def test_tensorboard_without_the_package_is_a_clear_error(capsys, tmp_path):
@@ -547,7 +598,7 @@ def test_short_ppo_training_meets_the_bar(tmp_path):
     """300k PPO steps (under a minute here) already cut stick time >= 90 % and beat the
     best constant excitation on return, on evaluation episodes."""
     run = tmp_path / "run"
-    res = _cli("agents.train", "--algo", "ppo", "--scene", "self_excited", "--seed", "0",
+    res = _cli("fricenv_agents.train", "--algo", "ppo", "--scene", "self_excited", "--seed", "0",
                "-n", "300000", "--run-dir", str(run), "--no-progress")
     assert res.returncode == 0, res.stderr
     out = tmp_path / "eval"

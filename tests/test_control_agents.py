@@ -7,10 +7,10 @@ import json
 import gymnasium as gym
 import numpy as np
 import pytest
+from fricenv_agents.mpc import MPPIController
+from fricenv_agents.rollouts import rollout
 
 import fricenv  # noqa: F401  (registers the environments)
-from agents.common import rollout
-from agents.mpc import MPPIController
 from fricenv.core import new_workspace
 from fricenv.envs.state import PL_CTRL, PL_S, PL_WORK, plants_from_observations
 from fricenv.envs.stick_slip import StickSlipEnv
@@ -93,7 +93,8 @@ def test_state_estimate_from_a_full_observation():
 
 
 def test_held_out_boxes_lie_beyond_the_training_ranges():
-    from agents.benchmark import HELD_OUT, held_out_scene
+    from fricenv_agents.benchmark import HELD_OUT, held_out_scene
+
     from fricenv.envs.scenes import SCENES
 
     for scene in ("paper", "self_excited", "stribeck", "viscous"):
@@ -111,8 +112,8 @@ def test_held_out_boxes_lie_beyond_the_training_ranges():
 def test_benchmark_writes_its_tables_with_a_tiny_randomised_run(tmp_path):
     """The whole benchmark on one scene, with a few-step PPO trained with randomize=True
     standing in for the real runs (the numbers mean nothing; the layout is checked)."""
-    from agents import benchmark as BM
-    from agents import train as T
+    from fricenv_agents import benchmark as BM
+    from fricenv_agents import train as T
 
     runs = tmp_path / "runs"
     for group, extra in (("ppo_rand", ["env_kwargs:{randomize: true}"]), ("ppo", [])):
@@ -143,8 +144,10 @@ def test_benchmark_writes_its_tables_with_a_tiny_randomised_run(tmp_path):
 def test_pretrained_policy_of_every_scene_loads_and_cuts_the_stick(scene):
     from pathlib import Path
 
-    from agents.baselines import ZeroExcitation
-    from agents.common import eval_env_seed, load_controller
+    from fricenv_agents.baselines import ZeroExcitation
+    from fricenv_agents.layout import eval_env_seed
+    from fricenv_agents.runs import load_controller
+
     from fricenv.envs.scenes import SCENES
 
     path = Path(__file__).resolve().parents[1] / "agents" / "pretrained" / f"ppo_{scene}.zip"

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import pytest
@@ -20,8 +21,10 @@ def test_notebook_runs(path, tmp_path, monkeypatch):
 
     monkeypatch.setenv("MPLBACKEND", "module://matplotlib_inline.backend_inline")
     nb = nbformat.read(path, as_version=4)
-    # run where the notebook's files would go, with the repository importable (agents/)
-    monkeypatch.setenv("PYTHONPATH", str(path.parents[2]))
+    # run where the notebook's files would go, with this checkout's fricenv importable
+    # first (fricenv_agents comes from the install, or from the caller's PYTHONPATH)
+    monkeypatch.setenv("PYTHONPATH", os.pathsep.join(
+        [str(path.parents[2]), *filter(None, [os.environ.get("PYTHONPATH")])]))
     NotebookClient(nb, timeout=900, kernel_name="python3",
                    resources={"metadata": {"path": str(tmp_path)}}).execute()
     errors = [o for c in nb.cells if c.cell_type == "code" for o in c.get("outputs", [])

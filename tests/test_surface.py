@@ -105,7 +105,8 @@ def test_sb3_adapter_shows_the_vector_env_arguments():
 
 
 def test_run_configs_record_repository_paths(tmp_path, monkeypatch):
-    from agents.common import HYPERPARAMS_DIR, portable_path
+    from fricenv_agents.config import HYPERPARAMS_DIR
+    from fricenv_agents.runs import portable_path
 
     assert portable_path(HYPERPARAMS_DIR / "ppo.yml") == "agents/hyperparams/ppo.yml"
     monkeypatch.chdir(tmp_path)

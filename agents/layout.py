@@ -1,0 +1,76 @@
+"""Names and the seed layout that training, evaluation and the baselines share.
+
+Evaluation episodes must never be ones an agent trained on, and two controllers run with
+the same seed must face the same episodes; the blocks of plant seeds below make both hold.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import fricenv  # noqa: F401  (registers the environments)
+from fricenv.envs import ENV_IDS
+from fricenv.envs.scenes import SCENES
+
+if TYPE_CHECKING:
+    from stable_baselines3.common.base_class import BaseAlgorithm
+
+#: Scene name -> registered Gymnasium id (the key of the hyperparameter files).
+SCENE_ENV_IDS: dict[str, str] = {scene: env_id for env_id, scene in ENV_IDS.items()}
+ALGOS = ("ppo", "sac")
+
+
+# -- seed layout ----------------------------------------------------------------------------
+# Plant i of a vector environment seeded s draws from seed s + i. The blocks below never
+# overlap, so no evaluation episode is one a policy (or the best-constant search) saw.
+SEED_STRIDE = 1000  #: seeds reserved per training seed / evaluation seed
+MAX_PLANTS = SEED_STRIDE // 2  #: plants per block (training and in-training evaluation)
+EVAL_SEED_BASE = 10_000_000  #: final evaluation: seed k, episode j -> base + 1000 k + j
+SEARCH_SEED_BASE = 20_000_000  #: best-constant search episodes
+MAX_TRAIN_SEED = EVAL_SEED_BASE // SEED_STRIDE  # training seeds stay below the eval block
+
+
+def train_env_seed(seed: int) -> int:
+    """First plant seed of the training environment of run ``seed``."""
+    return SEED_STRIDE * seed
+
+
+def callback_env_seed(seed: int) -> int:
+    """First plant seed of the periodic evaluation during training (not the final one)."""
+    return SEED_STRIDE * seed + MAX_PLANTS
+
+
+def eval_env_seed(k: int) -> int:
+    """First plant seed of final-evaluation seed ``k``."""
+    return EVAL_SEED_BASE + SEED_STRIDE * k
+
+
+def check_seed(seed: int) -> int:
+    """``seed`` as an int if it is a training seed (below the evaluation block)."""
+    if isinstance(seed, bool) or int(seed) != seed or not 0 <= seed < MAX_TRAIN_SEED:
+        raise ValueError(f"seed must be an integer in [0, {MAX_TRAIN_SEED}), got {seed!r}")
+    return int(seed)
+
+
+
+# -- names ----------------------------------------------------------------------------------
+def check_scene(scene: str) -> str:
+    """``scene`` if it names a scene, else a ``ValueError`` listing them."""
+    if scene not in SCENES:
+        raise ValueError(f"unknown scene {scene!r}; expected one of {sorted(SCENES)}")
+    return scene
+
+
+def check_algo(algo: str) -> str:
+    """``algo`` if it is a supported algorithm, else a ``ValueError`` listing them."""
+    if algo not in ALGOS:
+        raise ValueError(f"unknown algorithm {algo!r}; expected one of {list(ALGOS)}")
+    return algo
+
+
+def algo_class(algo: str) -> type[BaseAlgorithm]:
+    """The SB3 class of ``algo`` (imports torch: call it only when training or loading)."""
+    from stable_baselines3 import PPO, SAC
+
+    classes: dict[str, type[BaseAlgorithm]] = {"ppo": PPO, "sac": SAC}
+    return classes[check_algo(algo)]

@@ -1,0 +1,87 @@
+"""Run folders and model files: where a run's paths point, and loading a trained model.
+
+A run folder (``config.yml``, ``model.zip``, ``vecnormalize.pkl``) is what
+``fricenv train`` writes; a model file (``<algo>_*.zip`` with an optional
+``<stem>_vecnormalize.pkl`` and ``<stem>.yml`` beside it) is what ships in ``pretrained/``.
+"""
+
+from __future__ import annotations
+
+import pickle
+from pathlib import Path
+
+import yaml
+
+from .layout import algo_class, check_algo
+from .rollouts import TrainedController
+
+#: The checkout holding ``agents/``: paths a run records are relative to it when inside it.
+REPO_ROOT = Path(__file__).resolve().parents[1]
+
+
+def portable_path(path: Path) -> str:
+    """``path`` as a run config records it: relative to the repository (or else to the
+    working folder) when it lies inside, so a config committed or copied to another
+    machine names no folder of the one that trained it."""
+    p = Path(path).resolve()
+    for base in (REPO_ROOT, Path.cwd().resolve()):
+        if p.is_relative_to(base):
+            return p.relative_to(base).as_posix()
+    return str(path)
+
+
+def find_vecnormalize(model_path: Path) -> Path | None:
+    """``<stem>_vecnormalize.pkl`` next to the model, else ``vecnormalize.pkl`` (run folder)."""
+    for cand in (model_path.with_name(model_path.stem + "_vecnormalize.pkl"),
+                 model_path.with_name("vecnormalize.pkl")):
+        if cand.exists():
+            return cand
+    return None
+
+
+def locate_model(path: str | Path, algo: str | None = None) -> tuple[Path, dict, str]:
+    """(model file, run config, algorithm) of a run folder (``config.yml`` + ``model.zip``)
+    or a model file, without loading it; ``ValueError`` saying what is missing.
+
+    A model file's config is ``<stem>.yml`` beside it, or the ``config.yml`` of the run
+    folder it lies in (``<run>/model.zip``). The algorithm comes from the config, else
+    ``algo``, else the file name's prefix (``ppo_...zip``).
+    """
+    path = Path(path)
+    config: dict = {}
+    if path.is_dir():
+        cfg_file = path / "config.yml"
+        if not cfg_file.exists():
+            raise ValueError(f"{path} is not a run folder (no config.yml)")
+        model_path = path / "model.zip"
+    else:
+        model_path = path
+        cfg_file = path.with_suffix(".yml")
+        if not cfg_file.exists():
+            cfg_file = path.parent / "config.yml"
+    if cfg_file.exists():
+        config = yaml.safe_load(cfg_file.read_text()) or {}
+    if not model_path.exists():
+        raise ValueError(f"no model at {model_path}" + (
+            " (an unfinished training run?)" if path.is_dir() else ""))
+    algo = config.get("algo") or algo or model_path.stem.split("_")[0]
+    try:
+        check_algo(algo)
+    except ValueError as e:
+        raise ValueError(f"{path}: {e} (name the file <algo>_*.zip or put a config beside "
+                         "it)") from None
+    return model_path, config, algo
+
+
+def load_controller(path: str | Path, algo: str | None = None) -> tuple[TrainedController, dict]:
+    """Load a run folder or a model file (see ``locate_model``); returns the controller
+    and the run config (empty for a bare file)."""
+    model_path, config, algo = locate_model(path, algo)
+    model = algo_class(algo).load(model_path, device="cpu")
+    vn = None
+    vn_path = find_vecnormalize(model_path)
+    if vn_path is not None:
+        with open(vn_path, "rb") as fh:
+            vn = pickle.load(fh)
+        vn.training = False
+    return TrainedController(model, vn, name=algo), config
