@@ -143,8 +143,8 @@ from fricenv.params import P_B1, P_B3, P_LAM, P_U1, P_U2, P_V, P_W1, P_W2, P_XFK
 # Floor of V^2 in the velocity-fluctuation term (a belt at rest would divide by 0).
 V2_FLOOR = 1e-12
 
-# Action modes (index into scenes.ACTION_MODES).
-MODE_AMPLITUDE, MODE_FREQUENCY, MODE_BOTH = 0, 1, 2
+# The action modes apply_action tests for (indices into scenes.ACTION_MODES; "both" is 2).
+MODE_AMPLITUDE, MODE_FREQUENCY = 0, 1
 
 METHOD_AUTO = -1
 TWO_PI = 2.0 * math.pi

@@ -60,7 +60,7 @@ from fricenv.params import (
 #: The single environment's plant in the instruments' (n, ...) arrays.
 _PLANT = np.zeros(1, dtype=np.int64)
 #: Most instants ``sample_interval`` returns: 17 MB of arrays and a kernel call each, far
-#: more than any plot of one control interval needs (n_samples = 1e10 asked for 170 GB).
+#: more than any plot of one control interval needs (n_samples = 1e10 would need 170 GB).
 MAX_SAMPLES = 10**6
 
 
@@ -80,8 +80,8 @@ class RenderModes(list[str]):
     """An environment's ``metadata["render_modes"]``: a list of str whose ``in`` raises the
     ``TypeError`` of :func:`check_render_mode` for anything but a str or None.
     ``gymnasium.make`` tests ``render_mode in render_modes`` before it builds the
-    environment, and for a mode not in the list calls ``render_mode.endswith``: an int
-    gave an ``AttributeError`` from inside gymnasium instead of a word on render_mode."""
+    environment, and for a mode not in the list calls ``render_mode.endswith``, which for
+    an int is an ``AttributeError`` from inside gymnasium instead of a word on render_mode."""
 
     def __contains__(self, mode: object) -> bool:
         if mode is not None and not isinstance(mode, str):
