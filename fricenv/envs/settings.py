@@ -24,7 +24,7 @@ import dataclasses
 import inspect
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, fields
-from typing import TYPE_CHECKING, Any, TypedDict
+from typing import TYPE_CHECKING, Any, TypedDict, TypeVar
 
 if TYPE_CHECKING:
     from fricenv.envs.scenes import Scene
@@ -149,10 +149,14 @@ class EnvKwargs(TypedDict, total=False):
     actuator_rate: float | None
 
 
-def settings_signature(init: Callable[..., None]) -> Callable[..., None]:
+_Init = TypeVar("_Init", bound=Callable[..., None])
+
+
+def settings_signature(init: _Init) -> _Init:
     """Give a constructor declared ``(..., **kwargs: Unpack[EnvKwargs])`` the runtime
     signature with each of ``EnvSettings``' fields as a keyword-only argument with its
-    default, in place of ``**kwargs`` (what ``help()``, IPython and notebooks show)."""
+    default, in place of ``**kwargs`` (what ``help()``, IPython and notebooks show); type
+    checkers keep seeing the declared signature."""
     sig = inspect.signature(init)
     params = [p for p in sig.parameters.values() if p.kind is not p.VAR_KEYWORD]
     params += [inspect.Parameter(f.name, inspect.Parameter.KEYWORD_ONLY, default=f.default,
