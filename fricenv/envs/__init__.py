@@ -19,6 +19,8 @@ from __future__ import annotations
 
 from typing import Any
 
+from fricenv.envs.settings import EnvKwargs, EnvSettings
+
 #: Registered ids and the scene each one makes.
 ENV_IDS: dict[str, str] = {
     "fricenv/StickSlip-v0": "paper",
@@ -29,6 +31,8 @@ ENV_IDS: dict[str, str] = {
 
 __all__ = [
     "ENV_IDS",
+    "EnvKwargs",
+    "EnvSettings",
     "SCENES",
     "Scene",
     "StickSlipEnv",

@@ -143,8 +143,8 @@ from fricenv.params import P_B1, P_B3, P_LAM, P_U1, P_U2, P_V, P_W1, P_W2, P_XFK
 # Floor of V^2 in the velocity-fluctuation term (a belt at rest would divide by 0).
 V2_FLOOR = 1e-12
 
-# Action modes (index into scenes.ACTION_MODES).
-MODE_AMPLITUDE, MODE_FREQUENCY, MODE_BOTH = 0, 1, 2
+# The action modes apply_action tests for (indices into scenes.ACTION_MODES; "both" is 2).
+MODE_AMPLITUDE, MODE_FREQUENCY = 0, 1
 
 METHOD_AUTO = -1
 TWO_PI = 2.0 * math.pi
@@ -393,19 +393,3 @@ def sample_interval(P, S, ctrl, cfg, a, stats, t_out, v_out, stick_out) -> int:
     """``sample_interval_with`` by ``core.advance``."""
     return sample_interval_with(advance, P, S, ctrl, cfg, a, stats, t_out, v_out, stick_out)
 
-
-# The vector environment's kernels live in .batch (which builds on this module); their names
-# stay importable from here, looked up on first use.
-_BATCH_NAMES = frozenset((
-    "CHUNK", "_cell", "_cells", "_count", "_plant_rows", "_plant_step", "_region",
-    "_start_next", "_step_range", "first_bad_action", "start_batch", "step_batch",
-    "step_batch_parallel", "step_batch_parallel_with", "step_batch_with", "step_range_with",
-))
-
-
-def __getattr__(name: str):
-    if name in _BATCH_NAMES:
-        from fricenv.envs import batch
-
-        return getattr(batch, name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -118,7 +118,7 @@ class Painter:
         hi = max(9.0, x + self.BLOCK_W + 2.0)
         ax.set_xlim(lo, hi)
         # Belt marks move with the belt: one per unit, or per power of ten keeping them under
-        # 100 when the block is far out (a mark per unit at x = 1e12 was a 7 TiB array).
+        # 100 when the block is far out (a mark per unit at x = 1e12 would be a 7 TiB array).
         spacing = 10.0 ** max(0, math.ceil(math.log10((hi - lo) / 100.0)))
         shift = (V * t) % spacing
         marks = np.arange(math.floor(lo) - 1, hi + 1, spacing) + shift

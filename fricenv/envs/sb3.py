@@ -9,64 +9,67 @@ PPO trains on N plants stepped by one numba call, without ``DummyVecEnv``'s per-
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Any
+from typing import Any, Unpack
 
 import gymnasium as gym
 import numpy as np
 from gymnasium.vector import AutoresetMode
 from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvIndices, VecEnvStepReturn
 
-from fricenv.envs import kernels as K
-from fricenv.envs.scenes import Scene
-from fricenv.envs.vector import StickSlipVectorEnv, plant_seeds
+from fricenv.envs.settings import EnvKwargs, EnvSettings, settings_signature
+from fricenv.envs.vector import StickSlipVectorEnv
+
+#: The per-interval values each plant's info holds, as the vector env reports them.
+_INFO_KEYS = ("stick_fraction", "effort", "velocity_variance", "mean_relative_velocity")
+
+
+def _step_values(info: dict[str, Any], key: str) -> np.ndarray:
+    """Every plant's ``key`` of the step the vector env's same-step ``info`` reports: a
+    plant whose episode ended and restarted on it has its value in ``final_info``."""
+    final = info.get("final_info")
+    if final is None:
+        return info[key]
+    if key not in info:  # every plant restarted
+        return final[key]
+    return np.where(info["_" + key], info[key], final[key])
 
 
 class StickSlipSB3VecEnv(VecEnv):
     """SB3 view of ``num_envs`` plants: ``StickSlipSB3VecEnv(num_envs=64, scene="paper")``.
 
-    Keyword arguments are those of ``StickSlipVectorEnv`` (``autoreset_mode`` must be
-    same-step). ``seed()`` and ``set_options()`` act at the next ``reset()``, as in SB3:
-    plant i is seeded ``seed + i``. Attribute access (``get_attr``, ``set_attr``,
-    ``env_method``) reaches the vector environment, which all plants share: ``get_attr`` and
-    ``env_method`` return its one answer for each index asked, and ``set_attr`` sets a value
-    for all plants, so it refuses ``indices`` that name only some of them. An index outside
-    the plants is an ``IndexError``, as in ``DummyVecEnv``.
+    Arguments are those of ``StickSlipVectorEnv`` (the settings as ``EnvSettings``' fields
+    or ``settings=``; ``autoreset_mode`` must be same-step), and it uses only that
+    environment's public methods. ``seed()`` and ``set_options()`` act at the next
+    ``reset()``, as in SB3: plant i is seeded ``seed + i``. Attribute access
+    (``get_attr``, ``set_attr``, ``env_method``) reaches the vector environment, which all
+    plants share: ``get_attr`` and ``env_method`` return its one answer for each index
+    asked, and ``set_attr`` sets a value for all plants, so it refuses ``indices`` that
+    name only some of them. An index outside the plants is an ``IndexError``, as in
+    ``DummyVecEnv``.
 
     The info of a plant whose episode ends also holds ``episode_stick_fraction``, the
     episode's stick-time fraction (``stick_fraction`` is the last interval's), for
     ``VecMonitor(info_keywords=...)`` to log.
     """
 
+    @settings_signature
     def __init__(
         self,
         num_envs: int = 1,
         max_episode_steps: int | None = None,
         render_mode: str | None = None,
         autoreset_mode: AutoresetMode | str = AutoresetMode.SAME_STEP,
-        scene: str | Scene = "paper",
-        action_mode: str | None = None,
-        incremental: bool = False,
-        control_dt: float | None = None,
-        randomize: bool = False,
-        reward_weights: Any = None,
-        params: dict | None = None,
-        method: str = "auto",
-        obs_noise: Any = None,
-        obs_delay: int = 0,
-        observe: Any = None,
-        actuator_lag: float = 0.0,
-        actuator_rate: float | None = None,
+        *,
+        settings: EnvSettings | None = None,
+        **kwargs: Unpack[EnvKwargs],
     ):
         if autoreset_mode not in (AutoresetMode.SAME_STEP, AutoresetMode.SAME_STEP.value):
             raise ValueError(
                 f"SB3 needs same-step autoreset; got autoreset_mode={autoreset_mode!r}")
         self.venv = StickSlipVectorEnv(
             num_envs=num_envs, max_episode_steps=max_episode_steps, render_mode=render_mode,
-            autoreset_mode=autoreset_mode, scene=scene, action_mode=action_mode,
-            incremental=incremental, control_dt=control_dt, randomize=randomize,
-            reward_weights=reward_weights, params=params, method=method,
-            obs_noise=obs_noise, obs_delay=obs_delay, observe=observe,
-            actuator_lag=actuator_lag, actuator_rate=actuator_rate)
+            autoreset_mode=autoreset_mode,
+            settings=EnvSettings.of(settings, kwargs, "StickSlipSB3VecEnv"))
         self._actions: np.ndarray | None = None
         # each plant's running episode: sum of its intervals' stick fractions, and steps
         self._stick_sum = np.zeros(self.venv.num_envs)
@@ -75,17 +78,19 @@ class StickSlipSB3VecEnv(VecEnv):
             self.venv.num_envs, self.venv.single_observation_space, self.venv.single_action_space
         )
 
+    @property
+    def settings(self) -> EnvSettings:
+        """The settings the plants were made with."""
+        return self.venv.settings
+
     def reset(self) -> np.ndarray:
-        n = self.num_envs
-        seeds = plant_seeds(list(self._seeds), n)  # VecEnv.seed(np.int64(3)) adds numpy ints
-        options = [dict(o) if o else {} for o in self._options]
-        self.venv._reset_plants(np.arange(n), seeds, options)  # per-plant seeds and options
+        obs, _ = self.venv.reset_plants(self._seeds, self._options)  # per-plant seeds, options
         self._reset_seeds()
         self._reset_options()
-        self.reset_infos = [{} for _ in range(n)]
+        self.reset_infos = [{} for _ in range(self.num_envs)]
         self._stick_sum[:] = 0.0
         self._episode_steps[:] = 0
-        return self.venv._observation()
+        return obs
 
     def step_async(self, actions: np.ndarray) -> None:
         self._actions = actions
@@ -95,17 +100,15 @@ class StickSlipSB3VecEnv(VecEnv):
             raise RuntimeError("step_wait() called before step_async(actions)")
         obs, rewards, terminated, truncated, info = self.venv.step(self._actions)
         dones = terminated | truncated
-        res = self.venv._res  # this step's values, also for plants reset just now
-        sf = res[K.R_STICK].tolist()
-        ef = res[K.R_EFFORT].tolist()
-        qv = res[K.R_VAR].tolist()
-        mv = res[K.R_MEAN_VR].tolist()
+        # this step's values of every plant, also of those restarted on it
+        stick, effort, var, mean_vr = (_step_values(info, key) for key in _INFO_KEYS)
         infos = [
             {"stick_fraction": s, "effort": e, "velocity_variance": q,
              "mean_relative_velocity": m, "TimeLimit.truncated": False}
-            for s, e, q, m in zip(sf, ef, qv, mv, strict=True)
+            for s, e, q, m in zip(stick.tolist(), effort.tolist(), var.tolist(),
+                                  mean_vr.tolist(), strict=True)
         ]
-        self._stick_sum += res[K.R_STICK]
+        self._stick_sum += stick
         self._episode_steps += 1
         if dones.any():  # ("TimeLimit.truncated" as a DummyVecEnv of gym.make'd envs sets it)
             final_obs = info["final_obs"]

@@ -69,7 +69,7 @@ THREE_WEIGHTS = "three weights (w_stick, w_velocity, w_effort)"
 #: Shortest control interval. The step's mean velocity and variance are differences over it,
 #: (x_end - x_start) / dt and the mean of (v - V)^2 less the mean's square, so they keep
 #: about log10(dt / 1e-16) digits, and time itself resolves only ~1e-13 max(1, |t|): at
-#: dt = 1e-12 the variance was rounding noise of 3e-3, at 1e-300 the mean read 2e284.
+#: dt = 1e-12 the variance is rounding noise of about 3e-3, at 1e-300 the mean reads 2e284.
 MIN_CONTROL_DT = 1e-6
 
 #: Most scan steps one control interval may need (``core.most_scan_steps``, the kernels' own
@@ -248,7 +248,7 @@ class Scene:
 def _randomization_items(value: Any) -> list[tuple[Any, Any]]:
     """The ``(param, range)`` items of a scene's ``randomization``: a dict (or None), or the
     tuple of pairs a scene stores it as (what ``replace`` passes back); ``TypeError`` naming
-    it otherwise (a list of names gave a raw error from ``dict()``)."""
+    it otherwise, rather than ``dict()``'s own error."""
     if isinstance(value, tuple) and all(
         isinstance(item, tuple) and len(item) == 2 and isinstance(item[0], str) for item in value
     ):

@@ -30,7 +30,7 @@ setting exactly as written (``clip(s + 0 * du) = s``), so no kernel changes.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -361,11 +361,6 @@ def check_noise_state(noise: Any, where: str) -> None:
             and rows.shape[0] <= NOISE_ROWS and rows.dtype == np.float64):
         raise ValueError(f"{where}: unread normals must be a float64 array (m, {K.N_OBS}) "
                          f"with m <= {NOISE_ROWS}, {got(rows)}")
-
-
-def sequence_of_channels(channels: Sequence[int] | None) -> list[str]:
-    """Channel names of indices (all nine for None), for messages and reports."""
-    return list(CHANNELS) if channels is None else [CHANNELS[c] for c in channels]
 
 
 @kernel

@@ -1,8 +1,9 @@
-"""What an environment derives from its ``make`` arguments, and the checks its steps share.
+"""What an environment derives from its settings, and the checks its steps share.
 
-``EnvSetup.build`` turns the keyword arguments of ``StickSlipEnv`` and
-``StickSlipVectorEnv`` into the scene, the spaces and the kernels' configuration, once, so
-that both environments read them alike; ``raise_status`` and ``coerce_action`` are the
+``EnvSetup.build`` turns an ``EnvSettings`` (``fricenv.envs.settings``: what
+``StickSlipEnv``, ``StickSlipVectorEnv`` and the SB3 adapter are made with) into the
+scene, the spaces and the kernels' configuration, once, so that every environment reads
+them alike; ``raise_status`` and ``coerce_action`` are the
 error and action paths their steps have in common. A module of its own so that neither
 environment's module carries the other's construction.
 """
@@ -29,6 +30,7 @@ from fricenv.envs.scenes import (
     get_scene,
 )
 from fricenv.envs.sensors import Instruments
+from fricenv.envs.settings import EnvSettings
 from fricenv.layout import (
     METHOD_EVENT,
     METHOD_EXACT,
@@ -56,8 +58,10 @@ MAX_EVENTS = 10_000
 
 @dataclass(frozen=True)
 class EnvSetup:
-    """Everything the single and the vector environment derive from their ``make`` kwargs."""
+    """Everything the single and the vector environment derive from their settings."""
 
+    #: the settings it was built from (``EnvSettings``, as given)
+    settings: EnvSettings
     scene: Scene
     action_mode: str
     incremental: bool
@@ -75,47 +79,25 @@ class EnvSetup:
     full_observation_space: spaces.Box
 
     @classmethod
-    def build(
-        cls,
-        scene: str | Scene = "paper",
-        action_mode: str | None = None,
-        incremental: bool = False,
-        control_dt: float | None = None,
-        randomize: bool = False,
-        reward_weights: Any = None,
-        params: dict | None = None,
-        method: str = "auto",
-        obs_noise: Any = None,
-        obs_delay: int = 0,
-        observe: Any = None,
-        actuator_lag: float = 0.0,
-        actuator_rate: float | None = None,
-    ) -> EnvSetup:
-        sc = get_scene(scene)
-        instruments = Instruments.build(obs_noise, obs_delay, observe, actuator_lag,
-                                        actuator_rate)
+    def build(cls, settings: EnvSettings | str | Scene = "paper", **kwargs: Any) -> EnvSetup:
+        """The setup of ``settings`` (an ``EnvSettings``), or of a scene and the other
+        settings as keywords: ``EnvSetup.build("paper", obs_delay=2)``. Every value is
+        checked here; an error names the setting and the value."""
+        if isinstance(settings, EnvSettings):
+            if kwargs:
+                raise TypeError("EnvSetup.build takes an EnvSettings or a scene and keywords, "
+                                f"not both (got keywords {sorted(kwargs)})")
+        else:
+            settings = EnvSettings.from_kwargs({"scene": settings, **kwargs}, "EnvSetup.build")
+        st = settings
+        sc = get_scene(st.scene)
+        instruments = Instruments.build(st.obs_noise, st.obs_delay, st.observe,
+                                        st.actuator_lag, st.actuator_rate)
         # bools only: a truthy string such as 'no' would switch the mode on
-        incremental = check_bool("incremental", incremental)
-        randomize = check_bool("randomize", randomize)
-        changes: dict[str, Any] = {}
-        check_dict("params", params, "a dict of plant parameters, e.g. {'lam': 0.2},")
-        if params:
-            changes["params"] = sc.params.replace(**params)
-            # a value given explicitly is kept for every episode, not drawn over
-            changes["randomization"] = tuple(
-                (k, r) for k, r in sc.randomization if k not in params)
-        if not randomize and sc.randomization:
-            # ranges never drawn from are not checked against the plant either: with
-            # params={"xfs": 2.5}, x_fk's range (2.2, 2.8) refused a plant that is valid
-            changes["randomization"] = ()
-        if action_mode is not None:
-            changes["action_mode"] = action_mode
-        if control_dt is not None:
-            changes["control_dt"] = check_real("control_dt", control_dt)
-        if reward_weights is not None:
-            changes["reward_weights"] = _reward_weights(reward_weights, sc.reward_weights)
-        if changes:
-            sc = sc.replace(**changes)
+        incremental = check_bool("incremental", st.incremental)
+        randomize = check_bool("randomize", st.randomize)
+        sc = _changed_scene(sc, st, randomize)
+        method = st.method
         if not isinstance(method, str):
             raise TypeError(f"method must be one of {sorted(_METHODS)}, got {method!r}")
         if method not in _METHODS:
@@ -130,26 +112,10 @@ class EnvSetup:
         # Every episode drawn without options (the vector env's autoresets included) stays
         # within what this checks; reset(options=...) checks its own plant.
         sc.check_interval_cost(randomize)
-
-        cfg = K.empty_cfg()
-        (ulo, uhi), (nlo, nhi) = sc.u0_range, sc.nu_range
-        g1, g2 = sc.tone_gains
-        cfg[K.C_DT] = sc.control_dt
-        cfg[K.C_ACTION_MODE] = ACTION_MODES.index(sc.action_mode)
-        cfg[K.C_INCREMENTAL] = 1.0 if incremental else 0.0
-        cfg[K.C_U_LO], cfg[K.C_U_HI] = ulo, uhi
-        cfg[K.C_NU_LO], cfg[K.C_NU_HI] = nlo, nhi
-        cfg[K.C_DU] = sc.max_delta * (uhi - ulo)
-        cfg[K.C_DNU] = sc.max_delta * (nhi - nlo)
-        cfg[K.C_G1], cfg[K.C_G2] = g1, g2
-        cfg[K.C_W_STICK], cfg[K.C_W_VEL], cfg[K.C_W_EFFORT] = sc.reward_weights
-        cfg[K.C_EFFORT_NORM] = 1.0 / ((g1 * g1 + g2 * g2) * uhi * uhi)
-        cfg[K.C_X_LIM], cfg[K.C_V_LIM] = sc.x_limit, sc.v_limit
-        cfg[K.C_METHOD] = _METHODS[method]
-        cfg[K.C_RTOL], cfg[K.C_ATOL], cfg[K.C_MAX_EVENTS] = RTOL, ATOL, MAX_EVENTS
-        cfg[K.C_U0_START], cfg[K.C_NU_START] = sc.params.u0, sc.params.nu
+        cfg = _kernel_cfg(sc, incremental, method)
 
         n_act = 2 if sc.action_mode == "both" else 1
+        (ulo, uhi), (nlo, nhi) = sc.u0_range, sc.nu_range
         action_space = spaces.Box(-1.0, 1.0, shape=(n_act,), dtype=np.float32)
         high = np.array(
             [sc.x_limit, sc.v_limit, 1.0, 1.0, 1.0, 1.0, 1.0, uhi, nhi], dtype=np.float32
@@ -165,18 +131,19 @@ class EnvSetup:
             kernel_cfg = instruments.kernel_cfg(cfg)
         draw_lo, draw_hi = sc.draw_bounds(randomize)
         return cls(
-            sc,
-            sc.action_mode,
-            incremental,
-            randomize,
-            cfg,
-            action_space,
-            observation_space,
-            draw_lo,
-            draw_hi,
-            instruments,
-            kernel_cfg,
-            full_space,
+            settings=settings,
+            scene=sc,
+            action_mode=sc.action_mode,
+            incremental=incremental,
+            randomize=randomize,
+            cfg=cfg,
+            action_space=action_space,
+            observation_space=observation_space,
+            draw_lo=draw_lo,
+            draw_hi=draw_hi,
+            instruments=instruments,
+            kernel_cfg=kernel_cfg,
+            full_observation_space=full_space,
         )
 
     def draw(self, rng: np.random.Generator) -> np.ndarray:
@@ -192,6 +159,51 @@ class EnvSetup:
         episode_from_draws(self.scene, values, options, P_out, init_out)
         if self.cfg[K.C_METHOD] == METHOD_EXACT and (P_out[P_B1] != 0.0 or P_out[P_B3] != 0.0):
             raise ValueError("method='exact' needs the Coulomb law (b1 = b3 = 0)")
+
+
+def _changed_scene(sc: Scene, st: EnvSettings, randomize: bool) -> Scene:
+    """Scene ``sc`` with the changes the other settings of ``st`` make."""
+    params = st.params
+    changes: dict[str, Any] = {}
+    check_dict("params", params, "a dict of plant parameters, e.g. {'lam': 0.2},")
+    if params:
+        changes["params"] = sc.params.replace(**params)
+        # a value given explicitly is kept for every episode, not drawn over
+        changes["randomization"] = tuple(
+            (k, r) for k, r in sc.randomization if k not in params)
+    if not randomize and sc.randomization:
+        # ranges never drawn from are not checked against the plant either (a plant with
+        # params={"xfs": 2.5} is valid whatever x_fk's range would allow)
+        changes["randomization"] = ()
+    if st.action_mode is not None:
+        changes["action_mode"] = st.action_mode
+    if st.control_dt is not None:
+        changes["control_dt"] = check_real("control_dt", st.control_dt)
+    if st.reward_weights is not None:
+        changes["reward_weights"] = _reward_weights(st.reward_weights, sc.reward_weights)
+    return sc.replace(**changes) if changes else sc
+
+
+def _kernel_cfg(sc: Scene, incremental: bool, method: str) -> np.ndarray:
+    """The kernels' configuration vector (``kernels.C_*``) of scene ``sc``."""
+    cfg = K.empty_cfg()
+    (ulo, uhi), (nlo, nhi) = sc.u0_range, sc.nu_range
+    g1, g2 = sc.tone_gains
+    cfg[K.C_DT] = sc.control_dt
+    cfg[K.C_ACTION_MODE] = ACTION_MODES.index(sc.action_mode)
+    cfg[K.C_INCREMENTAL] = 1.0 if incremental else 0.0
+    cfg[K.C_U_LO], cfg[K.C_U_HI] = ulo, uhi
+    cfg[K.C_NU_LO], cfg[K.C_NU_HI] = nlo, nhi
+    cfg[K.C_DU] = sc.max_delta * (uhi - ulo)
+    cfg[K.C_DNU] = sc.max_delta * (nhi - nlo)
+    cfg[K.C_G1], cfg[K.C_G2] = g1, g2
+    cfg[K.C_W_STICK], cfg[K.C_W_VEL], cfg[K.C_W_EFFORT] = sc.reward_weights
+    cfg[K.C_EFFORT_NORM] = 1.0 / ((g1 * g1 + g2 * g2) * uhi * uhi)
+    cfg[K.C_X_LIM], cfg[K.C_V_LIM] = sc.x_limit, sc.v_limit
+    cfg[K.C_METHOD] = _METHODS[method]
+    cfg[K.C_RTOL], cfg[K.C_ATOL], cfg[K.C_MAX_EVENTS] = RTOL, ATOL, MAX_EVENTS
+    cfg[K.C_U0_START], cfg[K.C_NU_START] = sc.params.u0, sc.params.nu
+    return cfg
 
 
 def _reward_weights(value: Any, current: tuple[float, ...]) -> tuple[float, ...]:

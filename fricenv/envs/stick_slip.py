@@ -8,7 +8,7 @@ numba kernel (``kernels.step_single``) that integrates exactly to the next contr
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import Any, Unpack
 
 import gymnasium as gym
 import numpy as np
@@ -16,21 +16,10 @@ import numpy as np
 from fricenv.checks import check_int, got, is_int
 from fricenv.core import new_workspace
 from fricenv.envs import kernels as K
-from fricenv.envs.scenes import Scene, check_episode_cost, new_episode_arrays
+from fricenv.envs.scenes import check_episode_cost, new_episode_arrays
 from fricenv.envs.sensors import InstrumentBank, actuate_one
-
-# EnvSetup and the shared step checks (setup.py), re-exported: the vector env, the agents
-# and the tests import them from this module
-from fricenv.envs.setup import (  # noqa: F401
-    ACTION_DTYPES,
-    ATOL,
-    MAX_EVENTS,
-    RTOL,
-    EnvSetup,
-    _reward_weights,
-    coerce_action,
-    raise_status,
-)
+from fricenv.envs.settings import EnvKwargs, EnvSettings, settings_signature
+from fricenv.envs.setup import ACTION_DTYPES, EnvSetup, coerce_action, raise_status
 from fricenv.envs.state import PL_CTRL, PL_P, PL_S, PL_WORK, PlantState, check_state, pack, unpack
 from fricenv.envs.steppers import steppers_for, steppers_for_plants
 from fricenv.layout import (
@@ -60,7 +49,7 @@ from fricenv.params import (
 #: The single environment's plant in the instruments' (n, ...) arrays.
 _PLANT = np.zeros(1, dtype=np.int64)
 #: Most instants ``sample_interval`` returns: 17 MB of arrays and a kernel call each, far
-#: more than any plot of one control interval needs (n_samples = 1e10 asked for 170 GB).
+#: more than any plot of one control interval needs (n_samples = 1e10 would need 170 GB).
 MAX_SAMPLES = 10**6
 
 
@@ -80,8 +69,8 @@ class RenderModes(list[str]):
     """An environment's ``metadata["render_modes"]``: a list of str whose ``in`` raises the
     ``TypeError`` of :func:`check_render_mode` for anything but a str or None.
     ``gymnasium.make`` tests ``render_mode in render_modes`` before it builds the
-    environment, and for a mode not in the list calls ``render_mode.endswith``: an int
-    gave an ``AttributeError`` from inside gymnasium instead of a word on render_mode."""
+    environment, and for a mode not in the list calls ``render_mode.endswith``, which for
+    an int is an ``AttributeError`` from inside gymnasium instead of a word on render_mode."""
 
     def __contains__(self, mode: object) -> bool:
         if mode is not None and not isinstance(mode, str):
@@ -219,6 +208,10 @@ class StickSlipEnv(gym.Env):
     >>> env = gym.make("fricenv/StickSlip-v0", scene="paper", action_mode="both")
     ```
 
+    All but `render_mode` are the fields of ``fricenv.envs.settings.EnvSettings``: give
+    them as keywords, or as one record, ``StickSlipEnv(settings=EnvSettings(...))`` (not
+    both; `env.settings` is the record an environment was made with).
+
     - `scene`: `"paper"` (default for `StickSlip-v0`), `"self_excited"`, `"stribeck"`,
       `"viscous"`, or a `Scene`.
       The horizon is the id's `max_episode_steps`: use the scene's own id (or pass
@@ -282,39 +275,11 @@ class StickSlipEnv(gym.Env):
 
     metadata = {"render_modes": RenderModes(["human", "rgb_array"]), "render_fps": 12}
 
-    def __init__(
-        self,
-        render_mode: str | None = None,
-        scene: str | Scene = "paper",
-        action_mode: str | None = None,
-        incremental: bool = False,
-        control_dt: float | None = None,
-        randomize: bool = False,
-        reward_weights: Any = None,
-        params: dict | None = None,
-        method: str = "auto",
-        obs_noise: Any = None,
-        obs_delay: int = 0,
-        observe: Any = None,
-        actuator_lag: float = 0.0,
-        actuator_rate: float | None = None,
-    ):
+    @settings_signature
+    def __init__(self, render_mode: str | None = None, *, settings: EnvSettings | None = None,
+                 **kwargs: Unpack[EnvKwargs]):
         check_render_mode(render_mode, self.metadata["render_modes"])
-        self.setup = EnvSetup.build(
-            scene,
-            action_mode,
-            incremental,
-            control_dt,
-            randomize,
-            reward_weights,
-            params,
-            method,
-            obs_noise,
-            obs_delay,
-            observe,
-            actuator_lag,
-            actuator_rate,
-        )
+        self.setup = EnvSetup.build(EnvSettings.of(settings, kwargs, "StickSlipEnv"))
         self.scene = self.setup.scene
         self.render_mode = render_mode
         self.action_space = self.setup.action_space
@@ -354,6 +319,11 @@ class StickSlipEnv(gym.Env):
             from fricenv.envs.rendering import Renderer  # lazy: no matplotlib unless asked
 
             self._renderer = Renderer(render_mode, self.metadata["render_fps"], self.dt)
+
+    @property
+    def settings(self) -> EnvSettings:
+        """The settings this environment was made with."""
+        return self.setup.settings
 
     # -- Gymnasium API ------------------------------------------------------------------------
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, float]]:

@@ -2,36 +2,51 @@
 
 Built like Gymnasium's ``CartPoleVectorEnv`` but bit-compatible with
 ``SyncVectorEnv`` over ``StickSlipEnv``: plant ``i`` owns its own random generator, seeded
-``seed + i`` as ``SyncVectorEnv`` seeds its sub-environments. Each plant keeps the uniforms
-of its next ``DRAW_ROWS`` episodes in a buffer (one ``rng.random`` call yields the same
-numbers as that many calls of one episode's size), so the kernel autoresets in place with
-exactly the numbers a single environment would draw at its next ``reset()``, and Python
-only refills a plant's buffer every ``DRAW_ROWS`` episodes.
+``seed + i`` as ``SyncVectorEnv`` seeds its sub-environments, and the kernel autoresets it
+in place with exactly the numbers a single environment would draw at its next ``reset()``
+(buffered ahead, ``fricenv.envs.vector_draws``). The environment owns its parts rather
+than inheriting them: the random streams (``PlantDraws``), the sensors and actuators
+(``fricenv.envs.vector_instruments.PlantInstruments``) and the frames
+(``fricenv.envs.vector_render.PlantFrames``), each handed the arrays it works on.
 """
 
 from __future__ import annotations
 
 import math
-from typing import Any
+from collections.abc import Mapping, Sequence
+from typing import Any, Unpack
 
 import numba
 import numpy as np
 from gymnasium import error as gym_error
-from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from fricenv.checks import check_dict, check_int, got, is_int, items_of
 from fricenv.core import new_workspace
 from fricenv.envs import kernels as K
-from fricenv.envs.scenes import N_DRAWS, N_INIT, Scene, check_episode_cost
+from fricenv.envs.batch import first_bad_action, start_batch
+from fricenv.envs.scenes import N_INIT, check_episode_cost
+from fricenv.envs.settings import EnvKwargs, EnvSettings, settings_signature
 from fricenv.envs.setup import ACTION_DTYPES, EnvSetup, coerce_action, raise_status
+from fricenv.envs.state import (
+    N_PLANT,
+    PL_CTRL,
+    PL_P,
+    PL_S,
+    PL_WORK,
+    PlantState,
+    check_state,
+    pack,
+    unpack,
+)
 from fricenv.envs.steppers import Steppers, steppers_for_plants
 from fricenv.envs.stick_slip import RenderModes, check_render_mode
-from fricenv.envs.vector_plants import VectorPlants
-from fricenv.envs.vector_render import VectorRendering
+from fricenv.envs.vector_draws import DRAW_ROWS, PlantDraws, plant_seeds
+from fricenv.envs.vector_instruments import PlantInstruments
+from fricenv.envs.vector_render import PlantFrames, plant_snapshot
 from fricenv.jit import parallel_section
-from fricenv.layout import METHOD_EXACT, S_MODE, S_T, S_V, STATUS_DIVERGED
+from fricenv.layout import METHOD_EXACT, STATUS_DIVERGED
 
 _AUTORESET = {
     AutoresetMode.NEXT_STEP: K.AUTORESET_NEXT_STEP,
@@ -66,37 +81,13 @@ def _info_dict(vals, masks) -> dict[str, Any]:
     return infos
 
 
-def plant_seeds(seed: Any, n: int) -> list[int | None]:
-    """Per-plant seeds from the forms Gymnasium's vector envs take: None, an int (plant i
-    gets ``seed + i``) or a list of ``n`` ints or Nones (``TypeError`` / ``ValueError``
-    naming the value otherwise, rather than a failure inside the seeding)."""
-    if seed is None:
-        return [None] * n
-    if is_int(seed):
-        return [int(seed) + i for i in range(n)]
-    seeds = items_of(seed)
-    if seeds is None:
-        raise TypeError(
-            f"seed must be an int, a list of num_envs={n} ints or Nones, or None, {got(seed)}"
-        )
-    if len(seeds) != n:
-        raise ValueError(
-            f"seed list must have length num_envs={n}, got {len(seeds)} seeds: {seed!r}"
-        )
-    for i, s in enumerate(seeds):
-        if s is not None and not is_int(s):
-            raise TypeError(f"seed[{i}] must be an int or None, {got(s)}")
-    return [None if s is None else int(s) for s in seeds]
-
-
 #: Most plants a vector env may hold: about 7 kB each (the kernels' table, buffered draws
-#: and a random generator), 700 MB at the cap and some ten seconds to build and seed them;
-#: num_envs = 10**12 asked for 7 TiB and ended in MemoryError.
+#: and a random generator), 700 MB at the cap and some ten seconds to build and seed them.
 MAX_NUM_ENVS = 10**5
 #: Most scan steps (``core.most_scan_steps``, the kernels' own floor) one vector step may
 #: need over all its plants: about a second at the closed form's ~90 ns a step. Each plant
-#: is held to ``scenes.MAX_INTERVAL_SCAN_STEPS`` already, but 10,000 plants under a tone
-#: at eta = 1e5 took minutes a step.
+#: is held to ``scenes.MAX_INTERVAL_SCAN_STEPS`` already; this bounds their sum (10,000
+#: plants under a tone at eta = 1e5 would take minutes a step).
 MAX_VECTOR_SCAN_STEPS = 1e7
 #: From this many plants on, a step spreads them over threads (numba prange).
 PARALLEL_MIN_ENVS = 64
@@ -116,9 +107,6 @@ PROBE_STEPS = 2
 SERIAL_STRETCH_MIN = 32
 SERIAL_STRETCH_MAX = 2048
 assert 1 <= PROBE_STEPS <= LATE_STEPS
-#: Episodes' worth of uniforms buffered per plant: one ``rng.random`` call every so many
-#: episodes instead of one per episode.
-DRAW_ROWS = 16
 
 
 def _check_max_steps(value: Any) -> int:
@@ -126,14 +114,15 @@ def _check_max_steps(value: Any) -> int:
     return check_int("max_episode_steps", value, 1, int(np.iinfo(np.int64).max))
 
 
-class StickSlipVectorEnv(VectorPlants, VectorRendering, VectorEnv):
+class StickSlipVectorEnv(VectorEnv):
     """``num_envs`` independent ``StickSlipEnv`` plants, stepped in one numba call.
 
-    Arguments are those of ``StickSlipEnv`` plus ``num_envs`` (1 to ``MAX_NUM_ENVS``, and
-    few enough that a step needs at most ``MAX_VECTOR_SCAN_STEPS`` scan steps in all),
-    ``max_episode_steps`` (default:
-    the scene's horizon; ``gymnasium.make_vec`` passes the registered one) and
-    ``autoreset_mode`` (``AutoresetMode`` or its value; default next-step, as Gymnasium's).
+    Arguments are those of ``StickSlipEnv`` (the settings, ``EnvSettings``' fields as
+    keywords or one record as ``settings=``, and ``render_mode``) plus ``num_envs`` (1 to
+    ``MAX_NUM_ENVS``, and few enough that a step needs at most ``MAX_VECTOR_SCAN_STEPS``
+    scan steps in all), ``max_episode_steps`` (default: the scene's horizon;
+    ``gymnasium.make_vec`` passes the registered one) and ``autoreset_mode``
+    (``AutoresetMode`` or its value; default next-step, as Gymnasium's).
     Observations ``(num_envs, 9)`` float32, actions ``(num_envs, n)`` in [-1, 1], rewards
     float64, and ``info`` keys ``stick_fraction``, ``effort``, ``velocity_variance``,
     ``mean_relative_velocity`` with their ``_key`` masks, as ``SyncVectorEnv`` would batch
@@ -148,50 +137,26 @@ class StickSlipVectorEnv(VectorPlants, VectorRendering, VectorEnv):
         "autoreset_mode": AutoresetMode.NEXT_STEP,
     }
 
+    @settings_signature
     def __init__(
         self,
         num_envs: int = 1,
         max_episode_steps: int | None = None,
         render_mode: str | None = None,
         autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
-        scene: str | Scene = "paper",
-        action_mode: str | None = None,
-        incremental: bool = False,
-        control_dt: float | None = None,
-        randomize: bool = False,
-        reward_weights: Any = None,
-        params: dict | None = None,
-        method: str = "auto",
-        obs_noise: Any = None,
-        obs_delay: int = 0,
-        observe: Any = None,
-        actuator_lag: float = 0.0,
-        actuator_rate: float | None = None,
+        *,
+        settings: EnvSettings | None = None,
+        **kwargs: Unpack[EnvKwargs],
     ):
         # first: close() runs from __del__ even when a check below refuses the arguments
-        self._traces = None
-        self._painter = None
+        self._frames: PlantFrames | None = None  # each plant's recent motion, if rendering
         num_envs = check_int("num_envs", num_envs, 1, MAX_NUM_ENVS)
         check_render_mode(render_mode, self.metadata["render_modes"])
         self._autoreset_mode = AutoresetMode(autoreset_mode)
         self.metadata = {**type(self).metadata, "autoreset_mode": self._autoreset_mode}
-        self.setup = EnvSetup.build(
-            scene,
-            action_mode,
-            incremental,
-            control_dt,
-            randomize,
-            reward_weights,
-            params,
-            method,
-            obs_noise,
-            obs_delay,
-            observe,
-            actuator_lag,
-            actuator_rate,
-        )
+        self.setup = EnvSetup.build(EnvSettings.of(settings, kwargs, "StickSlipVectorEnv"))
         self.scene = self.setup.scene
-        self.scene.check_interval_cost(randomize, MAX_VECTOR_SCAN_STEPS / num_envs,
+        self.scene.check_interval_cost(self.setup.randomize, MAX_VECTOR_SCAN_STEPS / num_envs,
                                        self._batch_context(num_envs))
         self.num_envs = n = num_envs
         max_episode_steps = _check_max_steps(
@@ -206,7 +171,8 @@ class StickSlipVectorEnv(VectorPlants, VectorRendering, VectorEnv):
         self.observation_space = batch_space(self.single_observation_space, n)
 
         self._cfg = self.setup.kernel_cfg
-        self._init_instruments(n)
+        # the sensors' and actuators' buffers, if any
+        self._inst = None if self.setup.instruments is None else PlantInstruments(self.setup, n)
         # The kernels' few batch arrays (kernels.T_* and friends); the per-plant arrays the
         # Python side works with are views of them (_bind_views).
         self._table = np.zeros((n, K.N_TABLE))
@@ -229,15 +195,15 @@ class StickSlipVectorEnv(VectorPlants, VectorRendering, VectorEnv):
         self._serial_left = 0  # steps still to run serially
         self._serial_stretch = SERIAL_STRETCH_MIN
 
-        # Each plant's buffered uniforms (DRAW_ROWS episodes ahead) and its next row.
-        self._draws = np.zeros((n, DRAW_ROWS, N_DRAWS))
+        # Each plant's generator and buffered uniforms (the kernel reads _draws, the same
+        # array), and its next row.
+        self._streams = PlantDraws(n)
+        self._draws = self._streams.draws
         self._cursor[:] = DRAW_ROWS
         self._bounds = np.stack([self.setup.draw_lo, self.setup.draw_hi])
         self._use_steppers(steppers_for_plants(self._cfg[K.C_METHOD],
                                                self.setup.scene.params.to_array(),
                                                *self._bounds))
-        self._rngs: list[np.random.Generator | None] = [None] * n
-        self._seeds: list[int | None] = [None] * n  # each generator's seed, as reported
         # Episodes started in the kernel skip EnvSetup.episode's check: it cannot fail
         # without options when b1 and b3 are drawn from [0, 0].
         b13 = self._bounds[:, [K.D_B1, K.D_B3]]
@@ -252,9 +218,7 @@ class StickSlipVectorEnv(VectorPlants, VectorRendering, VectorEnv):
         self._all_true.flags.writeable = False
 
         if render_mode is not None:
-            from fricenv.envs.rendering import Trace  # lazy: no matplotlib unless asked
-
-            self._traces = [Trace(self.dt) for _ in range(n)]
+            self._frames = PlantFrames(n, self.dt)
 
     def _use_steppers(self, steppers: Steppers) -> None:
         """Step with the entry kernels ``steppers`` (see ``steppers_for_plants``): threads
@@ -317,7 +281,12 @@ class StickSlipVectorEnv(VectorPlants, VectorRendering, VectorEnv):
         """Each plant's seed, as ``SyncVectorEnv`` reports its envs' (``seed + i`` or
         ``seed[i]``, a random one where a plant was first reset with None; None before a
         plant's first reset)."""
-        return tuple(self._seeds)
+        return tuple(self._streams.seeds)
+
+    @property
+    def settings(self) -> EnvSettings:
+        """The settings this environment was made with."""
+        return self.setup.settings
 
     @property
     def max_episode_steps(self) -> int:
@@ -376,61 +345,48 @@ class StickSlipVectorEnv(VectorPlants, VectorRendering, VectorEnv):
             super().reset(seed=int(seed))
         return self._observation(), {}
 
+    def reset_plants(
+        self, seeds: Sequence[int | None], options: Sequence[Mapping[str, Any] | None]
+    ) -> tuple[np.ndarray, dict[str, Any]]:
+        """Reset every plant, plant ``i`` seeded ``seeds[i]`` (None: its generator goes on)
+        and with the reset options ``options[i]`` (a dict as ``reset``'s, without
+        ``reset_mask``, or None), as SB3's ``VecEnv.seed`` and ``set_options`` ask; returns
+        what ``reset`` does. A refused option leaves every plant as it was."""
+        n = self.num_envs
+        each_seed = plant_seeds(seeds, n)
+        opts = items_of(options)
+        if opts is None:
+            raise TypeError(f"options must be a list of num_envs={n} dicts or Nones, "
+                            f"{got(options)}")
+        if len(opts) != n:
+            raise ValueError(f"options must have length num_envs={n}, got {len(opts)}: "
+                             f"{options!r}")
+        for i, opt in enumerate(opts):
+            check_dict(f"options[{i}]", opt)
+            if opt and "reset_mask" in opt:
+                raise ValueError(f"options[{i}] holds 'reset_mask': reset_plants resets every "
+                                 "plant (reset(options={'reset_mask': m}) resets some)")
+        self._reset_plants(np.arange(n), each_seed, [dict(o) if o else {} for o in opts])
+        return self._observation(), {}
+
     def _reset_plants(self, idx: np.ndarray, seeds: list, options: list[dict]) -> None:
-        """Start new episodes for plants ``idx``, validating ``options`` per plant; if one
-        is rejected, every plant's generator, buffered draws and cursor are put back, so a
-        rejected reset loses nothing (options are checked against the drawn values)."""
-        setup = self.setup
-        P_new, init, cursor = self._new_P, self._new_init, self._cursor
-        # all new generators first: a bad seed fails before any plant changes
-        fresh = {i: seeding.np_random(s) for i, s in zip(idx.tolist(), seeds, strict=True)
-                 if s is not None or self._rngs[i] is None}
-        # Spent buffers refilled first (a step that raised may have left some): a plant's
-        # next rows are then buffered from its own generator, and all a rejected reset must
-        # put back is the generator a new stream replaced and the unread rows it overwrote.
-        self._refill_empty()
-        saved = {}  # plant: (generator, cursor, buffered draws), as before
-        mask = np.zeros(self.num_envs, dtype=np.bool_)
-        try:
-            for i, opt in zip(idx.tolist(), options, strict=True):
-                if i in fresh:
-                    saved[i] = (self._rngs[i], int(cursor[i]), self._draws[i].copy())
-                    self._rngs[i] = fresh[i][0]
-                    self._refill(i)  # a new stream: the old one's rows are dropped
-                else:
-                    saved[i] = (self._rngs[i], int(cursor[i]), None)
-                # the row a single env would draw now
-                values = setup.scale(self._draws[i, cursor[i]])
-                cursor[i] += 1
-                setup.episode(values, opt or None, P_new[i], init[i])
-                mask[i] = True
-            self._check_batch_cost([i for i, o in zip(idx.tolist(), options, strict=True)
-                                    if o])
-        except BaseException:
-            for i, (rng, row, draws) in saved.items():
-                self._rngs[i] = rng
-                if draws is not None:
-                    self._draws[i] = draws
-                cursor[i] = row
-            raise
-        for i, (_, used) in fresh.items():
-            self._seeds[i] = used
-        K.start_batch(self._table, self._cfg, mask, self._obs_pair, self._flags, self._counters)
+        """Start new episodes for plants ``idx``, validating ``options`` per plant; a
+        rejected reset loses nothing (``PlantDraws.start_episodes``)."""
+        mask = self._streams.start_episodes(idx, seeds, options, self._cursor, self.setup,
+                                            self._new_P, self._new_init,
+                                            self._check_batch_cost)
+        start_batch(self._table, self._cfg, mask, self._obs_pair, self._flags, self._counters)
         # options may have given the plants another law or damping than the draws' bounds
         self._fit_steppers()
-        if self._bank is not None:
-            for i in idx.tolist():
-                self._bank.seed_noise(i, self._rngs[i])
-            self._bank.cmd[idx] = self._ctrl[idx]
-            self._bank.start(idx, self._obs[idx])
+        if self._inst is not None:
+            self._inst.start(idx, self._streams.rngs, self._ctrl, self._obs)
         self._terminated[mask] = False
         self._truncated[mask] = False
         self._needs_reset = False
         self._failed_plant = None
         self._refill_empty()
-        if self._traces is not None:
-            for i in idx.tolist():
-                self._traces[i].clear(self._S[i, S_T], self._S[i, S_V], self._S[i, S_MODE] == 0)
+        if self._frames is not None:
+            self._frames.clear(idx, self._S)
 
     def _check_batch_cost(self, plants: list[int]) -> None:
         """``ValueError`` unless the new episodes of ``plants`` (started with reset options)
@@ -449,18 +405,8 @@ class StickSlipVectorEnv(VectorPlants, VectorRendering, VectorEnv):
         check_episode_cost(self.scene, P, u0, nu, self._batch_context(self.num_envs) + what,
                            MAX_VECTOR_SCAN_STEPS / self.num_envs)
 
-    def _refill(self, i: int) -> None:
-        """Buffer plant ``i``'s next DRAW_ROWS episodes: the numbers as many single-env
-        resets would draw, in order, from one call."""
-        rng = self._rngs[i]
-        assert rng is not None  # (every caller gives the plant a generator first)
-        rng.random(out=self._draws[i])
-        self._cursor[i] = 0
-
     def _refill_empty(self) -> None:
-        for i in np.flatnonzero(self._cursor >= DRAW_ROWS).tolist():
-            if self._rngs[i] is not None:
-                self._refill(i)
+        self._streams.refill_empty(self._cursor)
 
     def step(
         self, actions: np.ndarray
@@ -487,14 +433,11 @@ class StickSlipVectorEnv(VectorPlants, VectorRendering, VectorEnv):
             or not a.flags.c_contiguous
         ):
             a = coerce_action(actions, self._act_shape, "actions", batch=True)
-        if self._act is not None:
-            a = self._actuate(a)
-        if self._traces is not None:
-            # every action checked before any trace moves (the kernel checks them too)
-            bad = K.first_bad_action(a, self._autoreset, self._ivars[K.IV_MODE])
-            if bad >= 0:
-                raise_status(K.STATUS_BAD_ACTION, a[bad], f" {bad}")
-            self._record_traces(a)
+        inst = self._inst
+        if inst is not None and inst.actuating:
+            a = inst.actuate(a, self._ctrl, self._autoreset, self._ivars[K.IV_MODE])
+        if self._frames is not None:
+            self._record_frames(a)
         kernel = self._step_kernel
         if self._serial_left:
             self._serial_left -= 1
@@ -529,7 +472,7 @@ class StickSlipVectorEnv(VectorPlants, VectorRendering, VectorEnv):
             self._failed_plant = i
             raise_status(STATUS_DIVERGED, None, f" {i}")
         # (the sensors first: the infos below carry their readings of ended episodes)
-        obs = self._obs.copy() if self._bank is None else self._instruments_after_step()
+        obs = self._obs.copy() if inst is None else self._instruments_after_step(inst)
         out = self._step_out.copy()  # callers may keep what a step returns
         if self._ivars[K.IV_N_RESET] == 0:
             # The common case: every plant reports this step's values (_info_dict's layout).
@@ -560,10 +503,8 @@ class StickSlipVectorEnv(VectorPlants, VectorRendering, VectorEnv):
         if self._ivars[K.IV_N_EMPTY]:
             self._refill_empty()
         done = self._did_reset.copy()
-        if self._traces is not None:
-            S = self._S
-            for i in np.flatnonzero(done).tolist():
-                self._traces[i].clear(S[i, S_T], S[i, S_V], S[i, S_MODE] == 0)
+        if self._frames is not None:
+            self._frames.clear(np.flatnonzero(done), self._S)
         vals = self._res[_INFO_ROWS]
         infos: dict[str, Any] = {}
         if self._ivars[K.IV_N_RESET] < self.num_envs:
@@ -572,7 +513,8 @@ class StickSlipVectorEnv(VectorPlants, VectorRendering, VectorEnv):
             infos.update(_info_dict(now, np.broadcast_to(has, now.shape).copy()))
         if self.autoreset_mode == AutoresetMode.SAME_STEP:
             final_obs = np.full(self.num_envs, None, dtype=object)
-            finals = self._final_sensed if self._sensing else self._final_obs
+            inst = self._inst
+            finals = inst.final_sensed if inst is not None and inst.sensing else self._final_obs
             for i in np.flatnonzero(done).tolist():
                 final_obs[i] = finals[i].copy()
             fin = np.where(done, vals, 0.0)
@@ -581,3 +523,105 @@ class StickSlipVectorEnv(VectorPlants, VectorRendering, VectorEnv):
             infos["final_info"] = _info_dict(fin, np.broadcast_to(done, fin.shape).copy())
             infos["_final_info"] = done
         return infos
+
+    def _record_frames(self, a: np.ndarray) -> None:
+        """Extend the plants' traces by the coming interval, every action checked before
+        any trace moves (the kernel checks them too)."""
+        frames = self._frames
+        assert frames is not None  # called only when rendering
+        bad = first_bad_action(a, self._autoreset, self._ivars[K.IV_MODE])
+        if bad >= 0:
+            raise_status(K.STATUS_BAD_ACTION, a[bad], f" {bad}")
+        # a plant the step restarts instead of stepping (next-step mode) keeps its trace
+        skip = self._autoreset if self._autoreset_mode == AutoresetMode.NEXT_STEP else None
+        frames.record(self._steppers, self._P, self._S, self._ctrl, self._stats, self._cfg, a,
+                      skip)
+
+    def _instruments_after_step(self, inst: PlantInstruments) -> np.ndarray:
+        """The sensors read what the kernel left (``PlantInstruments.after_step``)."""
+        if self._ivars[K.IV_N_RESET] == 0:
+            return inst.after_step(self._obs, None, self._ctrl, None)
+        same_step = self._autoreset_mode is AutoresetMode.SAME_STEP
+        return inst.after_step(self._obs, self._final_obs if same_step else None, self._ctrl,
+                               self._did_reset)
+
+    def _observation(self) -> np.ndarray:
+        """What the agents observe now: the exact observations, or the sensors' readings."""
+        inst = self._inst
+        return self._obs.copy() if inst is None else inst.observation(self._obs)
+
+    # -- rendering -------------------------------------------------------------------------
+    def render(self) -> tuple[np.ndarray, ...] | None:
+        """One ``rgb_array`` frame per plant (None, with a warning, without render_mode)."""
+        if self._frames is None:
+            from gymnasium import logger
+
+            logger.warn(
+                "You are calling render method without specifying any render mode. "
+                "You can specify the render_mode at initialization, e.g. "
+                'gym.make_vec("fricenv/StickSlip-v0", render_mode="rgb_array") '
+                'or StickSlipVectorEnv(render_mode="rgb_array")'
+            )
+            return None
+        return self._frames.draw([self.snapshot(i) for i in range(self.num_envs)])
+
+    def close_extras(self, **kwargs: Any) -> None:
+        if self._frames is not None:
+            self._frames.close()
+
+    def snapshot(self, i: int) -> dict[str, float]:
+        """What a frame draws of plant ``i``: state, excitation and force now."""
+        return plant_snapshot(self._P[i], self._S[i], self._ctrl[i], self.scene.x_limit)
+
+    # -- plant state -----------------------------------------------------------------------
+    def _plant_index(self, i: Any) -> int:
+        if self._needs_reset:
+            raise gym_error.ResetNeeded("reset the vector env before reading or setting a "
+                                        "plant's state")
+        return check_int("plant index i", i, 0, self.num_envs - 1)
+
+    def get_state(self, i: int) -> PlantState:
+        """Plant ``i``'s full state (``fricenv.envs.state.PlantState``)."""
+        i = self._plant_index(i)
+        plant = pack(self._P[i], self._S[i], self._ctrl[i], self._work[i])
+        steps = int(self._steps[i])
+        if self._inst is None:
+            return PlantState(plant, self._ctrl[i].copy(), None, None, steps)
+        return PlantState(plant, *self._inst.state_of(i, self._ctrl), steps)
+
+    def set_state(self, i: int, state: PlantState) -> np.ndarray:
+        """Put plant ``i`` in ``state`` (from ``get_state`` of an environment made with the
+        same arguments, single or vector) and return its observation. Its episode goes on
+        from there: an ending pending for the next step is cancelled, and its step count
+        (for truncation) is the state's. A plant too costly to step among ``num_envs`` is
+        refused (``ValueError``), as reset options are."""
+        i = self._plant_index(i)
+        inst = self._inst
+        check_state(state, None if inst is None else inst.delay_rows,
+                    inst is not None and inst.noisy, self.scene.u0_range,
+                    self.scene.nu_range, self.dt)
+        u0, nu = state.plant[PL_CTRL:PL_WORK].tolist()
+        self._check_cost(state.plant[PL_P:PL_S], u0, nu,
+                         "refused state: its plant is too stiff or too fast")
+        unpack(state.plant, self._P[i], self._S[i], self._ctrl[i], self._work[i])
+        self._fit_steppers()  # (the state's plant may have another damping or law)
+        K.write_obs(self._P[i], self._S[i], self._ctrl[i], self._cfg, self._obs[i],
+                    self._work[i])
+        self._steps[i] = state.episode_steps
+        self._autoreset[i] = self._terminated[i] = self._truncated[i] = False
+        if inst is not None:
+            inst.restore(i, state)
+        if self._frames is not None:
+            self._frames.clear([i], self._S)
+        return self._obs[i].copy() if inst is None else inst.reading(i, self._obs)
+
+    def state_arrays(self) -> tuple[np.ndarray, np.ndarray]:
+        """Every plant's plant vector (n, N_PLANT) and actuator command (n, 2), copied in two
+        arrays: the fast way to plan from all plants at once (``fricenv.envs.rollout``)."""
+        if self._needs_reset:
+            raise gym_error.ResetNeeded("reset the vector env before reading plant states")
+        plants = np.empty((self.num_envs, N_PLANT))
+        for i in range(self.num_envs):
+            pack(self._P[i], self._S[i], self._ctrl[i], self._work[i], plants[i])
+        ctrl = self._ctrl
+        return plants, (ctrl if self._inst is None else self._inst.commands(ctrl)).copy()

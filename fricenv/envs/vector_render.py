@@ -1,106 +1,86 @@
-"""The vector environment's rendering: one frame per plant, with its recent motion.
+"""The vector environment's frames: each plant's recent motion, and the painter that draws it.
 
-``VectorRendering`` is a mixin of ``StickSlipVectorEnv`` (``fricenv.envs.vector``):
-``render``, ``snapshot`` and the per-plant traces of the coming control interval that a
-step records before the kernel moves the plants. Matplotlib is imported only when a frame
-is drawn (``fricenv.envs.rendering``); kept apart from the stepping so that each module
-holds one concern. The attributes it reads are the vector env's own, declared below for
-the type checker.
+``PlantFrames`` is what ``StickSlipVectorEnv`` (``fricenv.envs.vector``) owns when it is
+made with a render mode: a velocity trace per plant, which a step extends by sampling the
+coming control interval before the kernel moves the plants, and the painter, made at the
+first frame. It is handed the plants' arrays it reads, and reads nothing else. Matplotlib
+is imported only when the frames are made (``fricenv.envs.rendering``).
 """
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
-from gymnasium.vector import AutoresetMode
 
 from fricenv.envs import kernels as K
-from fricenv.envs.scenes import Scene
 from fricenv.envs.steppers import Steppers
 from fricenv.layout import S_MODE, S_PHI1, S_PHI2, S_T, S_V, S_X
 from fricenv.params import P_U1, P_U2, P_V, P_XFK
 
 if TYPE_CHECKING:
-    from fricenv.envs.rendering import Painter, Trace
+    from fricenv.envs.rendering import Painter
 
 
-class VectorRendering:
-    """Frames and traces of ``StickSlipVectorEnv`` (see the module docstring)."""
+class PlantFrames:
+    """The traces of ``n`` plants with control interval ``dt``, and their painter."""
 
-    # set by StickSlipVectorEnv.__init__ (and _bind_views: views of the kernels' arrays)
-    scene: Scene
-    num_envs: int
-    render_mode: str | None
-    _cfg: np.ndarray
-    _autoreset_mode: AutoresetMode
-    _steppers: Steppers
-    _P: np.ndarray
-    _S: np.ndarray
-    _ctrl: np.ndarray
-    _stats: np.ndarray
-    _autoreset: np.ndarray
-    _traces: list[Trace] | None  # each plant's recent motion (render_mode set), else None
-    _painter: Painter | None  # made at the first render
+    def __init__(self, n: int, dt: float):
+        from fricenv.envs.rendering import Trace  # lazy: no matplotlib unless asked
 
-    def render(self) -> tuple[np.ndarray, ...] | None:
-        if self.render_mode is None:
-            from gymnasium import logger
+        self.traces = [Trace(dt) for _ in range(n)]
+        self._painter: Painter | None = None  # made at the first frame
 
-            logger.warn(
-                "You are calling render method without specifying any render mode. "
-                "You can specify the render_mode at initialization, e.g. "
-                'gym.make_vec("fricenv/StickSlip-v0", render_mode="rgb_array") '
-                'or StickSlipVectorEnv(render_mode="rgb_array")'
-            )
-            return None
+    def clear(self, plants: np.ndarray | list[int], S: np.ndarray) -> None:
+        """Start the traces of ``plants`` afresh from their states in ``S`` (n, N_STATE)."""
+        for i in np.asarray(plants).tolist():
+            self.traces[i].clear(S[i, S_T], S[i, S_V], S[i, S_MODE] == 0)
+
+    def record(self, steppers: Steppers, P: np.ndarray, S: np.ndarray, ctrl: np.ndarray,
+               stats: np.ndarray, cfg: np.ndarray, a: np.ndarray,
+               skip: np.ndarray | None) -> None:
+        """Extend each plant's trace by the coming interval under its action ``a[i]``,
+        sampled on copies with the step's kernels, except where ``skip`` is True (a plant
+        the step restarts instead of stepping) or the action is not finite (the step
+        refuses it)."""
+        for i, tr in enumerate(self.traces):
+            if (skip is not None and skip[i]) or not K.actions_finite(a[i]):
+                continue
+            status = steppers.sample_interval(P[i], S[i], ctrl[i], cfg, a[i], stats[i],
+                                              tr.buf_t, tr.buf_v, tr.buf_s)
+            if status == 0:
+                tr.push()
+
+    def draw(self, snapshots: list[dict[str, float]]) -> tuple[np.ndarray, ...]:
+        """One frame per plant, of its ``snapshots[i]`` and its trace."""
         if self._painter is None:
             from fricenv.envs.rendering import Painter
 
             self._painter = Painter()
-        painter, traces = self._painter, self._traces
-        assert traces is not None  # made with the env whenever render_mode is set
-        return tuple(painter.draw(self.snapshot(i), traces[i]) for i in range(self.num_envs))
+        painter = self._painter
+        return tuple(painter.draw(snap, tr) for snap, tr in zip(snapshots, self.traces,
+                                                                  strict=True))
 
-    def close_extras(self, **kwargs: Any) -> None:
+    def close(self) -> None:
+        """Close the painter's figure (a later frame makes a new one)."""
         if self._painter is not None:
             self._painter.close()
             self._painter = None
 
-    def snapshot(self, i: int) -> dict[str, float]:
-        P, S = self._P[i], self._S[i]
-        g = P[P_U1] * np.cos(S[S_PHI1]) + P[P_U2] * np.cos(S[S_PHI2])
-        return {
-            "t": float(S[S_T]),
-            "x": float(S[S_X]),
-            "v": float(S[S_V]),
-            "V": float(P[P_V]),
-            "stuck": bool(S[S_MODE] == 0.0),
-            "u0": float(self._ctrl[i, 0]),
-            "nu": float(self._ctrl[i, 1]),
-            "force": float(g),
-            "xfk": float(P[P_XFK]),
-            "x_limit": self.scene.x_limit,
-        }
 
-    def _record_traces(self, a: np.ndarray) -> None:
-        traces = self._traces
-        assert traces is not None  # called only when rendering
-        for i, tr in enumerate(traces):
-            if (self._autoreset_mode == AutoresetMode.NEXT_STEP and self._autoreset[i]) or (
-                not K.actions_finite(a[i])
-            ):
-                continue
-            status = self._steppers.sample_interval(
-                self._P[i],
-                self._S[i],
-                self._ctrl[i],
-                self._cfg,
-                a[i],
-                self._stats[i],
-                tr.buf_t,
-                tr.buf_v,
-                tr.buf_s,
-            )
-            if status == 0:
-                tr.push()
+def plant_snapshot(P: np.ndarray, S: np.ndarray, ctrl: np.ndarray,
+                   x_limit: float) -> dict[str, float]:
+    """What a frame draws of one plant (parameters ``P``, state ``S``, setting ``ctrl``)."""
+    g = P[P_U1] * np.cos(S[S_PHI1]) + P[P_U2] * np.cos(S[S_PHI2])
+    return {
+        "t": float(S[S_T]),
+        "x": float(S[S_X]),
+        "v": float(S[S_V]),
+        "V": float(P[P_V]),
+        "stuck": bool(S[S_MODE] == 0.0),
+        "u0": float(ctrl[0]),
+        "nu": float(ctrl[1]),
+        "force": float(g),
+        "xfk": float(P[P_XFK]),
+        "x_limit": x_limit,
+    }
