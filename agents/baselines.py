@@ -32,7 +32,7 @@ import numpy as np
 
 from fricenv.envs import kernels as K
 from fricenv.envs.scenes import Scene
-from fricenv.envs.stick_slip import EnvSetup
+from fricenv.envs.setup import EnvSetup
 from fricenv.sweep import ALGORITHM as SWEEP_ALGORITHM
 
 from .layout import SEARCH_SEED_BASE

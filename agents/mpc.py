@@ -40,8 +40,8 @@ from fricenv.checks import check_bool, check_finite_real, check_int, got
 from fricenv.envs import kernels as K
 from fricenv.envs.rollout import BatchRollout
 from fricenv.envs.scenes import Scene
+from fricenv.envs.setup import EnvSetup
 from fricenv.envs.state import plants_from_observations
-from fricenv.envs.stick_slip import EnvSetup
 
 from .layout import MAX_PLANTS, SEARCH_SEED_BASE
 

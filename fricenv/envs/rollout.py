@@ -1,7 +1,7 @@
 """Batch rollouts: K action sequences of H control intervals from saved plant states, in
 one numba call.
 
-This is the exact plant as a model for planning (``agents.mpc``): each sample copies a
+This is the exact plant as a model for planning (``fricenv_agents.mpc``): each sample copies a
 start plant vector (``fricenv.envs.state``) into its own row and steps it through its
 actions with the environments' own per-interval kernel (``kernels.control_interval``,
 and the actuator of ``fricenv.envs.sensors`` when the env has one), built on the core

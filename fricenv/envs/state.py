@@ -1,6 +1,6 @@
 """A plant's full state as a public record: save it, restore it, plan from it.
 
-Model-based control (``agents.mpc``) and what-if analysis need to put a plant back where
+Model-based control (``fricenv_agents.mpc``) and what-if analysis need to put a plant back where
 it was and try other actions. Everything a control interval reads lives in one float64
 vector per plant, ``plant``, laid out as the kernels' own arrays (``PL_*``): the episode's
 parameter vector (``params.P_*``, the randomised plant and the excitation it runs under),
