@@ -103,6 +103,7 @@ def test_notebooks_are_pages_with_their_outputs(site, stem):
     assert images, "the stored figures show"
     assert all((folder / image).is_file() for image in images)
     assert '<span class="kn">import</span>' in html  # highlighted code
+    assert 'class="notebook-output highlight"' in html  # outputs set apart
     assert (folder / f"{stem}.ipynb").is_file(), "the notebook is there to download"
     assert 'href="../"' in html  # the note links the page on running the notebooks
 
@@ -136,8 +137,9 @@ def test_notebook_markdown_renders_each_kind_of_output():
     text, images = hook.notebook_markdown(nb, "demo", "INTRO")
     blocks = text.split("\n\n")
     assert blocks[0] == "# Title" and blocks[2] == "INTRO"  # the note follows the title
-    assert "````text\na\nb ```\n````" in text  # one block, a fence longer than ``` inside
-    assert "```text\nZeroDivisionError: division by zero\n```" in text  # colours stripped
+    out = "{.text .notebook-output}"
+    assert f"````{out}\na\nb ```\n````" in text  # one block, a fence longer than ``` inside
+    assert f"```{out}\nZeroDivisionError: division by zero\n```" in text  # colours stripped
     assert "![output](demo/cell3_0.png)" in text
     assert images == {"demo/cell3_0.png": b"\x89PNG\r\n\x1a\n"}
     assert "left out" not in text

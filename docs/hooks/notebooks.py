@@ -46,10 +46,15 @@ class NotebookPage(File):
 
 
 def _fence(text: str, lang: str) -> str:
-    """``text`` in a fenced block whose fence is longer than any backtick run inside it."""
+    """``text`` in a fenced block whose fence is longer than any backtick run inside it.
+
+    Outputs (``lang`` "text") carry the class ``notebook-output``, which
+    ``stylesheets/extra.css`` sets apart from the code that printed them.
+    """
     longest = max((len(run) for run in re.findall(r"`+", text)), default=0)
     fence = "`" * max(3, longest + 1)
-    return f"{fence}{lang}\n{text.rstrip()}\n{fence}"
+    info = "{.text .notebook-output}" if lang == "text" else lang
+    return f"{fence}{info}\n{text.rstrip()}\n{fence}"
 
 
 def _text(value: str | list[str]) -> str:
