@@ -139,7 +139,8 @@ def run_chromium(binary: str, args: list[str], url: str, height: int) -> str:
                "--no-first-run", "--disable-background-networking",
                "--disable-component-update", "--disable-sync", "--hide-scrollbars",
                f"--user-data-dir={profile}", f"--window-size={WIDTH},{height}",
-               "--virtual-time-budget=15000", *args, url]
+               "--virtual-time-budget=15000", "--run-all-compositor-stages-before-draw",
+               *args, url]
         done = subprocess.run(cmd, capture_output=True, text=True, timeout=120, check=False)
     if done.returncode != 0:
         raise RuntimeError(f"chromium exited {done.returncode} on {url}: {done.stderr[-2000:]}")
