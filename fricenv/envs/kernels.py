@@ -21,12 +21,6 @@ import math
 import numpy as np
 
 from fricenv.core import (
-    W_C1,
-    W_C2,
-    W_PH1,
-    W_PH2,
-    W_S1,
-    W_S2,
     advance,
     advance_ws,
     fresh_workspace,
@@ -34,6 +28,7 @@ from fricenv.core import (
     initial_state,
     reset_stats,
 )
+from fricenv.core.workspace import W_C1, W_C2, W_PH1, W_PH2, W_S1, W_S2
 
 # The arrays' layouts (declared in .tables; importable from here too).
 from fricenv.envs.tables import (  # noqa: F401
