@@ -55,7 +55,6 @@ from fricenv.envs.tables import (  # noqa: F401
     C_W_STICK,
     C_W_VEL,
     C_X_LIM,
-    COUNTER_STRIDE,
     CT_CURSOR,
     CT_STATUS,
     CT_STEPS,
@@ -83,9 +82,7 @@ from fricenv.envs.tables import (  # noqa: F401
     IV_MAX_STEPS,
     IV_MODE,
     IV_N_EMPTY,
-    IV_N_LATE,
     IV_N_RESET,
-    IV_N_WORKERS,
     N_CFG,
     N_COUNTERS,
     N_FLAGS,
@@ -392,9 +389,9 @@ def sample_interval(P, S, ctrl, cfg, a, stats, t_out, v_out, stick_out) -> int:
 # The vector environment's kernels live in .batch (which builds on this module); their names
 # stay importable from here, looked up on first use.
 _BATCH_NAMES = frozenset((
-    "CHUNK", "_cell", "_cells", "_count", "_plant_rows", "_plant_step", "_region",
-    "_start_next", "_step_range", "first_bad_action", "start_batch", "step_batch",
-    "step_batch_parallel", "step_batch_parallel_with", "step_batch_with", "step_range_with",
+    "_count", "_plant_rows", "_plant_step", "_start_next", "_step_range", "first_bad_action",
+    "start_batch", "step_batch", "step_batch_parallel", "step_batch_parallel_with",
+    "step_batch_with", "step_range_with",
 ))
 
 
