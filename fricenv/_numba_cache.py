@@ -16,10 +16,10 @@ kernels in one per-user folder keyed on what makes machine code valid, the numba
 and the source digest: ``$XDG_CACHE_HOME/<package>/numba/<numba version>-<digest>/`` (by
 default ``~/.cache/...``), with the package's own subfolders inside (``core/``, ``envs/``,
 ...), so no path depends on where the package is installed. numba's index keys add the
-Python version, the machine (CPU name and features) and the function's bytecode, and
-nothing else, so a second copy of the same source, in another venv or checkout, loads what
-the first compiled. With ``NUMBA_CACHE_DIR`` set, or where the per-user folder cannot be
-written, numba's own locations apply.
+Python version, the machine (CPU name and features) and hashes of the function's bytecode
+and closure, nothing that names a path, so a second copy of the same source, in another
+venv or checkout, loads what the first compiled. With ``NUMBA_CACHE_DIR`` set, or where
+the per-user folder cannot be written, numba's own locations apply.
 
 A folder per digest means every edit of the package starts a new one. ``install`` removes
 the folders of other digests that no process has used for ``PRUNE_AFTER_S``, keeping the
@@ -70,7 +70,7 @@ def user_cache_root() -> Path:
     configured = os.environ.get("XDG_CACHE_HOME", "")
     if configured and os.path.isabs(configured):
         return Path(configured)
-    return Path.home() / ".cache"
+    return Path.home() / ".cache"  # (RuntimeError where no home directory is known)
 
 
 def user_cache_dir(package_dir: str | Path, digest: str) -> Path:
@@ -143,8 +143,11 @@ def install(package_dir: str | Path) -> bool:
         return True
     stamp = source_digest(root)
     numba_locators = list(classes)
-    folder = user_cache_dir(root, stamp)
-    if not _numba_cache_dir():
+    try:
+        folder: Path | None = user_cache_dir(root, stamp)
+    except RuntimeError:  # no home directory: numba's own locations
+        folder = None
+    if folder is not None and not _numba_cache_dir():
         _mark_used(folder)
 
     class PackageLocator(caching._CacheLocator):
@@ -167,7 +170,7 @@ def install(package_dir: str | Path) -> bool:
                 rel = Path(py_file).resolve().relative_to(root)
             except (ValueError, OSError):
                 return None  # not ours: numba's own locators take it
-            if not _numba_cache_dir():
+            if folder is not None and not _numba_cache_dir():
                 own = cls(py_func, py_file, str(folder.joinpath(*rel.parent.parts)), None)
                 try:
                     own.ensure_cache_path()
