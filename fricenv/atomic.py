@@ -1,9 +1,13 @@
 """An atomic counter for numba kernels whose threads share work out as they go.
 
-numba's ``prange`` hands each thread a fixed, contiguous share of the iterations (its
-OpenMP layer schedules statically), so when iterations differ in cost, or the host slows
-one thread, the others wait at the end. A kernel can instead run one ``prange`` iteration
-per worker and let the workers claim work from a shared counter with :func:`fetch_add`.
+numba's ``prange`` cuts its iterations into one contiguous share per thread before its
+threading layer (TBB here) runs them, so when iterations differ in cost by orders of
+magnitude, as a sweep's cells do, the threads that drew cheap ones wait at the end. A
+kernel can instead run one ``prange`` iteration per worker and let the workers claim work
+from a shared counter with :func:`fetch_add`; the sweep's cell kernel does (and another
+thread stops a run by moving that counter past the last cell). The vector environment's
+plants cost about the same each, and a plain ``prange`` steps them as fast (see
+docs/performance.md, "Sharing plants between threads").
 """
 
 from __future__ import annotations

@@ -26,8 +26,9 @@ from typing import Any
 import numpy as np
 
 from .checks import check_finite_real
-from .core import MAX_STEPS_PER_CALL, MAX_STEPS_PER_TAU, W_MAX_STEPS_CALL, W_MAX_STEPS_TAU
 from .core import new_workspace as _new_workspace
+from .core.constants import MAX_STEPS_PER_CALL, MAX_STEPS_PER_TAU
+from .core.workspace import W_MAX_STEPS_CALL, W_MAX_STEPS_TAU
 from .layout import STATUS_STEP_BUDGET
 
 #: Steps a call runs in the calling thread before it is moved to a worker thread.

@@ -13,6 +13,7 @@ from numba import prange
 
 from . import core
 from .atomic import fetch_add
+from .core.workspace import W_MAX_STEPS_CALL, W_MAX_STEPS_TAU, W_SKIP_EXTREMA, W_SKIP_VR2
 from .jit import kernel
 from .layout import (
     METHOD_EVENT,
@@ -48,8 +49,8 @@ def _advance_in_cell(advance_ws, P: np.ndarray, S: np.ndarray, t_span: float,
     """
     before = stats[ST_N_STEPS]
     status = advance_ws(P, S, t_span, stats, method, rtol, atol, max_events, work)
-    work[core.W_MAX_STEPS_CALL] -= stats[ST_N_STEPS] - before
-    if status == STATUS_OK and work[core.W_MAX_STEPS_CALL] < 0.0:
+    work[W_MAX_STEPS_CALL] -= stats[ST_N_STEPS] - before
+    if status == STATUS_OK and work[W_MAX_STEPS_CALL] < 0.0:
         status = STATUS_STEP_BUDGET
     return status
 
@@ -78,15 +79,15 @@ def _run_cell_with(advance_ws, P: np.ndarray, x0: float, v0: float, t_trans: flo
     # extrema too: locating them holds the closed form to short scan steps (1.4-2.2 times
     # the transient's cost on Coulomb cells).
     work[:] = np.nan
-    work[core.W_SKIP_EXTREMA] = 1.0
-    work[core.W_SKIP_VR2] = 1.0
-    work[core.W_MAX_STEPS_TAU] = steps_tau
-    work[core.W_MAX_STEPS_CALL] = steps_cell
+    work[W_SKIP_EXTREMA] = 1.0
+    work[W_SKIP_VR2] = 1.0
+    work[W_MAX_STEPS_TAU] = steps_tau
+    work[W_MAX_STEPS_CALL] = steps_cell
     status = STATUS_OK
     if t_trans > 0.0:
         status = _advance_in_cell(advance_ws, P, S, t_trans, stats, method, rtol, atol,
                                   _event_cap(t_trans, rate), work)
-    work[core.W_SKIP_EXTREMA] = 0.0
+    work[W_SKIP_EXTREMA] = 0.0
     xs = np.empty(n_seg)
     vs = np.empty(n_seg)
     period = 0

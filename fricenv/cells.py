@@ -25,13 +25,9 @@ from .checks import (
     got,
     real_array,
 )
-from .core import (
-    MAX_STEPS_PER_CALL,
-    MAX_STEPS_PER_TAU,
-    N_WORK,
-    W_MAX_STEPS_CALL,
-    conditioned_rows,
-)
+from .core import conditioned_rows
+from .core.constants import MAX_STEPS_PER_CALL, MAX_STEPS_PER_TAU
+from .core.workspace import N_WORK, W_MAX_STEPS_CALL
 from .divergence import diverged
 from .jit import parallel_section
 from .layout import (

@@ -20,6 +20,8 @@ from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
+from ._numba_cache import cache_dir_for
+
 logger = logging.getLogger(__name__)
 
 #: Each workload's entry kernels (the dispatchers Python calls first, which compile
@@ -170,13 +172,17 @@ def method_for_scene(scene: str) -> str:
 
 def cache_location() -> str:
     """Where numba keeps fricenv's compiled kernels: ``NUMBA_CACHE_DIR`` if set, else the
-    ``__pycache__`` folders beside the package's sources (or numba's per-user fallback
-    where those are not writable)."""
+    per-user folder of this source digest (:mod:`fricenv._numba_cache`), or, where that
+    cannot be written, the ``__pycache__`` folders beside the package's sources (or
+    numba's per-user fallback where those are not writable)."""
     import numba
 
     configured = getattr(numba.config, "CACHE_DIR", "")
     if configured:
         return str(configured)
+    folder = cache_dir_for(Path(__file__).resolve().parent)
+    if folder is not None:
+        return os.fspath(folder)
     try:
         path = resolve(ENTRY_KERNELS["simulate"]["exact"][0])._cache.cache_path
     except Exception:

@@ -38,8 +38,8 @@ sums whose order does not matter may carry them.
 Threading layer
 ---------------
 The parallel kernels (sweeps, ``cell_statistics``, the vector environment from
-``PARALLEL_MIN_PLANTS`` plants, batch rollouts) run on numba's threading layer, which
-numba picks when the first of them starts. Its default here is GNU OpenMP, which is not
+``envs.vector.PARALLEL_MIN_ENVS`` plants, batch rollouts) run on numba's threading layer,
+which numba picks when the first of them starts. Its default here is GNU OpenMP, which is not
 fork-safe: after any parallel kernel has run, a ``multiprocessing`` pool,
 ``ProcessPoolExecutor`` or joblib's multiprocessing backend started by ``fork`` prints
 ``fork() called from a process already using GNU OpenMP`` and its workers hang or crash.

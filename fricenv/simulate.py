@@ -11,6 +11,7 @@ import numpy as np
 
 from . import calls, core, divergence
 from .checks import check_bounded_real, check_finite_real, check_int, check_rtol, got
+from .core import constants
 from .layout import (
     EVENT_REVERSAL,
     EVENT_SLIP,
@@ -58,8 +59,8 @@ MAX_EVENT_RATE = 1000.0
 MAX_SCAN_STEPS = 1e9
 #: Default step budget of a call (``max_steps_per_tau`` and ``max_steps`` of ``simulate``
 #: and ``run_stats``): steps in each unit of dimensionless time, and in the whole call.
-MAX_STEPS_PER_TAU = core.MAX_STEPS_PER_TAU
-MAX_STEPS_PER_CALL = core.MAX_STEPS_PER_CALL
+MAX_STEPS_PER_TAU = constants.MAX_STEPS_PER_TAU
+MAX_STEPS_PER_CALL = constants.MAX_STEPS_PER_CALL
 #: Most output instants ``simulate`` records: t, x, v and the mode take 33 bytes an
 #: instant (330 MB at the cap, and about as many exact steps as instants); a finer grid
 #: over a longer run is refused before anything is allocated (``run_stats`` keeps no
@@ -152,7 +153,7 @@ def resolve_method(params: OscillatorParams, method: str) -> str:
     validate the name.
 
     ``"exact"`` with a tone too close to resonance for the closed form (a gain over
-    ``core.CLOSED_FORM_MAX_GAIN``, where it would cancel its own digits) resolves to
+    ``core.constants.CLOSED_FORM_MAX_GAIN``, where it would cancel its own digits) resolves to
     ``"event"``, as the kernels fall back, so that a result names the method that made it.
     """
     if not isinstance(method, str):

@@ -1,12 +1,13 @@
 """Compile fricenv's kernels for chosen workloads before they are needed.
 
 numba compiles a kernel on its first call, and stores the machine code in its on-disk cache
-(``__pycache__`` beside the sources, or ``NUMBA_CACHE_DIR``), keyed on the whole package's
-source (:mod:`fricenv._numba_cache`). Every process that finds a kernel there loads it in a
-fraction of the time compiling takes. :func:`warmup` runs each chosen workload once on a
-tiny problem, so that the cache holds its kernels: call it once, in the parent, before
-starting worker processes (``SubprocVecEnv``, a process pool, a cluster's workers on the
-same file system), and the workers load instead of each compiling the same kernels.
+(a per-user folder of the package's source digest, or ``NUMBA_CACHE_DIR``), keyed on the
+whole package's source (:mod:`fricenv._numba_cache`). Every process that finds a kernel
+there loads it in a fraction of the time compiling takes. :func:`warmup` runs each chosen
+workload once on a tiny problem, so that the cache holds its kernels: call it once, in the
+parent, before starting worker processes (``SubprocVecEnv``, a process pool, a cluster's
+workers on the same file system), and the workers load instead of each compiling the same
+kernels.
 
 The work splits into independent parts (:func:`parts`): one per friction law and workload,
 one per scene and environment workload. ``fricenv warmup --jobs N`` runs them in N

@@ -18,11 +18,11 @@ charged to every 50th step. The physics floor
 (``core.advance_ws`` alone, per control interval, in a numba loop) is printed too: no
 vector env can be cheaper per plant-step than that on one thread. So is the vector step's
 numba call alone, on a twin vector env in the same rounds: the rest of the step is its
-Python (action checks, copies of the results, infos, and the switch to one thread while
-workers come late). The same call on one thread, and the machine's thread ceiling (how
-much faster a perfectly balanced numba loop of equal items runs on all threads than on
-one), bound what threads can give: the last line of each env shows the ratio of bound 2
-that it would reach if the vector call gained the full ceiling over its one-thread time.
+Python (action checks, copies of the results, infos). The same call on one thread, and the
+machine's thread ceiling (how much faster a perfectly balanced numba loop of equal items
+runs on all threads than on one), bound what threads can give: the last line of each env
+shows the ratio of bound 2 that it would reach if the vector call gained the full ceiling
+over its one-thread time.
 
 Usage: ``python scripts/bench_env.py [--quick] [--no-ppo] [--json out.json]``
 """
@@ -223,14 +223,7 @@ def bench_steps(quick: bool) -> dict:
         single = gym.make(env_id).unwrapped
         made = gym.make(env_id)
         vec = gym.make_vec(env_id, num_envs=256)
-        vec_step = _stepper(vec)
-        steps = {"all": 0, "serial": 0}
-
-        def vector_step(vec=vec, vec_step=vec_step, steps=steps) -> None:
-            steps["all"] += 1
-            steps["serial"] += vec._serial_left > 0  # stepped on one thread (late workers)
-            vec_step()
-
+        vector_step = _stepper(vec)
         samples = _rounds(
             {
                 "pendulum": (_stepper(pendulum), n_single),
@@ -262,8 +255,6 @@ def bench_steps(quick: bool) -> dict:
             "vector_step_us": t["vector"] * 1e6,
             "vector_kernel_us": t["kernel"] * 1e6,
             "vector_kernel_serial_us": t["kernel_serial"] * 1e6,
-            "vector_steps": steps["all"],
-            "vector_steps_serial": steps["serial"],
             "single_over_pendulum": t["single"] / t["pendulum"],
             "single_over_vector_plant": t["single"] / per_plant,
             "made_over_vector_plant": t["made"] / per_plant,
@@ -363,8 +354,7 @@ def main() -> None:
         glue = r["vector_step_us"] - r["vector_kernel_us"]
         print(
             f"    native vector step, of which the numba call {r['vector_kernel_us']:.0f} us, "
-            f"Python around it {glue:.1f} us; {r['vector_steps_serial']} of "
-            f"{r['vector_steps']} steps on one thread (late workers)"
+            f"Python around it {glue:.1f} us"
         )
         print(f"    physics alone, 1 thread        {r['physics_floor_us']:8.3f} us (floor)")
         serial_call = r["vector_kernel_serial_us"]

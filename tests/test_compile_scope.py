@@ -77,7 +77,8 @@ def test_the_closed_form_runs_every_plant_damped_past_lam_conditioned() -> None:
     is too close to resonance for the closed form, whatever its frequency."""
     import numpy as np
 
-    from fricenv.core import LAM_CONDITIONED, closed_form_conditioned
+    from fricenv.core import closed_form_conditioned
+    from fricenv.core.constants import LAM_CONDITIONED
     from fricenv.params import OscillatorParams
 
     rng = np.random.default_rng(0)

@@ -11,7 +11,11 @@ from hypothesis import strategies as st
 
 import fricenv
 from fricenv import OscillatorParams, OscillatorState, SimulationError, core, run_stats, simulate
-from fricenv.core import _stays_positive, new_workspace
+from fricenv.core import new_workspace
+from fricenv.core.context import _scan_cap
+from fricenv.core.proofs import _monotone, _stays_positive
+from fricenv.core.roots import _hermite_root
+from fricenv.core.whole_interval import _arc_passes_zero, _e1
 from fricenv.layout import (
     EVENT_REVERSAL,
     EVENT_SLIP,
@@ -631,10 +635,10 @@ def test_monotone_certificate_is_sound(d0, c2, c3, c4, L):
     dh = d0 + 2 * c2 * t + 3 * c3 * t**2 + 4 * c4 * t**3
     ddh = 2 * c2 + 6 * c3 * t + 12 * c4 * t**2
     M = 6 * abs(c3) + 24 * abs(c4) * L
-    if core._monotone(dh[0], ddh[0], dh[-1], ddh[-1], L, M):
+    if _monotone(dh[0], ddh[0], dh[-1], ddh[-1], L, M):
         assert dh.min() > 0.0 or dh.max() < 0.0
     if c3 == 0.0 and c4 == 0.0 and min(abs(dh[0]), abs(dh[-1])) > 1e-9 and dh[0] * dh[-1] > 0:
-        assert core._monotone(dh[0], ddh[0], dh[-1], ddh[-1], L, M)
+        assert _monotone(dh[0], ddh[0], dh[-1], ddh[-1], L, M)
 
 
 def _intervals(P, work, n, dt):
@@ -793,7 +797,7 @@ def test_whole_call_step_is_sound_and_exact(seed):
             break
         P, S, span = _random_call(rng)
         S_fast, fast = _one_call(P, S, span, new_workspace(extrema=False))
-        whole_call_tried = span > core._scan_cap(P, True) or S[3] == 0.0  # or stuck
+        whole_call_tried = span > _scan_cap(P, True) or S[3] == 0.0  # or stuck
         if fast[fricenv.layout.ST_N_STEPS] != 1.0 or not whole_call_tried:
             continue
         taken += 1
@@ -821,7 +825,7 @@ def test_whole_call_step_is_sound_and_exact(seed):
 def test_e1_matches_its_series(s):
     """E(s) = (e^s - 1) / s on both sides of the switch to its series (|s| = 0.01)."""
     ref = sum(complex(s) ** k / math.factorial(k + 1) for k in range(30))
-    got = core._e1(complex(s), complex(np.exp(complex(s))))
+    got = _e1(complex(s), complex(np.exp(complex(s))))
     assert abs(got - ref) <= 1e-13 * abs(ref)
 
 
@@ -838,7 +842,7 @@ def test_hermite_start_lands_near_the_root():
         f0, f1 = math.cos(phi) - c, math.cos(w * H + phi) - c
         if f0 * f1 >= 0.0:
             continue
-        frac = core._hermite_root(f0, f1, -w * math.sin(phi), -w * math.sin(w * H + phi),
+        frac = _hermite_root(f0, f1, -w * math.sin(phi), -w * math.sin(w * H + phi),
                                   -w * w * math.cos(phi), -w * w * math.cos(w * H + phi), H)
         if not 0.0 < frac < 1.0:
             outside += 1
@@ -849,7 +853,7 @@ def test_hermite_start_lands_near_the_root():
     assert len(errors) > 300
     assert np.median(errors) < 1e-5
     assert outside <= 0.05 * len(errors)
-    assert math.isnan(core._hermite_root(1.0, -1.0, math.nan, 1.0, 0.0, 0.0, 1.0))
+    assert math.isnan(_hermite_root(1.0, -1.0, math.nan, 1.0, 0.0, 0.0, 1.0))
 
 
 @pytest.mark.parametrize("method", ["exact", "event"])
@@ -860,7 +864,7 @@ def test_subnormal_plant_runs_without_dividing_by_zero(method):
     tiny = 2.225073858507e-311
     p = OscillatorParams(lam=0.0, eta=1.0, nu=0.0, u0=0.0, V=5e-324, xfk=tiny, xfs=tiny)
     # the Halley step's 0 / 0 (everything underflows) gives NaN: the caller's secant start
-    assert math.isnan(core._hermite_root(tiny, -tiny, 0.0, 0.0, 0.0, 0.0, 1.0))
+    assert math.isnan(_hermite_root(tiny, -tiny, 0.0, 0.0, 0.0, 0.0, 1.0))
     tr = simulate(p, 30.0, method=method, rtol=1e-12, atol=1e-14)
     assert np.all(np.isfinite(tr.x)) and np.all(np.isfinite(tr.v))
     assert tr.stats.stick_time > 29.0
@@ -873,7 +877,7 @@ def test_arc_test_never_misses_the_angle(psi0, alpha):
     2 pi (the proofs depend on that), and no when it stays clearly away from one."""
     mid = psi0 + 0.5 * alpha
     end = psi0 + alpha
-    got = core._arc_passes_zero(math.cos(psi0), math.sin(psi0), math.cos(mid), math.sin(mid),
+    got = _arc_passes_zero(math.cos(psi0), math.sin(psi0), math.cos(mid), math.sin(mid),
                                 math.cos(end), math.sin(end), alpha, 1e-12)
     to_go = (-psi0) % (2 * math.pi)  # arc length from psi0 to the next multiple of 2 pi
     if to_go <= alpha or to_go >= 2 * math.pi - 1e-12:
@@ -937,3 +941,19 @@ def test_state_from_array_names_a_bad_vector():
         with pytest.raises(ValueError, match=r"s\[S_MODE\] \(the mode\) must be -1, 0 or 1, "
                                              rf"got {mode!r}"):
             OscillatorState.from_array(bad)
+
+
+def test_core_exports_its_public_kernels_only():
+    """``fricenv.core`` exports what callers run; private kernels, slot constants and
+    tolerances are imported from the module that defines them."""
+    import types
+
+    assert "advance" in core.__all__ and "new_workspace" in core.__all__
+    assert [n for n in core.__all__ if n.startswith("_")] == []
+    assert len(set(core.__all__)) == len(core.__all__)
+    namespace: dict = {}
+    exec("from fricenv.core import *", namespace)  # raises if a name is missing
+    assert set(core.__all__) <= set(namespace)
+    stray = {n for n, v in vars(core).items()
+             if not n.startswith("_") and not isinstance(v, types.ModuleType)}
+    assert stray <= set(core.__all__), sorted(stray - set(core.__all__))

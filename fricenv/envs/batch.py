@@ -11,7 +11,6 @@ from __future__ import annotations
 
 from numba import prange
 
-from fricenv.atomic import fetch_add
 from fricenv.core import advance_ws
 from fricenv.envs.kernels import (
     AUTORESET_NEXT_STEP,
@@ -23,7 +22,6 @@ from fricenv.envs.kernels import (
     write_obs,
 )
 from fricenv.envs.tables import (
-    COUNTER_STRIDE,
     CT_CURSOR,
     CT_STATUS,
     CT_STEPS,
@@ -34,10 +32,7 @@ from fricenv.envs.tables import (
     IV_MAX_STEPS,
     IV_MODE,
     IV_N_EMPTY,
-    IV_N_LATE,
     IV_N_RESET,
-    IV_N_WORKERS,
-    N_IVARS,
     OB_FINAL,
     OB_NOW,
     R_TERM,
@@ -50,12 +45,6 @@ from fricenv.envs.tables import (
     T_WORK,
 )
 from fricenv.jit import kernel
-
-# Plants a thread of the parallel kernel claims at a time in the middle of its region:
-# small, so that the threads finish together. Each worker's first claim is a big cell
-# instead (see ``_cells``), because every claim is an atomic add on a counter whose cache
-# line the two threads pass back and forth.
-CHUNK = 8
 
 
 @kernel
@@ -194,111 +183,34 @@ def step_batch_with(step_range, table, cfg, A, obs, res, flags, counters, draws,
     return _count(flags, counters, draws.shape[1], ivars)
 
 
-@kernel
-def _region(worker, n_workers, n):
-    """Plants [lo, hi) of the region that ``worker`` shares with its partner (workers 2r
-    and 2r + 1 share region r; with an odd count the last worker has a region alone), sized
-    by its number of workers so that every worker starts with an equal share."""
-    first = worker - worker % 2
-    return first * n // n_workers, min(first + 2, n_workers) * n // n_workers
-
-
-@kernel
-def _cells(lo, hi):
-    """How the region [lo, hi) is cut into claimable cells: (big, n_cells).
-
-    The region's middle half (at least two chunks) is cut into chunks of ``CHUNK``
-    plants; the rest forms two big cells of ``big`` plants, the first and the last. A pair
-    of workers on time each claims one big cell first, from its own end, and the two meet
-    in the middle chunks: half the claims of a region all in chunks (the counter's cache
-    line moves between the threads at each claim; 1-6 % of a step in paired rounds). A
-    big cell of a quarter still lets a worker slowed to half its partner's speed end with
-    a third of the region, as a balanced split would. A region too small for that
-    (``big == 0``) is all chunks.
-    """
-    n = hi - lo
-    middle = min(n, CHUNK * max(2, (n + 2 * CHUNK - 1) // (2 * CHUNK)))
-    big = (n - middle) // 2
-    n_chunks = (n - 2 * big + CHUNK - 1) // CHUNK
-    return big, n_chunks + (2 if big > 0 else 0)
-
-
-@kernel
-def _cell(lo, hi, big, n_cells, done, from_back):
-    """Plants [start, end) of a worker's ``done``-th claim in the region [lo, hi), cut as
-    ``_cells`` says.
-
-    Both ends count cells on one grid, so when the region's counter has handed out its
-    ``n_cells`` claims, a front worker's first a cells and a back worker's first b =
-    n_cells - a never overlap and leave nothing out (a worker on time alone takes both big
-    cells).
-    """
-    k = n_cells - 1 - done if from_back else done
-    if big > 0:
-        if k == 0:
-            return lo, lo + big
-        if k == n_cells - 1:
-            return hi - big, hi
-        k -= 1
-    start = lo + big + k * CHUNK
-    return start, min(hi - big, start + CHUNK)
-
-
 @kernel(takes_kernels=True)
-def step_batch_parallel_with(step_range, table, cfg, A, obs, res, flags, counters, draws,
+def step_batch_parallel_with(advance_ws, table, cfg, A, obs, res, flags, counters, draws,
                              bounds, ivars) -> int:
-    """``step_batch`` on ``ivars[4]`` workers (one ``prange`` iteration each) that share
-    the plants out as they go.
+    """``step_batch`` with its plants shared between numba's threads by a plain ``prange``.
 
-    Plants differ in cost (a switch interval costs several whole-interval steps), and the
-    host may slow one thread, so a fixed split leaves one thread waiting for the other.
-    Instead the plants are split into one region per pair of workers; in a region, one
-    worker steps cells of plants (``_cells``: a big one, then chunks of ``CHUNK``) from the
-    front and the other from the back, each claiming its next cell from the region's
-    counter in ``ivars`` (bumped atomically), until the region's cells are handed out.
-    Working from opposite ends keeps the two off each other's cache lines of the per-plant
-    rows of ``res``, ``flags`` and ``counters`` (chunks handed out in turn from one end
-    made the kernel slower than the serial one). Without counter slots in ``ivars`` the
-    plants are stepped in order.
+    numba cuts the plants into one contiguous share per thread and hands the shares to its
+    threading layer; on TBB they are tasks, and a free thread may take one that no other
+    thread has started, so a thread the host delays need not hold the step up. A
+    scheduler of its own (pairs of workers claiming chunks of plants from an atomic counter,
+    from opposite ends of the batch, and the vector env stepping serially for a while when
+    workers kept coming late) measured no faster than this loop on TBB, in alternating
+    rounds at 16, 256 and 4096 plants on a loaded host (docs/performance.md, "Sharing
+    plants between threads").
 
-    Each plant reads and writes only its own slots, so the result is identical to the
-    serial kernel whatever the worker or thread count and order. Like the other kernels it
-    allocates nothing, so it runs without numba's reference counting (``_nrt=False``),
-    whose atomic updates on the shared batch arrays the threads would otherwise fight over.
-
-    ``ivars[IV_N_LATE]`` counts the workers that found their region (of at least four
-    cells) already handed out: their thread got a CPU only after its partner had done
-    all the work, and the step waited for it at the loop's end. On a machine busy with
-    other processes that wait is a scheduler time slice, and the caller should step
-    serially for a while (the vector env does).
+    The per-plant body is inlined (``step_range_with`` over one plant). Each plant reads
+    and writes only its own slots, so the result is identical to the serial kernel whatever
+    the thread count and order. Like the other kernels it allocates nothing, so it runs
+    without numba's reference counting (``_nrt=False``), whose atomic updates on the shared
+    batch arrays the threads would otherwise fight over.
     """
     mode = ivars[IV_MODE]
     bad = first_bad_action(A, flags[F_AUTORESET], mode)
     if bad >= 0:
         return -(bad + 1)
-    n = table.shape[0]
     max_steps = ivars[IV_MAX_STEPS]
-    n_workers = min(max(1, ivars[IV_N_WORKERS]),
-                    2 * ((ivars.shape[0] - N_IVARS) // COUNTER_STRIDE))
-    if n_workers == 0:
-        step_range(0, n, table, cfg, A, obs, res, flags, counters, draws, bounds, max_steps,
-                   mode)
-        return _count(flags, counters, draws.shape[1], ivars)
-    for r in range((n_workers + 1) // 2):
-        ivars[N_IVARS + r * COUNTER_STRIDE] = 0
-    ivars[IV_N_LATE] = 0
-    for worker in prange(n_workers):
-        lo, hi = _region(worker, n_workers, n)
-        big, n_cells = _cells(lo, hi)
-        counter = N_IVARS + (worker // 2) * COUNTER_STRIDE
-        done = 0
-        while fetch_add(ivars, counter, 1) < n_cells:
-            start, end = _cell(lo, hi, big, n_cells, done, worker % 2 == 1)
-            step_range(start, end, table, cfg, A, obs, res, flags, counters, draws, bounds,
-                       max_steps, mode)
-            done += 1
-        if done == 0 and n_cells >= 4:  # (a worker alone in its region is never late)
-            fetch_add(ivars, IV_N_LATE, 1)
+    for i in prange(table.shape[0]):
+        step_range_with(advance_ws, i, i + 1, table, cfg, A, obs, res, flags, counters,
+                        draws, bounds, max_steps, mode)
     return _count(flags, counters, draws.shape[1], ivars)
 
 
@@ -332,5 +244,5 @@ def step_batch(table, cfg, A, obs, res, flags, counters, draws, bounds, ivars) -
 @kernel(parallel=True)
 def step_batch_parallel(table, cfg, A, obs, res, flags, counters, draws, bounds, ivars) -> int:
     """``step_batch_parallel_with`` by ``core.advance_ws``."""
-    return step_batch_parallel_with(_step_range, table, cfg, A, obs, res, flags, counters,
+    return step_batch_parallel_with(advance_ws, table, cfg, A, obs, res, flags, counters,
                                     draws, bounds, ivars)

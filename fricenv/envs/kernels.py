@@ -21,12 +21,6 @@ import math
 import numpy as np
 
 from fricenv.core import (
-    W_C1,
-    W_C2,
-    W_PH1,
-    W_PH2,
-    W_S1,
-    W_S2,
     advance,
     advance_ws,
     fresh_workspace,
@@ -34,6 +28,7 @@ from fricenv.core import (
     initial_state,
     reset_stats,
 )
+from fricenv.core.workspace import W_C1, W_C2, W_PH1, W_PH2, W_S1, W_S2
 
 # The arrays' layouts (declared in .tables; importable from here too).
 from fricenv.envs.tables import (  # noqa: F401
@@ -60,7 +55,6 @@ from fricenv.envs.tables import (  # noqa: F401
     C_W_STICK,
     C_W_VEL,
     C_X_LIM,
-    COUNTER_STRIDE,
     CT_CURSOR,
     CT_STATUS,
     CT_STEPS,
@@ -88,9 +82,7 @@ from fricenv.envs.tables import (  # noqa: F401
     IV_MAX_STEPS,
     IV_MODE,
     IV_N_EMPTY,
-    IV_N_LATE,
     IV_N_RESET,
-    IV_N_WORKERS,
     N_CFG,
     N_COUNTERS,
     N_FLAGS,

@@ -19,7 +19,7 @@ import numpy as np
 from gymnasium import spaces
 
 from fricenv.checks import check_bool, check_dict, check_real, real_array, real_tuple
-from fricenv.core import MAX_STEPS_PER_TAU
+from fricenv.core.constants import MAX_STEPS_PER_TAU
 from fricenv.envs import kernels as K
 from fricenv.envs.scenes import (
     ACTION_MODES,

@@ -33,7 +33,8 @@ from typing import Any
 import numpy as np
 
 from fricenv.checks import got
-from fricenv.core import (
+from fricenv.core import new_workspace
+from fricenv.core.workspace import (
     W_C1,
     W_C2,
     W_MAX_STEPS_CALL,
@@ -44,7 +45,6 @@ from fricenv.core import (
     W_S2,
     W_SKIP_EXTREMA,
     W_SKIP_VR2,
-    new_workspace,
 )
 from fricenv.envs import kernels as K
 from fricenv.envs.sensors import check_noise_state

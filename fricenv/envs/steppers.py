@@ -69,14 +69,14 @@ def step_batch_event(table, cfg, A, obs, res, flags, counters, draws, bounds, iv
 @kernel(parallel=True)
 def step_batch_parallel_exact(table, cfg, A, obs, res, flags, counters, draws, bounds,
                               ivars) -> int:
-    return batch.step_batch_parallel_with(_step_range_exact, table, cfg, A, obs, res, flags,
+    return batch.step_batch_parallel_with(advance_exact_ws, table, cfg, A, obs, res, flags,
                                           counters, draws, bounds, ivars)
 
 
 @kernel(parallel=True)
 def step_batch_parallel_event(table, cfg, A, obs, res, flags, counters, draws, bounds,
                               ivars) -> int:
-    return batch.step_batch_parallel_with(_step_range_event, table, cfg, A, obs, res, flags,
+    return batch.step_batch_parallel_with(advance_event_ws, table, cfg, A, obs, res, flags,
                                           counters, draws, bounds, ivars)
 
 

@@ -61,16 +61,11 @@ O_X, O_VR, O_STICK, O_COS1, O_SIN1, O_COS2, O_SIN2, O_U0, O_NU = OBS.group(
     "O_X", "O_VR", "O_STICK", "O_COS1", "O_SIN1", "O_COS2", "O_SIN2", "O_U0", "O_NU")
 N_OBS = OBS.size
 
-# Slots of the vector kernel's int64 ``ivars``: two inputs, two counts it writes, the
-# parallel kernel's worker count (set by the caller: numba's ``get_num_threads`` inside the
-# kernel would make it uncacheable) and its count of late workers (see
-# ``step_batch_parallel``). The parallel kernel's work counters, one per pair of workers,
-# follow these N_IVARS slots, COUNTER_STRIDE slots (a cache line) apart.
+# Slots of the vector kernel's int64 ``ivars``: two inputs and two counts it writes.
 IVARS = Layout("ivars")
-IV_MAX_STEPS, IV_MODE, IV_N_RESET, IV_N_EMPTY, IV_N_WORKERS, IV_N_LATE = IVARS.group(
-    "IV_MAX_STEPS", "IV_MODE", "IV_N_RESET", "IV_N_EMPTY", "IV_N_WORKERS", "IV_N_LATE")
+IV_MAX_STEPS, IV_MODE, IV_N_RESET, IV_N_EMPTY = IVARS.group(
+    "IV_MAX_STEPS", "IV_MODE", "IV_N_RESET", "IV_N_EMPTY")
 N_IVARS = IVARS.size
-COUNTER_STRIDE = 8
 
 # Vector kernels' arrays. The batch is laid out in few arrays, because numba's dispatch and
 # the hand-off to the threads cost per array argument (~1.4 us a call for the fifteen

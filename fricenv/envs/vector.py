@@ -16,7 +16,6 @@ import math
 from collections.abc import Mapping, Sequence
 from typing import Any, Unpack
 
-import numba
 import numpy as np
 from gymnasium import error as gym_error
 from gymnasium.vector import AutoresetMode, VectorEnv
@@ -91,22 +90,6 @@ MAX_NUM_ENVS = 10**5
 MAX_VECTOR_SCAN_STEPS = 1e7
 #: From this many plants on, a step spreads them over threads (numba prange).
 PARALLEL_MIN_ENVS = 64
-#: On a machine busy with other processes, a numba thread may get a CPU only after the
-#: others have stepped every plant, and the step then waits for it: a scheduler time slice,
-#: milliseconds, some fifty steps' worth. After LATE_STEPS parallel steps in a row with a
-#: late worker, the env steps serially (identical results) for a stretch of steps that
-#: starts at SERIAL_STRETCH_MIN and doubles, up to SERIAL_STRETCH_MAX, for as long as the
-#: PROBE_STEPS parallel steps that follow each stretch all find a late worker again. The
-#: first of them is often late whatever the machine: its worker idled through the stretch
-#: and may have to be woken, which on a virtual machine can take longer than a step (after
-#: 128 serial steps, half the first parallel steps were late, an eighth of the next ones).
-#: With that step alone deciding, stretches grew to their longest and stayed there: in a
-#: benchmark alternating with other work, half the vector steps ran serially.
-LATE_STEPS = 3
-PROBE_STEPS = 2
-SERIAL_STRETCH_MIN = 32
-SERIAL_STRETCH_MAX = 2048
-assert 1 <= PROBE_STEPS <= LATE_STEPS
 
 
 def _check_max_steps(value: Any) -> int:
@@ -182,18 +165,9 @@ class StickSlipVectorEnv(VectorEnv):
         self._counters = np.zeros((K.N_COUNTERS, n), dtype=np.int64)
         self._bind_views()
         self._work[:] = new_workspace(n, extrema=False)
-        # The parallel kernel's workers, one per numba thread at construction (the kernel
-        # cannot read the count and stay cacheable: fewer threads set later run some workers
-        # in turn, more sit idle), and after the N_IVARS slots a counter per pair of them.
-        n_workers = numba.get_num_threads()
-        n_pairs = (n_workers + 1) // 2
-        self._ivars = np.zeros(K.N_IVARS + n_pairs * K.COUNTER_STRIDE, dtype=np.int64)
+        self._ivars = np.zeros(K.N_IVARS, dtype=np.int64)
         self._ivars[K.IV_MAX_STEPS] = max_episode_steps
         self._ivars[K.IV_MODE] = _AUTORESET[self._autoreset_mode]
-        self._ivars[K.IV_N_WORKERS] = n_workers
-        self._late_steps = 0  # parallel steps in a row that waited for a late worker
-        self._serial_left = 0  # steps still to run serially
-        self._serial_stretch = SERIAL_STRETCH_MIN
 
         # Each plant's generator and buffered uniforms (the kernel reads _draws, the same
         # array), and its next row.
@@ -439,9 +413,6 @@ class StickSlipVectorEnv(VectorEnv):
         if self._frames is not None:
             self._record_frames(a)
         kernel = self._step_kernel
-        if self._serial_left:
-            self._serial_left -= 1
-            kernel = self._serial_kernel
         with parallel_section(kernel is not self._serial_kernel):
             n_failed = kernel(
                 self._table,
@@ -463,8 +434,6 @@ class StickSlipVectorEnv(VectorEnv):
             i = int(np.flatnonzero(self._status)[0])
             self._failed_plant = i
             raise_status(int(self._status[i]), None, f" {i}")
-        if kernel is not self._serial_kernel:
-            self._watch_workers()
         rewards = self._step_out[K.R_REWARD]  # NaN where (v - V)^2 overflowed (see
         if math.isnan(rewards @ rewards):      # StickSlipEnv.step); the sensors stay as they were
             self._needs_reset = True
@@ -483,19 +452,6 @@ class StickSlipVectorEnv(VectorEnv):
             infos = self._after_resets()
         ends = self._step_ends.copy()
         return obs, out[K.R_REWARD], ends[0], ends[1], infos
-
-    def _watch_workers(self) -> None:
-        """After a parallel step: go serial for a stretch if workers keep coming late (see
-        LATE_STEPS); a step with every worker on time ends any such spell."""
-        if self._ivars[K.IV_N_LATE] == 0:
-            self._late_steps = 0
-            self._serial_stretch = SERIAL_STRETCH_MIN
-            return
-        self._late_steps += 1
-        if self._late_steps >= LATE_STEPS:
-            self._serial_left = self._serial_stretch
-            self._serial_stretch = min(2 * self._serial_stretch, SERIAL_STRETCH_MAX)
-            self._late_steps = LATE_STEPS - PROBE_STEPS  # late probes: serial again
 
     def _after_resets(self) -> dict[str, Any]:
         """After a step that reset plants: refill spent buffers, restart traces, and batch
