@@ -74,11 +74,14 @@ def test_a_cell_in_a_list_of_other_laws_is_measured_as_alone():
 def cases(draw) -> tuple[OscillatorParams, list[float], list[float], SweepSettings]:
     law = draw(st.sampled_from(["coulomb", "viscous", "stribeck"]))
     base = OscillatorParams.preset(law, V=draw(st.sampled_from([0.0, 0.5, 1.0])),
-                                   eta=draw(st.sampled_from([0.6, 1.0, 1.7])))
-    u0 = draw(st.lists(st.sampled_from([0.0, 0.4, 1.0, 2.0, 6.0]), min_size=1, max_size=3,
-                       unique=True))
-    nu = draw(st.lists(st.sampled_from([0.25, 0.5, 0.7071, 1.0, 1.3, 2.0]), min_size=1,
-                       max_size=3, unique=True))
+                                   eta=draw(st.sampled_from([0.6, 1.0, 1.7])),
+                                   lam=draw(st.sampled_from([0.3, 0.5])))
+    amplitude = st.one_of(st.sampled_from([0.0, 0.4, 1.0, 2.0, 6.0]),
+                          st.floats(0.0, 8.0, allow_subnormal=False))
+    ratio = st.one_of(st.sampled_from([0.25, 0.5, 0.7071, 1.0, 1.3, 2.0]),
+                      st.floats(0.05, 3.0, allow_subnormal=False))
+    u0 = draw(st.lists(amplitude, min_size=1, max_size=3, unique=True))
+    nu = draw(st.lists(ratio, min_size=1, max_size=3, unique=True))
     state = st.floats(-3.0, 3.0, allow_nan=False, allow_subnormal=False)
     settings_ = SweepSettings(**{
         **SHORT, "x0": draw(state), "v0": draw(state),
@@ -89,7 +92,7 @@ def cases(draw) -> tuple[OscillatorParams, list[float], list[float], SweepSettin
     return base, u0, nu, settings_
 
 
-@settings(max_examples=20, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(cases())
 @example((HELD, [0.0, 1.0], [0.5, 1.0], SweepSettings(**{**SHORT, "x0": 1.5, "v0": -0.5})))
 def test_atlas_regime_map_and_cell_statistics_agree_bit_for_bit(case) -> None:
