@@ -1,16 +1,21 @@
-"""Cells of a sweep: their settings, time spans and the checked parallel run.
+"""Cells of a sweep: their settings, time spans, the checked parallel run and the labels.
 
 A cell is one independent run of the stats-only core from a given state: a transient, then a
 measurement window of stroboscopic segments (see :mod:`fricenv.sweep` for the formulas).
-:func:`run_cells` validates and allocates; the numba kernels it drives are in
-:mod:`fricenv.cell_kernels`.
+:func:`measure_cells` is the one path from parameters to labels that regime maps,
+``cell_statistics`` and atlases share: parameter rows and time spans
+(:func:`cell_inputs`, :func:`plan_cells`), the parallel run (:func:`run_cells`, which
+validates and allocates; its numba kernels are in :mod:`fricenv.cell_kernels`) and the
+labels (:func:`fricenv.regimes.classify`). A cell depends only on its own values, so every
+caller gets the same bits for the same cell.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
-from dataclasses import dataclass, fields
+from collections.abc import Callable, Mapping
+from dataclasses import asdict, dataclass, fields
+from typing import NamedTuple
 
 import numba
 import numpy as np
@@ -36,6 +41,9 @@ from .layout import (
     METHODS,
     N_STATS,
     ST_DURATION,
+    ST_N_REVERSAL,
+    ST_N_SLIP,
+    ST_N_STICK,
     ST_STICK_TIME,
     STATUS_DIVERGED,
     STATUS_OK,
@@ -48,6 +56,7 @@ from .params import (
     P_LAM,
     P_U1,
     P_U2,
+    P_V,
     P_W1,
     P_W2,
     P_XFK,
@@ -55,7 +64,7 @@ from .params import (
     PARAM_LIMIT,
     OscillatorParams,
 )
-from .regimes import exact_rationals, rational_denominators
+from .regimes import classify, exact_rationals, rational_denominators
 from .simulate import check_scan_steps
 
 #: Most stroboscopic samples a cell keeps (two float64 each): ample for any sensible window
@@ -68,6 +77,8 @@ MAX_PERIOD = 1000
 MAX_LOCK_EXTENSIONS = 100
 #: A cell that the kernel never wrote (its outputs start so): not a :mod:`layout` status.
 STATUS_NOT_RUN = -1
+#: Label of a cell that has not been computed yet (not a :class:`~fricenv.regimes.Regime`).
+NOT_COMPUTED = -1
 
 #: The integer-valued fields of :class:`SweepSettings` and their largest values: beyond
 #: them the int64 kernels' arguments or the segment counts would overflow.
@@ -152,6 +163,27 @@ class SweepSettings:
         if self.method == "exact" and not params.is_coulomb:
             raise ValueError("method 'exact' needs the Coulomb law (b1 = b3 = 0)")
         return METHODS[self.method]
+
+
+def settings_with(settings: SweepSettings | None, overrides: Mapping[str, object]
+                  ) -> SweepSettings:
+    """The settings of a sweep: ``settings`` (None: the defaults) with the single fields
+    ``overrides`` replaced; an unknown field is a ``ValueError`` naming it, ``settings`` of
+    another type a ``TypeError``."""
+    known = {f.name for f in fields(SweepSettings)}
+    unknown = sorted(set(overrides) - known)
+    if unknown:
+        raise ValueError(f"unknown setting(s) {unknown}; expected some of {sorted(known)}")
+    if settings is None:
+        return SweepSettings(**overrides)  # type: ignore[arg-type]
+    if not isinstance(settings, SweepSettings):
+        raise TypeError(
+            "settings must be a fricenv.SweepSettings or None (single settings can also be "
+            f"passed as keyword arguments), {got(settings)}"
+        )
+    if overrides:
+        return SweepSettings(**{**asdict(settings), **overrides})
+    return settings
 
 
 @dataclass(frozen=True)
@@ -244,16 +276,6 @@ class _Threads:
     def __exit__(self, *exc: object) -> None:
         if self.old is not None:
             numba.set_num_threads(self.old)
-
-
-def _cell_rows(base: np.ndarray, u0: np.ndarray, nu: np.ndarray) -> np.ndarray:
-    """Parameter vectors of map cells: ``base`` with both tones at ``u0[k]`` and the second
-    tone at ``nu[k]`` times the first's frequency."""
-    P = np.repeat(base[None, :], u0.size, axis=0)
-    P[:, P_U1] = u0
-    P[:, P_U2] = u0
-    P[:, P_W2] = nu * P[:, P_W1]
-    return P
 
 
 def _check_cells(P_cells: np.ndarray, t_transient: np.ndarray, t_segment: np.ndarray,
@@ -463,3 +485,162 @@ def _run_group(method: int, rows: np.ndarray, P_cells: np.ndarray,
     finally:  # also when stopped: the finished cells are kept
         if not whole:
             out_stats[rows], out_status[rows], out_period[rows] = st, status, period
+
+
+# -- the one path from parameters to labels ------------------------------------------------
+#: Column of the kernels' parameter row that each field of a cell's values sets, beside
+#: ``u0`` (both amplitudes, unless ``u1`` / ``u2`` set one) and ``nu`` (the second tone's
+#: frequency, ``nu_exact * eta``).
+_COLUMN = {"lam": P_LAM, "V": P_V, "xfk": P_XFK, "xfs": P_XFS, "b1": P_B1, "b3": P_B3,
+           "eta": P_W1, "u1": P_U1, "u2": P_U2}
+#: Fields of :class:`OscillatorParams` that a cell's values may set.
+CELL_FIELDS = ("u0", "nu", *_COLUMN)
+#: Fields the time spans depend on (:func:`plan_cells` reads eta and lam - b1; nu is its
+#: argument).
+PLAN_FIELDS = ("eta", "lam", "b1")
+
+
+class CellInputs(NamedTuple):
+    """What :func:`run_cells` and :func:`~fricenv.regimes.classify` take for each cell (one
+    entry, or row, per cell)."""
+
+    P: np.ndarray  # parameter rows, layout params.P_*
+    t_transient: np.ndarray
+    t_segment: np.ndarray
+    n_segment: np.ndarray  # int64
+    tries: np.ndarray  # int64
+    method: np.ndarray  # int64: METHOD_EXACT or METHOD_EVENT
+    nu: np.ndarray  # the values' nu (the label's), not the plan's nu_exact
+    q: np.ndarray  # int64: tested denominator of nu, 0 if untested
+
+    def check(self) -> None:
+        """``ValueError`` before any cell runs, for a row :class:`OscillatorParams` would
+        refuse or a cell that would run for hours or fill the memory."""
+        _check_rows(self.P)
+        _check_cells(self.P, self.t_transient, self.t_segment, self.n_segment, self.tries)
+
+
+class CellResults(NamedTuple):
+    """What a regime map stores of each cell (one entry, or row, per cell)."""
+
+    stats: np.ndarray  # float64 (n, N_STATS), layout ST_*; NaN for a cell not run
+    status: np.ndarray  # int64: kernel status, STATUS_NOT_RUN for a cell not run
+    period: np.ndarray  # int64: period in common forcing periods, 0 none or untested
+    labels: np.ndarray  # int8: Regime values, NOT_COMPUTED for a cell not run
+
+
+def _cell_values(values: object) -> dict[str, np.ndarray]:
+    """``values`` as 1-d float arrays of one length, each naming a field of
+    :data:`CELL_FIELDS` (else ``TypeError`` / ``ValueError`` naming the bad entry)."""
+    if not isinstance(values, Mapping):
+        raise TypeError(f"values must be a mapping from parameter names to 1-d arrays, "
+                        f"{got(values)}")
+    if not values:
+        raise ValueError("values is empty: give at least one field, e.g. {'u0': [1.0]}")
+    out = {}
+    for name, a in values.items():
+        if name not in CELL_FIELDS:
+            raise ValueError(f"values: {name!r} is not a field a cell can set; expected "
+                             f"some of {list(CELL_FIELDS)}")
+        arr = np.asarray(real_array(a, f"values[{name!r}] must be a 1-d array of real "
+                                       "numbers"), dtype=np.float64)
+        if arr.ndim != 1:
+            raise ValueError(f"values[{name!r}] must be 1-d, got shape {arr.shape}")
+        out[name] = arr
+    sizes = {k: a.size for k, a in out.items()}
+    if len(set(sizes.values())) > 1:
+        raise ValueError(f"values must all have one length, got {sizes}")
+    return out
+
+
+def cell_inputs(base: OscillatorParams, values: Mapping[str, object],
+                settings: SweepSettings) -> CellInputs:
+    """Kernel inputs of the cells ``values`` (one 1-d array per field of
+    :data:`CELL_FIELDS`, all of one length; the other fields are ``base``'s): each cell's
+    parameter row is ``base.replace(**cell).to_array()`` with the second tone at
+    ``nu_exact * eta``, and its spans are those :func:`plan_cells` gives its nu (elementwise
+    in nu, so any subset of a grid gets the grid's spans). ``method="auto"`` picks each
+    cell's method from its own law."""
+    if not isinstance(base, OscillatorParams):
+        raise TypeError(f"base must be an OscillatorParams, {got(base)}")
+    if not isinstance(settings, SweepSettings):
+        raise TypeError(f"settings must be a fricenv.SweepSettings, {got(settings)}")
+    vals = _cell_values(values)
+    n = next(iter(vals.values())).size
+    P = np.repeat(base.to_array()[None, :], n, axis=0)
+    u0 = vals.get("u0", np.full(n, base.u0))
+    P[:, P_U1] = u0 if base.u1 is None else base.u1
+    P[:, P_U2] = u0 if base.u2 is None else base.u2
+    for k, col in _COLUMN.items():
+        if k in vals:
+            P[:, col] = vals[k]
+    nu = vals.get("nu", np.full(n, base.nu))
+    t_tr, t_seg, nu_exact = np.empty(n), np.empty(n), np.empty(n)
+    n_seg, tries, q = (np.empty(n, dtype=np.int64) for _ in range(3))
+    if any(k in vals for k in PLAN_FIELDS):
+        keys = np.stack([vals.get(k, np.full(n, getattr(base, k))) for k in PLAN_FIELDS], 1)
+        groups, inverse = np.unique(keys, axis=0, return_inverse=True)
+    else:  # (a regime map's chunk: the base's plan for every cell)
+        groups = np.array([[getattr(base, k) for k in PLAN_FIELDS]])
+        inverse = np.zeros(n, dtype=np.int64)
+    for g, key in enumerate(groups):  # one plan per distinct (eta, lam, b1)
+        idx = np.flatnonzero(inverse.ravel() == g)
+        p = base.replace(**dict(zip(PLAN_FIELDS, (float(v) for v in key), strict=True)))
+        grid, where = np.unique(nu[idx], return_inverse=True)
+        plan = plan_cells(p, grid, settings)
+        for dst, src in ((t_tr, plan.t_transient), (t_seg, plan.t_segment),
+                         (n_seg, plan.n_segment), (tries, plan.tries), (q, plan.q),
+                         (nu_exact, plan.nu_exact)):
+            dst[idx] = src[where.ravel()]
+    P[:, P_W2] = nu_exact * P[:, P_W1]
+    if settings.method == "auto":
+        coulomb = (P[:, P_B1] == 0.0) & (P[:, P_B3] == 0.0)
+        method = np.where(coulomb, METHOD_EXACT, METHOD_EVENT).astype(np.int64)
+    else:
+        method = np.full(n, METHODS[settings.method], dtype=np.int64)
+    return CellInputs(P, t_tr, t_seg, n_seg, tries, method, nu, q)
+
+
+def measure_cells(base: OscillatorParams, values: Mapping[str, object],
+                  settings: SweepSettings, n_threads: int | None = None,
+                  stop_requested: Callable[[], bool] | None = None) -> CellResults:
+    """Measure and label the cells ``values`` (see :func:`cell_inputs`): every regime
+    map, ``cell_statistics`` and atlas cell goes through here, so a cell gets the same
+    statistics and label whichever of them asks.
+
+    The cells run by :func:`run_cells`, one call per method present; labels come from
+    :func:`~fricenv.regimes.classify` with the stick -> slip count, so a block stuck all
+    window long is ``STUCK``. Stopping is :func:`run_cells`': ``stop_requested()`` turning
+    true returns the cells finished so far, Ctrl-C raises
+    :class:`~fricenv.calls.SweepInterrupted` whose ``results`` are that
+    :class:`CellResults`; a cell not run has NaN statistics, status ``STATUS_NOT_RUN`` and
+    label ``NOT_COMPUTED``.
+    """
+    cells = cell_inputs(base, values, settings)
+    n = cells.P.shape[0]
+    stats = np.full((n, N_STATS), np.nan)
+    status = np.full(n, STATUS_NOT_RUN, dtype=np.int64)
+    period = np.zeros(n, dtype=np.int64)
+    stopped = None
+    for m in np.unique(cells.method):
+        idx = np.flatnonzero(cells.method == m)
+        try:
+            out = run_cells(cells.P[idx], cells.t_transient[idx], cells.t_segment[idx],
+                            cells.n_segment[idx], cells.tries[idx], settings, int(m),
+                            n_threads, stop_requested)
+        except calls.SweepInterrupted as stop:
+            stopped, out = stop, stop.results
+        stats[idx], status[idx], period[idx] = out
+        if stopped is not None or np.any(out[1] == STATUS_NOT_RUN):
+            break  # stopped: the other methods' cells stay unrun
+    labels = np.zeros(n, dtype=np.int8)
+    if n:
+        labels[:] = classify(stats[:, ST_N_STICK], stats[:, ST_STICK_TIME],
+                             stats[:, ST_N_REVERSAL], cells.nu, cells.q, period, status,
+                             stats[:, ST_N_SLIP])
+    labels[status == STATUS_NOT_RUN] = NOT_COMPUTED
+    results = CellResults(stats, status, period, labels)
+    if stopped is not None:
+        stopped.results = results
+        raise stopped
+    return results

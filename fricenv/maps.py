@@ -19,7 +19,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from . import layout, mapfile
-from .cells import CellPlan, SweepSettings
+from .cells import NOT_COMPUTED, CellPlan, SweepSettings
 from .checks import check_finite_real, check_int, check_output_dir, check_path, real_array
 from .layout import (
     N_STATS,
@@ -46,8 +46,6 @@ FORMAT_VERSION = 1
 #: Version of the per-cell measurement; a stored map is resumed only if it matches
 #: (CHANGELOG.md says what each version changed).
 ALGORITHM = 16
-#: Label of a cell that has not been computed yet (not a :class:`Regime`).
-NOT_COMPUTED = -1
 
 STAT_NAMES = ("duration", "stick_time", "n_stick", "n_slip", "n_reversal", "v_max", "v_min",
               "x_max", "x_min", "vr2_int", "n_steps")

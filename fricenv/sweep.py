@@ -5,7 +5,8 @@ measurement window split into stroboscopic segments, all through the stats-only 
 ``core.advance`` (no trajectory is stored, so memory is O(grid) whatever the horizon). Cells
 run on numba threads that each claim the next cell as soon as they are free (cells differ
 in cost by orders of magnitude); a cell depends only on its own parameters, so the result is
-bit-identical for any thread count, chunking, order or resumption.
+bit-identical for any thread count, chunking, order or resumption. Every cell goes through
+:func:`fricenv.cells.measure_cells`, as those of :func:`cell_statistics` and of an atlas do.
 
 Time spans per cell (defaults of :class:`SweepSettings`)
 ---------------------------------------------------------
@@ -44,82 +45,53 @@ import json
 import os
 import time
 from collections.abc import Callable, Iterable
-from dataclasses import asdict, fields
+from dataclasses import fields
 from pathlib import Path
 
 import numpy as np
 
 from . import mapfile
 from .calls import SweepInterrupted, sweep_signals
-
-# Cells (settings, plans, the checked parallel run) live in .cells and their kernels in
-# .cell_kernels; their names stay importable from here.
-from .cell_kernels import (  # noqa: F401
-    CELL_KERNELS,
-    _cells_kernel_event,
-    _cells_kernel_exact,
-    _converging,
-    _event_cap,
-    _run_cell_event,
-    _run_cell_exact,
-)
-from .cells import (  # noqa: F401
-    _INT_SETTINGS,
-    _P_COLUMNS,
-    MAX_LOCK_EXTENSIONS,
-    MAX_PERIOD,
-    MAX_SEGMENTS,
+from .cells import CELL_KERNELS as CELL_KERNELS
+from .cells import MAX_LOCK_EXTENSIONS as MAX_LOCK_EXTENSIONS
+from .cells import MAX_PERIOD as MAX_PERIOD
+from .cells import MAX_SEGMENTS as MAX_SEGMENTS
+from .cells import (
     STATUS_NOT_RUN,
     CellPlan,
+    CellResults,
     SweepSettings,
-    _cell_rows,
-    _check_cells,
-    _check_rows,
-    _count,
-    _Threads,
+    cell_inputs,
     check_n_threads,
-    modulation_period,
+    measure_cells,
     plan_cells,
-    run_cells,
+    settings_with,
 )
+from .cells import modulation_period as modulation_period
+from .cells import run_cells as run_cells
 from .checks import (
     check_bool,
     check_dict,
     check_int,
     got,
 )
-from .layout import (
-    METHOD_EVENT,
-    METHOD_EXACT,
-    N_STATS,
-    ST_N_REVERSAL,
-    ST_N_SLIP,
-    ST_N_STICK,
-    ST_STICK_TIME,
-)
-from .maps import (  # noqa: F401  (the map's names stay importable from here)
-    _MAP_ARRAYS,
-    _MAP_DTYPES,
+from .layout import N_STATS
+from .maps import (
     _RESERVED_META,
     ALGORITHM,
-    FORMAT,
-    FORMAT_VERSION,
     NOT_COMPUTED,
-    STAT_NAMES,
     RegimeMap,
     _check_axis,
-    _check_map_arrays,
     _map_path,
     _params_key,
-    _with_npz,
 )
+from .maps import FORMAT as FORMAT
+from .maps import FORMAT_VERSION as FORMAT_VERSION
+from .maps import STAT_NAMES as STAT_NAMES
 from .params import (
-    P_W1,
-    P_W2,
     OscillatorParams,
     resolve_law,
 )
-from .regimes import classify
 
 #: Most cells a regime map may have: its arrays take about 100 bytes a cell (10 GB at the
 #: cap), allocated before the first cell runs; a larger grid is refused naming its size.
@@ -128,24 +100,6 @@ MAX_CELLS = 10**8
 #: file, and saving after every chunk made a 3 s map take 70 % longer. Its last chunks are
 #: saved when it ends or stops on an exception; a killed process loses at most this much.
 SAVE_EVERY_S = 10.0
-
-def _settings(settings: SweepSettings | None, overrides: dict) -> SweepSettings:
-    """The settings of a sweep: ``settings`` (default: the defaults) with ``overrides``."""
-    known = {f.name for f in fields(SweepSettings)}
-    unknown = sorted(set(overrides) - known)
-    if unknown:
-        raise ValueError(f"unknown setting(s) {unknown}; expected some of {sorted(known)}")
-    if settings is None:
-        return SweepSettings(**overrides)
-    if not isinstance(settings, SweepSettings):
-        raise TypeError(
-            "settings must be a fricenv.SweepSettings or None (single settings can also be "
-            f"passed as keyword arguments), {got(settings)}"
-        )
-    if overrides:
-        return SweepSettings(**{**asdict(settings), **overrides})
-    return settings
-
 
 def _as_params(params: OscillatorParams | str) -> OscillatorParams:
     if isinstance(params, OscillatorParams):
@@ -218,8 +172,8 @@ def regime_map(params: OscillatorParams | str, u0: object, nu: object, *,
     if u0.size * nu.size > MAX_CELLS:
         raise ValueError(f"a grid of u0 ({u0.size} values) x nu ({nu.size} values) has "
                          f"{u0.size * nu.size} cells, more than MAX_CELLS = {MAX_CELLS}")
-    settings = _settings(settings, overrides)
-    method = settings.method_code(params)
+    settings = settings_with(settings, overrides)
+    settings.method_code(params)  # ValueError for 'exact' on another law than Coulomb
     resume = check_bool("resume", resume)
     if progress is not None:
         check_bool("progress", progress)
@@ -230,25 +184,23 @@ def regime_map(params: OscillatorParams | str, u0: object, nu: object, *,
     plan = plan_cells(params, nu, settings)
     # Checked before anything is written, on each nu's fastest cell (the scan step depends
     # on u0 only through whether it is 0).
-    base = params.to_array()
-    fastest = _cell_rows(base, np.full(nu.size, np.max(np.abs(u0))), plan.nu_exact)
-    _check_cells(fastest, plan.t_transient, plan.t_segment, plan.n_segment, plan.tries)
+    cell_inputs(params, {"u0": np.full(nu.size, np.max(np.abs(u0))), "nu": nu},
+                settings).check()
     # One writer at a time: a second sweep on this path is refused while this one runs.
     with (mapfile.writer_lock(path) if path is not None else contextlib.nullcontext(),
           sweep_signals()):
-        return _fill_map(params, u0, nu, settings, plan, method, path=path, resume=resume,
+        return _fill_map(params, u0, nu, settings, plan, path=path, resume=resume,
                          chunk_size=chunk_size, n_threads=n_threads, progress=progress,
                          callback=callback, meta=meta)
 
 
 def _fill_map(params: OscillatorParams, u0: np.ndarray, nu: np.ndarray,
-              settings: SweepSettings, plan: CellPlan, method: int, *, path: Path | None,
+              settings: SweepSettings, plan: CellPlan, *, path: Path | None,
               resume: bool, chunk_size: int | None, n_threads: int | None,
               progress: bool | None, callback: Callable[[RegimeMap, int], None] | None,
               meta: dict | None) -> RegimeMap:
     """The sweep of :func:`regime_map` once its arguments are checked (and, with ``path``,
     its writer lock held): resume or start the map, run the cells not done, save."""
-    base = params.to_array()
     rmap = None
     if path is not None:
         if resume and path.exists():
@@ -286,19 +238,17 @@ def _fill_map(params: OscillatorParams, u0: np.ndarray, nu: np.ndarray,
         for start in range(0, todo.size, chunk_size):
             idx = todo[start:start + chunk_size]
             iu, jn = np.divmod(idx, n_nu)
-            P = _cell_rows(base, u0[iu], plan.nu_exact[jn])
             t0 = time.perf_counter()
             try:
-                st, status, period = run_cells(P, plan.t_transient[jn], plan.t_segment[jn],
-                                               plan.n_segment[jn], plan.tries[jn], settings,
-                                               method, n_threads)
+                cells = measure_cells(params, {"u0": u0[iu], "nu": nu[jn]}, settings,
+                                      n_threads)
             except SweepInterrupted as stop:  # keep the chunk's finished cells, then stop
-                _store_cells(rmap, iu, jn, plan, *stop.results)
+                _store_cells(rmap, iu, jn, stop.results)
                 unsaved = path is not None
                 raise
             finally:
                 rmap.elapsed += time.perf_counter() - t0
-            _store_cells(rmap, iu, jn, plan, st, status, period)
+            _store_cells(rmap, iu, jn, cells)
             unsaved = path is not None
             if path is not None and time.perf_counter() - last_save >= SAVE_EVERY_S:
                 unsaved = False  # (a save that fails is not retried below)
@@ -320,20 +270,18 @@ def _fill_map(params: OscillatorParams, u0: np.ndarray, nu: np.ndarray,
     return rmap
 
 
-def _store_cells(rmap: RegimeMap, iu: np.ndarray, jn: np.ndarray, plan: CellPlan,
-                 st: np.ndarray, status: np.ndarray, period: np.ndarray) -> None:
-    """Store the cells ``(iu[k], jn[k])`` of ``run_cells``' outputs that finished (all but
-    those a stop left at ``STATUS_NOT_RUN``) in ``rmap``, with their labels, and mark them
-    done; each cell's values are written before it is marked, so a stop between two writes
-    leaves no cell marked done without its values."""
-    ok = status != STATUS_NOT_RUN
-    iu, jn, st, status, period = iu[ok], jn[ok], st[ok], status[ok], period[ok]
-    rmap.stats[iu, jn] = st
-    rmap.status[iu, jn] = status
-    rmap.period[iu, jn] = period
-    rmap.labels[iu, jn] = classify(st[:, ST_N_STICK], st[:, ST_STICK_TIME],
-                                   st[:, ST_N_REVERSAL], rmap.nu[jn], plan.q[jn], period,
-                                   status, st[:, ST_N_SLIP])
+def _store_cells(rmap: RegimeMap, iu: np.ndarray, jn: np.ndarray, cells: CellResults
+                 ) -> None:
+    """Store the cells ``(iu[k], jn[k])`` of :func:`~fricenv.cells.measure_cells`' results
+    that finished (all but those a stop left at ``STATUS_NOT_RUN``) in ``rmap`` and mark
+    them done; each cell's values are written before it is marked, so a stop between two
+    writes leaves no cell marked done without its values."""
+    ok = cells.status != STATUS_NOT_RUN
+    iu, jn = iu[ok], jn[ok]
+    rmap.stats[iu, jn] = cells.stats[ok]
+    rmap.status[iu, jn] = cells.status[ok]
+    rmap.period[iu, jn] = cells.period[ok]
+    rmap.labels[iu, jn] = cells.labels[ok]
     rmap.done[iu, jn] = True
 
 
@@ -344,8 +292,10 @@ def cell_statistics(params: list[OscillatorParams], settings: SweepSettings | No
 
     Returns ``(labels, stats, period, status)`` with one row per entry of ``params`` (a list,
     or any iterable, of :class:`OscillatorParams`); each entry's own ``eta``, ``nu`` and
-    amplitudes are used. With ``method="auto"`` a list of Coulomb entries runs ``"exact"``
-    and any other list ``"event"``; ``"exact"`` needs every entry to be Coulomb.
+    amplitudes are used. Each entry is measured by :func:`~fricenv.cells.measure_cells`, as
+    a map or atlas cell is, so it gets the bits it gets there: with ``method="auto"`` a
+    Coulomb entry runs ``"exact"`` and any other ``"event"``, whatever the other entries;
+    ``"exact"`` needs every entry to be Coulomb.
     """
     if isinstance(params, (OscillatorParams, str)) or not isinstance(params, Iterable):
         raise TypeError(
@@ -360,47 +310,22 @@ def cell_statistics(params: list[OscillatorParams], settings: SweepSettings | No
             raise TypeError(
                 f"params[{i}] must be an OscillatorParams, {got(p)}"
             )
-    settings = _settings(settings, overrides)
-    coul = {p.is_coulomb for p in params}
-    if settings.method == "auto":
-        method = METHOD_EXACT if coul == {True} else METHOD_EVENT
-    else:
+    settings = settings_with(settings, overrides)
+    if settings.method == "exact":
         for i, p in enumerate(params):  # the method must suit every entry
             try:
-                method = settings.method_code(p)
+                settings.method_code(p)
             except ValueError as e:
                 raise ValueError(f"params[{i}]: {e}") from None
-    rows, tt, ts, ns, qs, nus, tr = [], [], [], [], [], [], []
-    for p in params:
-        plan = plan_cells(p, np.array([p.nu]), settings)
-        P = p.to_array()
-        P[P_W2] = plan.nu_exact[0] * P[P_W1]
-        rows.append(P)
-        tt.append(plan.t_transient[0])
-        ts.append(plan.t_segment[0])
-        ns.append(plan.n_segment[0])
-        qs.append(plan.q[0])
-        tr.append(plan.tries[0])
-        nus.append(p.nu)
-    qs_a = np.array(qs)
+    values = {k: np.array([getattr(p, k) for p in params], dtype=np.float64)
+              for k in ("nu", "eta", "lam", "V", "xfk", "xfs", "b1", "b3")}
+    values["u1"] = np.array([p.amp1 for p in params], dtype=np.float64)
+    values["u2"] = np.array([p.amp2 for p in params], dtype=np.float64)
     try:
         with sweep_signals():
-            st, status, period = run_cells(np.array(rows), np.array(tt), np.array(ts),
-                                           np.array(ns), np.array(tr), settings, method,
-                                           n_threads)
+            cells = measure_cells(params[0], values, settings, n_threads)
     except SweepInterrupted as stop:
-        st, status, period = stop.results
-        stop.results = _cell_results(st, status, period, np.array(nus), qs_a)
+        cells = stop.results
+        stop.results = (cells.labels, cells.stats, cells.period, cells.status)
         raise
-    return _cell_results(st, status, period, np.array(nus), qs_a)
-
-
-def _cell_results(st: np.ndarray, status: np.ndarray, period: np.ndarray, nu: np.ndarray,
-                  q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """``cell_statistics``' result: labels (``NOT_COMPUTED`` for a cell a stop left
-    unrun), stats, period, status."""
-    labels = np.asarray(classify(st[:, ST_N_STICK], st[:, ST_STICK_TIME],
-                                 st[:, ST_N_REVERSAL], nu, q, period, status,
-                                 st[:, ST_N_SLIP]))
-    labels[status == STATUS_NOT_RUN] = NOT_COMPUTED
-    return labels, st, period, status
+    return cells.labels, cells.stats, cells.period, cells.status

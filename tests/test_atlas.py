@@ -20,6 +20,7 @@ import zarr
 from distributed import Client, LocalCluster
 
 import fricenv
+from fricenv import cells
 from fricenv.atlas import api, core, distributed, store
 from fricenv.params import OscillatorParams
 from fricenv.regimes import Regime
@@ -201,13 +202,13 @@ def test_foreign_store_refused(tmp_path):
     ("coulomb", {"eta": [0.6, 1e6]}, ValueError, r"stroboscopic samples.*\(at eta = 1000000.0\)"),
 ])
 def test_bad_axes_refused_before_any_cell_runs(monkeypatch, base, axes, error, match):
-    monkeypatch.setattr(core, "run_cells", lambda *a, **k: pytest.fail("a cell ran"))
+    monkeypatch.setattr(cells, "run_cells", lambda *a, **k: pytest.fail("a cell ran"))
     with pytest.raises(error, match=match):
         _run(base, axes)
 
 
 def test_bad_arguments_refused(monkeypatch, tmp_path):
-    monkeypatch.setattr(core, "run_cells", lambda *a, **k: pytest.fail("a cell ran"))
+    monkeypatch.setattr(cells, "run_cells", lambda *a, **k: pytest.fail("a cell ran"))
     with pytest.raises(ValueError, match="method 'exact' needs the Coulomb law"):
         _run("coulomb", {"b1": [0.0, 0.2]}, settings=SweepSettings(method="exact"))
     with pytest.raises(TypeError, match="client must be"):

@@ -10,10 +10,10 @@ import numpy as np
 import pytest
 
 from fricenv.layout import N_STATS, STATUS_OK
+from fricenv.maps import _RESERVED_META
 from fricenv.params import OscillatorParams
 from fricenv.regimes import Regime
 from fricenv.sweep import (
-    _RESERVED_META,
     NOT_COMPUTED,
     RegimeMap,
     SweepSettings,
@@ -404,16 +404,16 @@ def test_callback_is_checked_before_any_cell(tmp_path) -> None:
 # -- review 18: checks before the work, and nothing unwritten read as a result ---------------
 def _count_cells(monkeypatch) -> list[int]:
     """Record the cells every run_cells call would run (regime_map's engine)."""
-    from fricenv import sweep
+    from fricenv import cells
 
     ran: list[int] = []
-    real = sweep.run_cells
+    real = cells.run_cells
 
     def counting(P, *args, **kwargs):
         ran.append(len(P))
         return real(P, *args, **kwargs)
 
-    monkeypatch.setattr(sweep, "run_cells", counting)
+    monkeypatch.setattr(cells, "run_cells", counting)
     return ran
 
 

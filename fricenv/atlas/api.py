@@ -12,12 +12,10 @@ import numpy as np
 import xarray as xr
 
 from ..calls import SweepInterrupted, sweep_signals
-from ..cells import STATUS_NOT_RUN
+from ..cells import NOT_COMPUTED, STATUS_NOT_RUN, SweepSettings
 from ..checks import check_bool, got
 from ..mapfile import writer_lock
-from ..maps import NOT_COMPUTED
 from ..params import OscillatorParams
-from ..sweep import SweepSettings
 from .core import (
     AtlasSpec,
     ChunkTask,

@@ -20,8 +20,8 @@ from typing import Any
 
 import numpy as np
 
+from ..cells import SweepSettings
 from ..cli._args import add_plant_arguments, grid, plant
-from ..sweep import SweepSettings
 
 
 def parse_axis(spec: str) -> tuple[str, np.ndarray]:

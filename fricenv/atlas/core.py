@@ -5,12 +5,12 @@ simulator, and the local path runs on it directly. A chunk is a rectangular bloc
 grid; it is the unit of work (one task, all its cells in one numba call per method), of
 storage (one Zarr chunk per variable) and of resumption.
 
-Cells are built exactly as :func:`fricenv.sweep.regime_map` builds them: the same time
-spans from :func:`fricenv.sweep.plan_cells` (elementwise in ``nu``, so a chunk's slice of
-the ``nu`` grid gets the same spans as the whole grid), the same parameter rows, the same
-kernel (:func:`fricenv.sweep.run_cells`) and the same labels
-(:func:`fricenv.regimes.classify`); a cell depends only on its own parameters, so the
-atlas is bit-identical to the regime map for any chunking, order, worker or resumption.
+A chunk's cells are measured by :func:`fricenv.cells.measure_cells`, the function that
+measures the cells of :func:`fricenv.regime_map` and :func:`fricenv.cell_statistics`: the
+same parameter rows, time spans (elementwise in ``nu``, so a chunk's slice of the ``nu``
+grid gets the whole grid's spans), kernels and labels. A cell depends only on its own
+parameters, so the atlas is bit-identical to the regime map (and to ``cell_statistics``)
+for any chunking, order, worker or resumption.
 """
 
 from __future__ import annotations
@@ -24,55 +24,34 @@ from typing import Any
 import numpy as np
 
 from ..calls import SweepInterrupted
-from ..cells import STATUS_NOT_RUN  # (the stored fill value of a cell that has not run)
+from ..cells import (
+    NOT_COMPUTED,
+    PLAN_FIELDS,
+    STATUS_NOT_RUN,  # (the stored fill value of a cell that has not run)
+    SweepSettings,
+    cell_inputs,
+    measure_cells,
+    plan_cells,
+    settings_with,
+)
 from ..checks import check_int, got, real_array
 from ..layout import (
-    METHOD_EVENT,
-    METHOD_EXACT,
-    N_STATS,
     ST_DURATION,
     ST_N_REVERSAL,
-    ST_N_SLIP,
     ST_N_STICK,
     ST_STICK_TIME,
     ST_V_MAX,
     ST_V_MIN,
 )
 from ..params import (
-    P_B1,
-    P_B3,
-    P_LAM,
-    P_U1,
-    P_U2,
-    P_V,
-    P_W1,
-    P_W2,
-    P_XFK,
-    P_XFS,
     PARAM_LIMIT,
     OscillatorParams,
     resolve_law,
-)
-from ..regimes import classify
-from ..simulate import check_scan_steps
-from ..sweep import (
-    NOT_COMPUTED,
-    SweepSettings,
-    _check_rows,
-    _settings,
-    plan_cells,
-    run_cells,
 )
 
 #: Parameters an atlas may sweep: every numeric field of OscillatorParams that sets a cell
 #: (u1 and u2 are not: both tones get amplitude u0, as in a regime map).
 AXIS_FIELDS = ("u0", "nu", "eta", "lam", "V", "xfk", "xfs", "b1", "b3")
-#: Column of the kernels' parameter row each field sets (u0 sets both amplitudes; nu sets
-#: the second tone's frequency together with eta).
-_COLUMN = {"lam": P_LAM, "V": P_V, "xfk": P_XFK, "xfs": P_XFS, "b1": P_B1, "b3": P_B3,
-           "eta": P_W1}
-#: Fields the time spans depend on (plan_cells reads eta and lam - b1; nu is its argument).
-_PLAN_FIELDS = ("eta", "lam", "b1")
 
 #: The variables of an atlas, their dtype and the value of a cell not computed yet. The
 #: label is written last for each chunk, so a stored label marks its chunk complete.
@@ -231,7 +210,7 @@ def _check_friction_levels(axes: dict[str, np.ndarray], base: OscillatorParams) 
 def _plan_groups(spec_axes: dict[str, np.ndarray], base: OscillatorParams
                  ) -> Iterator[tuple[dict[str, float], OscillatorParams]]:
     """Each distinct combination of the fields the time spans depend on, and its params."""
-    names = [k for k in _PLAN_FIELDS if k in spec_axes]
+    names = [k for k in PLAN_FIELDS if k in spec_axes]
     for values in itertools.product(*(spec_axes[k] for k in names)):
         fixed = {k: float(v) for k, v in zip(names, values, strict=True)}
         yield fixed, base.replace(**fixed)
@@ -265,12 +244,7 @@ def _check_cells(axes: dict[str, np.ndarray], base: OscillatorParams,
         values = dict(zip(names, (reduced[k][i] for k, i in
                                   zip(names, np.unravel_index(flat, shape), strict=True)),
                           strict=True))
-        P, t_tr, t_seg, n_seg, tries, _, _, _ = cell_rows(base, values, settings)
-        _check_rows(P)
-        longest = t_tr + t_seg * n_seg * np.maximum(tries, 1)
-        check_scan_steps(P, np.ascontiguousarray(longest, dtype=np.float64),
-                         "a cell's span is its transient plus its windows: check the "
-                         "settings transient_min, transient_efolds and window_min")
+        cell_inputs(base, values, settings).check()
 
 
 def auto_chunks(shape: Sequence[int], target: int) -> tuple[int, ...]:
@@ -319,7 +293,7 @@ def make_spec(base: object, axes: object, settings: Any, chunks: object,
     ``ValueError`` naming the field and the value)."""
     base = _check_base(base)
     axes = _check_axes(axes, base)
-    settings = _settings(settings, {})
+    settings = settings_with(settings, {})
     shape = tuple(a.size for a in axes.values())
     if math.prod(shape) > MAX_CELLS:
         raise ValueError(f"an atlas of shape {shape} has {math.prod(shape):.3g} cells, more "
@@ -365,7 +339,7 @@ def _span_costs(spec: AtlasSpec, tasks: list[ChunkTask]) -> list[float]:
         span = plan.t_transient + plan.t_segment * plan.n_segment * np.maximum(plan.tries, 1)
         spans[tuple(fixed.values())] = span * p.eta * np.maximum(1.0, plan.nu_exact)
     costs = []
-    names = [k for k in _PLAN_FIELDS if k in spec.axes]
+    names = [k for k in PLAN_FIELDS if k in spec.axes]
     for t in tasks:
         n_other = math.prod(g.size for k, g in t.grids.items()
                             if k not in names + ["nu", "u0"])
@@ -379,80 +353,35 @@ def _span_costs(spec: AtlasSpec, tasks: list[ChunkTask]) -> list[float]:
     return costs
 
 
-def cell_rows(base: OscillatorParams, values: dict[str, np.ndarray],
-              settings: SweepSettings) -> tuple[np.ndarray, ...]:
-    """Kernel inputs of cells given by ``values`` (one array per swept field, all of one
-    length; other fields from ``base``): parameter rows as ``regime_map`` builds them
-    (both tones at u0, the second at ``nu_exact * eta``), the plan's spans, the method
-    code, the grid's nu and the tested denominator q."""
-    n = next(iter(values.values())).size
-    P = np.repeat(base.to_array()[None, :], n, axis=0)
-    for k, col in _COLUMN.items():
-        if k in values:
-            P[:, col] = values[k]
-    u0 = values.get("u0", np.full(n, base.u0))
-    P[:, P_U1] = u0
-    P[:, P_U2] = u0
-    nu = values.get("nu", np.full(n, base.nu))
-    t_tr, t_seg = np.empty(n), np.empty(n)
-    n_seg, tries, q = (np.empty(n, dtype=np.int64) for _ in range(3))
-    nu_exact = np.empty(n)
-    keys = np.stack([values.get(k, np.full(n, getattr(base, k))) for k in _PLAN_FIELDS], 1)
-    groups, inverse = np.unique(keys, axis=0, return_inverse=True)
-    for g, key in enumerate(groups):
-        idx = np.flatnonzero(inverse.ravel() == g)
-        p = base.replace(**dict(zip(_PLAN_FIELDS, (float(v) for v in key), strict=True)))
-        grid, where = np.unique(nu[idx], return_inverse=True)
-        plan = plan_cells(p, grid, settings)
-        for dst, src in ((t_tr, plan.t_transient), (t_seg, plan.t_segment),
-                         (n_seg, plan.n_segment), (tries, plan.tries), (q, plan.q),
-                         (nu_exact, plan.nu_exact)):
-            dst[idx] = src[where.ravel()]
-    P[:, P_W2] = nu_exact * P[:, P_W1]
-    coulomb = (P[:, P_B1] == 0.0) & (P[:, P_B3] == 0.0)
-    if settings.method == "auto":
-        method = np.where(coulomb, METHOD_EXACT, METHOD_EVENT)
-    else:
-        method = np.full(n, METHOD_EXACT if settings.method == "exact" else METHOD_EVENT)
-    return P, t_tr, t_seg, n_seg, tries, method, nu, q
-
-
 def compute_chunk(task: ChunkTask, n_threads: int | None = None,
                   stop_requested: Callable[[], bool] | None = None
                   ) -> tuple[tuple[int, ...], dict[str, np.ndarray]]:
-    """Run the cells of a chunk (those of ``task.todo``; one numba call per method
-    present) and return its index and its variables, each shaped like the chunk; cells
-    not run hold the fill values (status ``STATUS_NOT_RUN``). Runs on a worker or locally.
+    """Measure the cells of a chunk (those of ``task.todo``) by
+    :func:`~fricenv.cells.measure_cells` and return the chunk's index and its variables,
+    each shaped like the chunk; cells not run hold the fill values (status
+    ``STATUS_NOT_RUN``). Runs on a worker or locally.
 
-    Stopping (see :func:`fricenv.sweep.run_cells`): ``stop_requested()`` becoming true
+    Stopping (see :func:`fricenv.cells.run_cells`): ``stop_requested()`` becoming true
     returns the chunk with the cells finished so far; Ctrl-C raises
     :class:`~fricenv.calls.SweepInterrupted` whose ``results`` are that same pair.
     """
     shape = tuple(g.size for g in task.grids.values())
     mesh = np.meshgrid(*task.grids.values(), indexing="ij")
     values = {k: m.ravel() for k, m in zip(task.grids, mesh, strict=True)}
-    P, t_tr, t_seg, n_seg, tries, method, nu, q = cell_rows(task.base, values, task.settings)
-    n = P.shape[0]
-    stats = np.full((n, N_STATS), np.nan)
-    status = np.full(n, STATUS_NOT_RUN, dtype=np.int64)
-    period = np.zeros(n, dtype=np.int64)
-    todo = np.ones(n, dtype=bool) if task.todo is None else task.todo
+    todo = slice(None) if task.todo is None else np.flatnonzero(task.todo)
     stopped = None
-    for m in np.unique(method[todo]):
-        idx = np.flatnonzero(todo & (method == m))
-        try:
-            out = run_cells(P[idx], t_tr[idx], t_seg[idx], n_seg[idx], tries[idx],
-                            task.settings, int(m), n_threads, stop_requested)
-        except SweepInterrupted as stop:
-            stopped, out = stop, stop.results
-        stats[idx], status[idx], period[idx] = out
-        if stopped is not None or np.any(out[1] == STATUS_NOT_RUN):
-            break
-    labels = np.asarray(classify(stats[:, ST_N_STICK], stats[:, ST_STICK_TIME],
-                                 stats[:, ST_N_REVERSAL], nu, q, period, status,
-                                 stats[:, ST_N_SLIP]))
-    labels[status == STATUS_NOT_RUN] = NOT_COMPUTED
-    variables = variables_from_stats(stats, period, status, labels)
+    try:
+        cells = measure_cells(task.base, {k: v[todo] for k, v in values.items()},
+                              task.settings, n_threads, stop_requested)
+    except SweepInterrupted as stop:
+        stopped, cells = stop, stop.results
+    measured = variables_from_stats(cells.stats, cells.period, cells.status, cells.labels)
+    if task.todo is None:
+        variables = measured
+    else:  # (a cell depends on its own values only: a subset runs as in the whole chunk)
+        variables = empty_variables((math.prod(shape),))
+        for k, v in measured.items():
+            variables[k][todo] = v
     result = task.index, {k: v.reshape(shape) for k, v in variables.items()}
     if stopped is not None:
         stopped.results = result

@@ -27,8 +27,8 @@ import numba
 import numpy as np
 from distributed import Client, WorkerPlugin, as_completed, get_worker
 
+from ..cells import SweepSettings
 from ..params import OscillatorParams
-from ..sweep import SweepSettings
 from .core import ChunkTask, compute_chunk
 
 #: Tasks in flight per worker thread: enough that a worker never waits for the client
