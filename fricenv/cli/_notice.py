@@ -43,6 +43,12 @@ def log_to_stderr(quiet: bool = False) -> Iterator[None]:
         LOGGER.propagate = propagate
 
 
+def stage(text: str) -> None:
+    """A progress line of a command's stage, before the stage starts: on stderr under the
+    ``fricenv`` command (silenced by ``--quiet``), on the ``fricenv`` logger otherwise."""
+    LOGGER.info(text)
+
+
 def announce(needs: Iterable[tuple[str, str]] | Callable[[], Iterable[tuple[str, str]]],
              ) -> bool:
     """Log the compile notice for ``(workload, method)`` pairs (or for what a function

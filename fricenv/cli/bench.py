@@ -46,6 +46,7 @@ def main(argv: Sequence[str] | None = None, prog: str | None = None) -> int:
     args = p.parse_args(argv[:1] or ["--help"])
     rest = argv[1:]
     if not {"-h", "--help"} & set(rest):
+        _notice.stage(f"bench {args.name}: {BENCHMARKS[args.name]}")
         _notice.announce(BENCHMARK_NEEDS[args.name])
     module = importlib.import_module(f"fricenv.bench.{args.name}")
     try:
