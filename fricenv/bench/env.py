@@ -408,7 +408,8 @@ def report_steps(steps: dict, ceiling: float, n_threads: int) -> int:
         print(
             f"    bound 2: single / vector      = {ratio2}  (>= 20)   {'PASS' if ok2 else 'FAIL'}"
             f"  [made / vector = {r['made_over_vector_plant']:.1f}; single / physics floor = "
-            f"{r['single_over_physics_floor']:.1f}, the most any vector env could reach]"
+            f"{r['single_over_physics_floor']:.1f}, the most a one-thread vector env could "
+            "reach]"
         )
         by_round = r["single_over_vector_plant_by_round"]
         n_ok = sum(x >= 20.0 for x in by_round)

@@ -88,8 +88,6 @@ def run(out: str | os.PathLike, quick: bool = False, docs: str | os.PathLike | N
     """Write the figures of the parts ``only`` and ``report.md`` into ``out`` (the map images
     also into ``docs``); return the report's path. Arguments are checked first
     (:func:`check_run_args`), so a bad one fails before anything is computed or written."""
-    from .. import plotting
-
     out, quick, docs, n_threads, progress, only, resolution = check_run_args(
         out, quick, docs, n_threads, progress, only, resolution)
     t_start = time.perf_counter()
@@ -103,6 +101,8 @@ def run(out: str | os.PathLike, quick: bool = False, docs: str | os.PathLike | N
     for i, part in enumerate(only, 1):
         LOGGER.info(f"reproduce {i}/{len(only)}: {PART_LINES[part]}")
         if part == "2":
+            from .. import plotting
+
             plotting.save(plotting.friction_laws_figure(), out / "fig2_friction_laws.png")
         elif part == "3":
             fig3(rep, out, res, settings, n_threads, timings)
