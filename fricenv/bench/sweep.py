@@ -20,10 +20,8 @@ import time
 from collections.abc import Sequence
 from pathlib import Path
 
-import numba
 import numpy as np
 
-from fricenv import core
 from fricenv.bench import show_progress, stage
 from fricenv.checks import check_output_file
 from fricenv.layout import METHOD_EVENT, METHOD_EXACT, N_STATE, N_STATS, S_V, S_X
@@ -56,6 +54,8 @@ def _cell_setup(law: str, settings: SweepSettings) -> tuple[list, np.ndarray, np
 
 def _final_state(P: np.ndarray, t_end: float, method: int, rtol: float, atol: float
                  ) -> tuple[float, float]:
+    from fricenv import core  # (the kernels: here, so that --help loads none)
+
     S = np.empty(N_STATE)
     st = np.empty(N_STATS)
     core.initial_state(P, 0.0, 0.0, S)
@@ -77,6 +77,8 @@ def _scipy_final(p: OscillatorParams, t_end: float, rtol: float, atol: float,
 
 def _max_threads() -> int:
     """numba's thread pool size (``NUMBA_NUM_THREADS``), the default of ``--threads``."""
+    import numba  # (here, not above: --help loads no numba)
+
     return int(numba.config.NUMBA_NUM_THREADS)  # type: ignore[attr-defined]
 
 
