@@ -109,17 +109,19 @@ class RegimeMap:
         return 0.5 * (self.stats[..., ST_X_MAX] - self.stats[..., ST_X_MIN])
 
     def plot(self, ax: Axes | None = None, *, boundaries: bool = True,
-             title: str | None = None) -> Axes:
+             title: str | None = None, legend: bool = True) -> Axes:
         """Draw the map on ``ax`` (u0 on x, nu on y, cells coloured by regime, the stick
-        band's two boundaries) and return it; without ``ax``, on a new pyplot figure, so
-        that a notebook shows it, as ``pandas`` and ``xarray`` plots do."""
+        band's two boundaries, a legend of the regimes drawn) and return it; without
+        ``ax``, on a new pyplot figure, so that a notebook shows it, as ``pandas`` and
+        ``xarray`` plots do. ``title``: default, the law and eta."""
         from . import plotting
 
         if ax is None:
             import matplotlib.pyplot as plt
 
-            ax = plt.figure(figsize=(6.5, 4.6), layout="constrained").add_subplot()
-        plotting.draw_regime_map(ax, self, boundaries=boundaries, title=title)
+            ax = plt.figure(figsize=(8.0, 4.6), layout="constrained").add_subplot()
+        plotting.draw_regime_map(ax, self, boundaries=boundaries, legend=legend,
+                                 title=plotting.map_title(self) if title is None else title)
         return ax
 
     def counts(self) -> dict[str, int]:

@@ -3,6 +3,13 @@
 Functions draw on given data and return a ``matplotlib.figure.Figure``; :func:`save` writes
 it. Figures are built without ``pyplot``: no global state, no GUI backend, safe in threads and
 on headless machines.
+
+Every figure has a title, every axis a label saying its quantity and its unit (the model is
+dimensionless, so "(dimensionless)"; the labels are the ``*_LABEL`` constants), and a
+legend wherever colours carry meaning: regime maps carry the regimes drawn
+(:func:`add_regime_legend`, the same for :meth:`fricenv.RegimeMap.plot` and
+:func:`fricenv.atlas.plot_slice`). Stacked panels sharing a time axis label it once, under
+the bottom panel.
 """
 
 from __future__ import annotations
@@ -58,6 +65,17 @@ REGIME_SHORT: dict[Regime, str] = {
 assert set(REGIME_COLORS) == set(REGIME_SHORT) == set(Regime)
 LAW_TITLES = {"coulomb": "Coulomb", "viscous": "Coulomb + viscosity",
               "stribeck": "complete (Stribeck)"}
+
+#: Axis labels: the quantity, its symbol and its unit (the model is dimensionless).
+TIME_LABEL = "time τ (dimensionless)"
+X_LABEL = "displacement x (dimensionless)"
+V_LABEL = "velocity v (dimensionless)"
+U0_LABEL = "tone amplitude $u_0$ (dimensionless)"
+NU_LABEL = "frequency ratio ν = ω₂/ω₁ (dimensionless)"
+ETA_LABEL = "frequency ratio η = ω₁/ω₀ (dimensionless)"
+VR_LABEL = "relative velocity $v_r = v - V$ (dimensionless)"
+FORCE_LABEL = "friction force $F(v_r)$ (dimensionless)"
+AMPLITUDE_LABEL = "steady-state amplitude of x (dimensionless)"
 
 
 #: Largest raster :func:`save` writes, in pixels (figure size x dpi squared): 1e8 is about
@@ -138,16 +156,20 @@ def friction_laws_figure(xfk: float = 2.5, xfs: float = 4.0, vr_max: float = 3.0
         ax.axhline(0, color="k", lw=0.5)
         ax.axvline(0, color="k", lw=0.5)
         ax.set_title(f"({tag}) {LAW_TITLES[name]}: $b_1$={b1}, $b_3$={b3}")
-        ax.set_xlabel("relative velocity $v_r = v - V$")
-        ax.set_ylabel("friction force $F(v_r)$")
+        ax.set_xlabel(VR_LABEL)
         ax.grid(alpha=0.3)
+    axes[0].set_ylabel(FORCE_LABEL)  # (the panels share their y axis)
     axes[0].legend(loc="upper left", fontsize=8)
+    fig.suptitle(f"Fig. 2: friction force against relative velocity ($x_{{fk}}$ = {xfk:g}, "
+                 f"$x_{{fs}}$ = {xfs:g})")
     return fig
 
 
 # -- Fig. 3 --------------------------------------------------------------------------------
-def amplitude_figure(panels: Sequence[dict]) -> Figure:
-    """Fig. 3: steady-state amplitude versus eta.
+def amplitude_figure(panels: Sequence[dict],
+                     suptitle: str = "Fig. 3: steady-state amplitude against η, Coulomb law, "
+                                     "V = 1") -> Figure:
+    """Fig. 3: steady-state amplitude versus eta, under the title ``suptitle``.
 
     Each panel dict has ``lam``, ``nu``, ``eta`` (curve grid), ``curves`` {u0: amplitude},
     and optionally ``sim`` {u0: (eta, amplitude, contact_bool)}: simulated half peak-to-peak
@@ -166,8 +188,8 @@ def amplitude_figure(panels: Sequence[dict]) -> Figure:
                 ax.plot(e[~contact], a[~contact], "o", ms=4, color=f"C{i}")
                 ax.plot(e[contact], a[contact], "o", ms=4, mfc="none", color=f"C{i}")
         ax.set_title(f"({'abcd'[k] if k < 4 else k}) λ = {pan['lam']:g}, ν = {pan['nu']:g}")
-        ax.set_xlabel("frequency ratio η = ω₁/ω₀")
-        ax.set_ylabel("steady-state amplitude of x")
+        ax.set_xlabel(ETA_LABEL)
+        ax.set_ylabel(AMPLITUDE_LABEL)
         ax.grid(alpha=0.3)
     for ax in list(axes.flat)[n:]:
         ax.set_visible(False)
@@ -176,6 +198,7 @@ def amplitude_figure(panels: Sequence[dict]) -> Figure:
                 Line2D([], [], ls="", marker="o", mfc="none", color="k", ms=4)]
     labels += ["simulated, pure slip", "simulated, with contact (stick / reversal)"]
     axes.flat[0].legend(handles, labels, fontsize=7, loc="upper right")
+    fig.suptitle(suptitle)
     return fig
 
 
@@ -209,14 +232,27 @@ def draw_velocity(ax: Axes, t: np.ndarray, v: np.ndarray, mode: np.ndarray, V: f
     if stuck.any():
         ax.fill_between(t, 0, 1, where=stuck, transform=ax.get_xaxis_transform(),
                         color="C3", alpha=0.18, lw=0, label="stick")
-    ax.set_ylabel("velocity v")
-    ax.set_xlabel("dimensionless time τ")
+    ax.set_ylabel(V_LABEL)
+    ax.set_xlabel(TIME_LABEL)
     ax.legend(fontsize=7, loc="lower right")
     ax.grid(alpha=0.3)
 
 
+def draw_displacement(ax: Axes, t: np.ndarray, x: np.ndarray, time_label: bool = True
+                      ) -> None:
+    """x(t), one line (no legend: its colour means nothing); ``time_label=False`` for a
+    panel above another that labels the shared time axis."""
+    ax.plot(t, x, color="C0", lw=0.9)
+    ax.set_ylabel(X_LABEL)
+    if time_label:
+        ax.set_xlabel(TIME_LABEL)
+    ax.grid(alpha=0.3)
+
+
 def time_history_figure(runs: Sequence[object], suptitle: str | None = None) -> Figure:
-    """Figs. 4-7: displacement (top) and velocity (bottom) per run, one column each.
+    """Figs. 4-7: displacement (top) and velocity (bottom) per run, one column each, the
+    time axis labelled once, under the bottom panels. The title is ``suptitle``, or
+    without it each column's run title alone.
 
     Each run is a :class:`~fricenv.Trajectory`, or a dict with ``t, x, v, mode`` arrays,
     ``title`` and ``V``; stick intervals (``mode == 0``) are shaded in the velocity panel
@@ -233,11 +269,8 @@ def time_history_figure(runs: Sequence[object], suptitle: str | None = None) -> 
     for j, run in enumerate(dicts):
         ax_x, ax_v = axes[0, j], axes[1, j]
         t, x, v, mode = (np.asarray(run[k]) for k in ("t", "x", "v", "mode"))
-        ax_x.plot(t, x, color="C0", lw=0.9)
-        ax_x.set_ylabel("displacement x")
-        ax_x.set_xlabel("dimensionless time τ")
-        ax_x.set_title(run.get("title", ""), fontsize=10)
-        ax_x.grid(alpha=0.3)
+        draw_displacement(ax_x, t, x, time_label=False)
+        ax_x.set_title(run.get("title") or f"run {j + 1}", fontsize=10)
         draw_velocity(ax_v, t, v, mode, run.get("V", 1.0))
     if suptitle:
         fig.suptitle(suptitle)
@@ -319,7 +352,7 @@ def _sorted_grid(rmap: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 
 def draw_regime_map(ax: Axes, rmap: Any, boundaries: bool = True,
-                    title: str | None = None) -> None:
+                    title: str | None = None, legend: bool = False) -> None:
     """One (u0, nu) panel: u0 on x (log if the grid is geometric), nu on y.
 
     Cells are coloured by regime. The solid black line is the first boundary (smallest u0
@@ -327,7 +360,8 @@ def draw_regime_map(ax: Axes, rmap: Any, boundaries: bool = True,
     beyond it only reversals). The first contact with v = V as u0 grows is always a stick in
     our maps (grazing contacts stick), so the first boundary is also the onset of contact.
     Rows at integer nu, where the periodic labels live, are redrawn as thick strips so that a
-    single grid row stays visible.
+    single grid row stays visible. ``legend``: the regimes drawn, right of the panel
+    (:func:`add_regime_legend`; a figure of several panels has one shared legend instead).
     """
     u0, nu, labels = _sorted_grid(rmap)
     log = _is_log(u0)
@@ -352,10 +386,25 @@ def draw_regime_map(ax: Axes, rmap: Any, boundaries: bool = True,
                 if lab in (Regime.PERIODIC_OSCILLATION, Regime.PERIODIC_STICK_SLIP):
                     ax.plot([ue[i], ue[i + 1]], [nu[j], nu[j]], color=REGIME_COLORS[Regime(lab)],
                             lw=3.0, solid_capstyle="butt")
-    ax.set_xlabel("tone amplitude $u_0$" + (" (log scale)" if log else ""))
-    ax.set_ylabel("frequency ratio ν = ω₂/ω₁")
+    ax.set_xlabel(U0_LABEL + (", log scale" if log else ""))
+    ax.set_ylabel(NU_LABEL)
     if title:
         ax.set_title(title, fontsize=10)
+    if legend:
+        add_regime_legend(ax, labels, boundaries)
+
+
+def add_regime_legend(ax: Axes, labels: np.ndarray, boundaries: bool = True) -> None:
+    """The legend of a single regime map, right of ``ax``: a patch for each regime among
+    ``labels`` (in ``Regime`` order), then the boundary lines if drawn. Used by
+    :meth:`fricenv.RegimeMap.plot` and :func:`fricenv.atlas.plot_slice` alike, so that a
+    map reads the same wherever it is drawn."""
+    present = {int(v) for v in np.unique(np.asarray(labels))}
+    regimes = list(Regime)  # (the handles' order; the boundary lines follow)
+    handles = [h for k, h in enumerate(regime_legend_handles(True, boundaries))
+               if k >= len(regimes) or int(regimes[k]) in present]
+    ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.02, 1.0), fontsize=7,
+              title="regime", title_fontsize=8, borderaxespad=0.0)
 
 
 def regime_legend_handles(include_unresolved: bool = True, boundaries: bool = True) -> list:
@@ -372,11 +421,20 @@ def regime_legend_handles(include_unresolved: bool = True, boundaries: bool = Tr
     return hs
 
 
+def map_title(rmap: Any) -> str:
+    """A regime map's plant in a few words (law and eta), or "regime map" for a map that
+    carries no parameters."""
+    p = getattr(rmap, "params", None)
+    if not isinstance(p, OscillatorParams):
+        return "regime map"
+    return f"{LAW_TITLES.get(p.law, p.law)} law, η = {p.eta:.4g}"
+
+
 def regime_maps_figure(maps: Sequence[object], titles: Sequence[str] | None = None,
                        suptitle: str | None = None) -> Figure:
     """Figs. 8-10: regime maps two per row (the paper's four in a 2 x 2 grid) with one shared
     legend. ``titles``, if given, has one str per map (a short list used to end in an
-    ``IndexError``)."""
+    ``IndexError``); without them each panel is titled by its plant (:func:`map_title`)."""
     items = items_of(maps)
     if items is None:
         raise TypeError(f"maps must be a list of RegimeMap, {got(maps)}")
@@ -395,9 +453,11 @@ def regime_maps_figure(maps: Sequence[object], titles: Sequence[str] | None = No
     n = len(maps)
     ncol = 2 if n > 1 else 1
     nrow = (n + ncol - 1) // ncol
+    if titles is None:  # (each panel says which plant it is)
+        titles = [map_title(m) for m in maps]
     fig, axes = _subplots(nrow, ncol, figsize=(6.0 * ncol, 4.6 * nrow + 1.0))
     for k, (ax, m) in enumerate(zip(axes.flat, maps, strict=False)):
-        draw_regime_map(ax, m, title=titles[k] if titles else None)
+        draw_regime_map(ax, m, title=titles[k])
     for ax in list(axes.flat)[n:]:
         ax.set_visible(False)
     unresolved = any(np.any(np.asarray(m.labels) == Regime.UNRESOLVED) for m in maps)

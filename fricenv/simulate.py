@@ -386,9 +386,7 @@ class Trajectory:
         if y == "v":
             plotting.draw_velocity(ax, self.t, self.v, self.mode, self.params.V)
         else:
-            ax.plot(self.t, self.x, color="C0", lw=0.9)
-            ax.set(xlabel="dimensionless time τ", ylabel="displacement x")
-            ax.grid(alpha=0.3)
+            plotting.draw_displacement(ax, self.t, self.x)
         ax.set_title(plotting.params_title(self.params), fontsize=10)
         return ax
 

@@ -2,7 +2,8 @@
 
 Run ``pytest -s tests/test_accuracy.py`` to see the measured differences. The reference
 solutions are independent of ``fricenv.core``: ``closed_forms.py`` (textbook formulas per
-damping case) and ``scipy_reference.py`` (DOP853 + events, written from docs/model.md).
+damping case) and :mod:`fricenv.testing.scipy_reference` (DOP853 + events, written from
+docs/model.md).
 """
 
 from __future__ import annotations
@@ -23,9 +24,10 @@ from fricenv.layout import EVENT_STICK  # noqa: E402
 from fricenv.params import PAPER_CASES as PAPER_OVERRIDES  # noqa: E402
 from fricenv.params import OscillatorParams  # noqa: E402
 from fricenv.simulate import OscillatorState  # noqa: E402
-
-pytest.importorskip("scipy")
-from scipy_reference import reference_run, reference_solution  # noqa: E402
+from fricenv.testing.scipy_reference import (  # noqa: E402
+    reference_run,
+    reference_solution,
+)
 
 T_END = 200.0
 C = OscillatorParams.preset

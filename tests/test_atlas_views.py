@@ -29,6 +29,7 @@ def test_stick_boundaries_and_views():
     assert ax.get_xscale() == "log" and "u_0" in ax.get_xlabel()
     fig = fricenv.atlas.onset_surface_figure(ds)
     assert len(fig.axes) == 3
+    assert fig.get_suptitle().startswith("Coulomb law: stick onset in u0")
     fig = fricenv.atlas.slice_figure(ds, panel="eta")
     assert len([a for a in fig.axes if a.get_visible()]) == 2
     with pytest.raises(ValueError, match=r"select a value of each other axis: \['eta'\]"):

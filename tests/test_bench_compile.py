@@ -1,30 +1,16 @@
-"""scripts/bench_compile.py: argument checks, the pairing of numba's compile events and
+"""fricenv.bench.compile: argument checks, the pairing of numba's compile events and
 their self times, the tables, and real child processes on a warm cache."""
 
 from __future__ import annotations
 
-import importlib.util
 import json
-import sys
 from pathlib import Path
-from types import ModuleType
 
 import pytest
 
+from fricenv.bench import compile as bc
+
 ROOT = Path(__file__).resolve().parents[1]
-SCRIPT = ROOT / "scripts" / "bench_compile.py"
-
-
-def _load() -> ModuleType:
-    spec = importlib.util.spec_from_file_location("bench_compile", SCRIPT)
-    assert spec is not None and spec.loader is not None
-    mod = importlib.util.module_from_spec(spec)
-    sys.modules["bench_compile"] = mod  # dataclasses look their module up there
-    spec.loader.exec_module(mod)
-    return mod
-
-
-bc = _load()
 
 
 def _fake_tree(path: Path, init: str = "") -> Path:

@@ -6,6 +6,14 @@ progress=True)`` -> ``xarray.Dataset``: this module is callable, so that ``frice
 is both the function and the package (``python -m fricenv.atlas`` is its command line).
 See :func:`fricenv.atlas.api.atlas` and docs/atlas.md.
 
+An atlas is an ``xarray.Dataset`` whose dimensions are the swept axes, in the order
+given, with ``q`` (the tested denominator of each nu) as a coordinate along nu, and whose
+data variables come in this order: ``stick_fraction``, ``n_stick``, ``n_reversal``,
+``v_min``, ``v_max``, ``period``, ``status``, ``label`` (:data:`.core.VARIABLES`). The
+order is the same from :func:`fricenv.atlas`, :func:`fricenv.open_atlas` and plain
+``xarray.open_zarr(path)``, which opens a store without a warning (its metadata is
+consolidated, in that order).
+
 Layers: :mod:`.core` (grid, validation, chunks, local execution; numpy only),
 :mod:`.store` (xarray and Zarr), :mod:`.distributed` (Dask, imported only with a client),
 :mod:`.views` (matplotlib), :mod:`.cli`. Names are resolved on first use, so that

@@ -1,6 +1,9 @@
 """Command line of the atlas: ``fricenv atlas ...`` or ``python -m fricenv.atlas ...``.
 
-Example (the Stribeck volume of the paper's Fig. 10 at four eta)::
+It computes the regime of every cell of a grid over any parameters into a resumable Zarr
+store, on this machine's threads or a Dask cluster. A line before the run and a progress
+bar over the cells go to stderr; ``--quiet`` silences them. Example (the Stribeck volume
+of the paper's Fig. 10 at four eta)::
 
     python -m fricenv.atlas --law stribeck --axis u0=geom:0.1:1000:200 \\
         --axis nu=lin:0.1:4:200 --axis eta=0.111,0.2,0.6,2.333 --out atlas.zarr \\
@@ -21,7 +24,14 @@ from typing import Any
 import numpy as np
 
 from ..cells import SweepSettings
-from ..cli._args import add_plant_arguments, grid, plant
+from ..cli import _notice
+from ..cli._args import add_plant_arguments, grid, parser, plant
+
+#: The command's description and examples (``--help``).
+DESCRIPTION = ("Compute the regime of every cell of a grid over any parameters into a "
+               "resumable Zarr store.")
+EXAMPLES = ["fricenv atlas --law stribeck --axis u0=geom:0.1:1000:200 "
+            "--axis nu=lin:0.1:4:200 --axis eta=0.111,0.2,0.6,2.333 --out atlas.zarr"]
 
 
 def parse_axis(spec: str) -> tuple[str, np.ndarray]:
@@ -59,9 +69,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_plant_arguments(parser, cases=False)
     parser.add_argument("--axis", action="append", required=True, metavar="NAME=SPEC",
                         help="a swept parameter and its grid: geom:START:STOP:N, "
-                             "lin:START:STOP:N or V1,V2,... (repeat; order = dims)")
+                             "lin:START:STOP:N or V1,V2,...; repeat for each axis, in "
+                             "the order of the store's dimensions")
     parser.add_argument("--setting", action="append", default=[], metavar="NAME=VALUE",
-                        dest="settings", help="a sweep setting (SweepSettings; repeat)")
+                        dest="settings",
+                        help="a sweep setting, a field of fricenv.SweepSettings; repeatable")
     parser.add_argument("--out", required=True, help="Zarr store to write (a folder); "
                         "run again to resume")
     parser.add_argument("--chunks", type=int, default=None,
@@ -72,12 +84,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                             "this machine's threads")
     where.add_argument("--local-workers", type=int, default=None, metavar="N",
                        help="start a local Dask cluster of N single-threaded workers")
-    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    parser.add_argument("--no-progress", action="store_true",
+                        help="no progress bar (the stage line stays)")
+    parser.add_argument("--quiet", action="store_true",
+                        help="no compile notice, progress bar or stage line")
 
 
 def run(args: argparse.Namespace) -> int:
-    from .api import atlas  # (zarr and xarray load here, not with the parser)
-
     try:
         axes = dict(parse_axis(a) for a in args.axis)
         if len(axes) != len(args.axis):
@@ -87,6 +100,13 @@ def run(args: argparse.Namespace) -> int:
     except (TypeError, ValueError) as exc:
         print(f"fricenv atlas: error: {exc}", file=sys.stderr)
         return 2
+    shape = " x ".join(f"{len(v)} {k}" for k, v in axes.items())
+    _notice.stage(f"atlas: {shape} cells, {base.law} law, into {args.out}"
+                  + (f" on the Dask scheduler {args.scheduler}" if args.scheduler else
+                     f" on {args.local_workers} local Dask workers" if args.local_workers
+                     else ""))
+    from .api import atlas  # (zarr and xarray load here, not with the parser)
+
     client = cluster = None
     if args.scheduler or args.local_workers:
         from distributed import Client, LocalCluster
@@ -100,7 +120,7 @@ def run(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     try:
         ds = atlas(base, axes, path=args.out, client=client, chunks=args.chunks,
-                   settings=settings, progress=not args.no_progress)
+                   settings=settings, progress=not (args.no_progress or args.quiet))
     except (TypeError, ValueError) as exc:
         print(f"fricenv atlas: error: {exc}", file=sys.stderr)
         return 2
@@ -116,9 +136,14 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
+def build_parser(prog: str | None = None) -> argparse.ArgumentParser:
+    p = parser(prog, DESCRIPTION, EXAMPLES)
+    add_arguments(p)
+    return p
+
+
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m fricenv.atlas",
-                                     description="Regime atlas over any parameter volume, "
-                                                 "into a resumable Zarr store.")
-    add_arguments(parser)
-    return run(parser.parse_args(argv))
+    """``python -m fricenv.atlas``: as ``fricenv atlas``, stage lines on stderr."""
+    args = build_parser("python -m fricenv.atlas").parse_args(argv)
+    with _notice.log_to_stderr(quiet=args.quiet):
+        return run(args)

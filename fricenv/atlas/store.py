@@ -2,9 +2,13 @@
 
 A store is a Zarr (format 3) group on the local file system: one array per variable, all
 chunked like the atlas's chunks, with the axes as 1-d coordinate arrays and each array's
-``dimension_names`` set, so ``xarray.open_zarr`` reads it as a Dataset. Only the process
-that runs the atlas writes to it (workers return their chunks), so a cluster's workers
-need no shared file system.
+``dimension_names`` set, so ``xarray.open_zarr`` reads it as a Dataset. The group's
+metadata document holds the consolidated metadata of its arrays (Zarr-Python's
+``consolidated_metadata`` field), listed in the atlas's order (the axes, ``q``, then
+:data:`~fricenv.atlas.core.VARIABLES`): plain ``xarray.open_zarr(path)`` opens it without a
+warning and with the data variables in that order. Only the process that runs the atlas
+writes to it (workers return their chunks), so a cluster's workers need no shared file
+system.
 
 Crash safety: a store is created in a temporary folder and renamed into place, so it
 either exists whole or not at all; Zarr writes each chunk file atomically (temporary file,
@@ -15,7 +19,8 @@ only the chunks in flight, and the next run with the same arguments computes jus
 chunks not complete.
 
 Integrity: each chunk file ends in a CRC-32C of its compressed bytes (Zarr's ``crc32c``
-codec), and the group's attributes hold a CRC-32C of every metadata document. Opening or
+codec), and the group's attributes hold a CRC-32C of every metadata document (the group's
+own covers its consolidated copies of the others). Opening or
 resuming a store checks all of them first (reading each file once, without decompressing
 it), so that damage is a ``ValueError`` naming the store and the array or chunk, or, when
 resuming, a chunk computed again: a flipped bit never reads as a changed value. One run
@@ -197,13 +202,25 @@ def create_store(path: Path, spec: AtlasSpec) -> None:
             group.create_array(name, shape=spec.shape, dtype=dtype, chunks=spec.chunks,
                                fill_value=fill, dimension_names=list(spec.names),
                                attributes={**variable_attrs(name), "coordinates": "q"}, **kw)
-        sums = {name: _digest(json.loads((tmp / name / _META).read_bytes()))
-                for name in _array_names(spec.names)}
-        sums[""] = _digest(_group_meta(json.loads((tmp / _META).read_bytes())))
-        group.attrs[_CHECKSUMS] = json.dumps(sums, sort_keys=True)
+        _write_group_meta(tmp, _array_names(spec.names))
         os.rename(tmp, path)  # fails if a store appeared meanwhile: nothing is overwritten
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
+
+
+def _write_group_meta(tmp: Path, names: Sequence[str]) -> None:
+    """Finish the group's metadata document of a store being created: the consolidated
+    metadata of the arrays ``names``, in that order (xarray lists the variables in it;
+    Zarr's own ``consolidate_metadata`` sorts them by name), then the checksums of every
+    metadata document, the group's own over the consolidated copies too."""
+    docs = {name: json.loads((tmp / name / _META).read_bytes()) for name in names}
+    meta = json.loads((tmp / _META).read_bytes())
+    meta["consolidated_metadata"] = {"kind": "inline", "must_understand": False,
+                                     "metadata": docs}
+    sums = {name: _digest(doc) for name, doc in docs.items()}
+    sums[""] = _digest(_group_meta(meta))
+    meta.setdefault("attributes", {})[_CHECKSUMS] = json.dumps(sums, sort_keys=True)
+    (tmp / _META).write_text(json.dumps(meta, indent=2))
 
 
 def _damaged(path: Path, what: str) -> ValueError:
@@ -517,5 +534,6 @@ def open_atlas(path: str | os.PathLike, chunks: Any = None) -> xr.Dataset:
     check_store(p).raise_damage()
     ds = xr.open_zarr(p, consolidated=False, chunks=chunks, mask_and_scale=False,
                       decode_times=False)
+    ds = ds[list(VARIABLES)]  # (the documented order, also for a store not consolidated)
     ds.attrs.pop(_CHECKSUMS, None)
     return ds

@@ -4,6 +4,7 @@ matplotlib; figures are built without ``pyplot`` (see :mod:`fricenv.plotting`)."
 
 from __future__ import annotations
 
+import json
 from types import SimpleNamespace
 from typing import Any
 
@@ -13,14 +14,46 @@ from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
 from ..checks import got
-from ..plotting import _subplots, draw_regime_map, regime_legend_handles
+from ..params import OscillatorParams
+from ..plotting import (
+    ETA_LABEL,
+    LAW_TITLES,
+    NU_LABEL,
+    U0_LABEL,
+    _subplots,
+    draw_regime_map,
+    regime_legend_handles,
+)
 from ..regimes import Regime
 
-#: Axis labels of the swept parameters (others are labelled by their name).
-AXIS_LABELS = {"u0": "tone amplitude $u_0$", "nu": "frequency ratio ν = ω₂/ω₁",
-               "eta": "frequency η = ω₁/ω₀", "lam": "damping λ", "V": "belt speed V",
-               "xfk": "kinetic friction $x_{fk}$", "xfs": "static friction $x_{fs}$",
-               "b1": "viscous coefficient $b_1$", "b3": "cubic coefficient $b_3$"}
+#: Axis labels of the swept parameters, each with its unit: the model is dimensionless
+#: (others are labelled by their name).
+AXIS_LABELS = {"u0": U0_LABEL, "nu": NU_LABEL, "eta": ETA_LABEL,
+               "lam": "damping λ (dimensionless)", "V": "belt speed V (dimensionless)",
+               "xfk": "kinetic friction $x_{fk}$ (dimensionless)",
+               "xfs": "static friction $x_{fs}$ (dimensionless)",
+               "b1": "viscous coefficient $b_1$ (dimensionless)",
+               "b3": "cubic coefficient $b_3$ (dimensionless)"}
+
+
+def _label(name: str) -> str:
+    return AXIS_LABELS.get(name, f"{name} (dimensionless)")
+
+
+def _law(ds: xr.Dataset) -> str:
+    """The atlas's friction law in words, from its stored base parameters."""
+    try:
+        law = OscillatorParams(**json.loads(str(ds.attrs["base"]))).law
+    except (KeyError, TypeError, ValueError):
+        return "regime atlas"
+    return f"{LAW_TITLES.get(law, law)} law"
+
+
+def _slice_title(ds: xr.Dataset, lab: xr.DataArray) -> str:
+    """The law and the value of each axis the slice fixes."""
+    fixed = [f"{d} = {float(lab[d]):.4g}" for d in ds.dims if d in lab.coords
+             and d not in lab.dims]
+    return ", ".join([_law(ds), *fixed])
 
 
 def _check_atlas(ds: object) -> xr.Dataset:
@@ -70,26 +103,27 @@ def _slice_2d(ds: xr.Dataset, x: str, y: str, sel: dict) -> xr.DataArray:
     if unknown:
         raise ValueError(f"{unknown} are not other axes of the atlas ({rest})")
     lab = ds["label"].sel({k: v for k, v in sel.items()}, method="nearest")
-    lab = lab.squeeze([d for d in rest if d in lab.dims], drop=True)
+    lab = lab.squeeze([d for d in rest if d in lab.dims])  # (kept as scalar coordinates)
     return lab.transpose(x, y)
 
 
 def plot_slice(ds: xr.Dataset, ax: Axes | None = None, x: str = "u0", y: str = "nu",
                boundaries: bool | None = None, title: str | None = None,
-               **sel: Any) -> Axes:
+               legend: bool = True, **sel: Any) -> Axes:
     """Draw the 2-d slice ``(x, y)`` of an atlas as a regime map, the other axes fixed by
-    keyword (nearest grid value), e.g. ``plot_slice(ds, eta=0.2)``. The stick boundaries
-    are drawn along ``x`` (default: when ``x`` is u0). Returns the axes drawn on."""
+    keyword (nearest grid value), e.g. ``plot_slice(ds, eta=0.2)``: the colours and the
+    legend of :meth:`fricenv.RegimeMap.plot`. The stick boundaries are drawn along ``x``
+    (default: when ``x`` is u0). ``title``: default, the law and the values the slice
+    fixes. Returns the axes drawn on."""
     ds = _check_atlas(ds)
     lab = _slice_2d(ds, x, y, sel)
     if ax is None:
-        ax = _subplots(1, 1, figsize=(6.0, 4.6))[1].flat[0]
+        ax = _subplots(1, 1, figsize=(8.0, 4.6))[1].flat[0]
     view = SimpleNamespace(u0=lab[x].values, nu=lab[y].values, labels=lab.values)
     draw_regime_map(ax, view, boundaries=(x == "u0") if boundaries is None else boundaries,
-                    title=title)
-    ax.set_xlabel(AXIS_LABELS.get(x, x) + (" (log scale)" if ax.get_xscale() == "log"
-                                           else ""))
-    ax.set_ylabel(AXIS_LABELS.get(y, y))
+                    title=_slice_title(ds, lab) if title is None else title, legend=legend)
+    ax.set_xlabel(_label(x) + (", log scale" if ax.get_xscale() == "log" else ""))
+    ax.set_ylabel(_label(y))
     return ax
 
 
@@ -105,11 +139,13 @@ def slice_figure(ds: xr.Dataset, x: str = "u0", y: str = "nu", panel: str | None
     for ax, v in zip(axes.flat, values, strict=False):
         extra: dict[str, Any] = {} if v is None or panel is None else {panel: v}
         plot_slice(ds, ax, x, y, title=None if v is None else f"{panel} = {v:.4g}",
-                   **sel, **extra)
+                   legend=False, **sel, **extra)
     for ax in list(axes.flat)[len(values):]:
         ax.set_visible(False)
     fig.legend(handles=regime_legend_handles(True, boundaries=(x == "u0")),
                loc="outside lower center", ncol=3, fontsize=8)
+    fixed = ", ".join(f"{k} = {v:.4g}" for k, v in sel.items())
+    fig.suptitle(f"{_law(ds)}: regimes over ({x}, {y})" + (f", {fixed}" if fixed else ""))
     return fig
 
 
@@ -131,14 +167,17 @@ def onset_surface_figure(ds: xr.Dataset, x: str = "nu", y: str = "eta",
     ax3 = fig.add_subplot(1, 2, 1, projection="3d")
     ax3.plot_surface(X, Y, np.ma.masked_invalid(z), cmap="viridis", linewidth=0,
                      antialiased=True, rcount=200, ccount=200)
-    ax3.set_xlabel(AXIS_LABELS.get(x, x))
-    ax3.set_ylabel(AXIS_LABELS.get(y, y))
-    ax3.set_zlabel(f"log10 onset {along}")
+    ax3.set_xlabel(_label(x))
+    ax3.set_ylabel(_label(y))
+    ax3.set_zlabel(f"log10 of the onset {along} (dimensionless)")
     ax3.view_init(elev=28, azim=-130)
     ax2 = fig.add_subplot(1, 2, 2)
     mesh = ax2.pcolormesh(X, Y, z, cmap="viridis", shading="nearest")
-    ax2.set_xlabel(AXIS_LABELS.get(x, x))
-    ax2.set_ylabel(AXIS_LABELS.get(y, y))
+    ax2.set_xlabel(_label(x))
+    ax2.set_ylabel(_label(y))
     fig.colorbar(mesh, ax=ax2, label=f"log10 of the least {along} with stick phases "
                                      "(white: none on the grid)")
+    ax3.set_title("surface")
+    ax2.set_title("map")
+    fig.suptitle(f"{_law(ds)}: stick onset in {along} over ({x}, {y})")
     return fig

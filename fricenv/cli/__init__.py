@@ -31,7 +31,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "map": ("fricenv.cli.regime_map", "one regime-map panel over a u0 x nu grid (resumable)"),
     "atlas": ("fricenv.cli.atlas", "regime atlas over any parameter volume (Dask, Zarr)"),
     "reproduce": ("fricenv.reproduce", "the paper's Figs. 2-10 and a report of every claim"),
-    "bench": ("fricenv.cli.bench", "run a benchmark: solvers, sweep or env"),
+    "bench": ("fricenv.cli.bench", "run a benchmark: solvers, sweep, env or compile"),
     "warmup": ("fricenv.cli.warmup", "compile the kernels into numba's cache ahead of use"),
 }
 
@@ -113,7 +113,8 @@ def _parser() -> argparse.ArgumentParser:
         prog="fricenv", formatter_class=argparse.RawDescriptionHelpFormatter,
         description="Exact simulation of a two-tone forced dry-friction oscillator: "
                     "time histories, regime maps, the paper's figures, RL agents.",
-        epilog=f"commands:\n{listing}\n\n'fricenv <command> --help' shows a command's options.")
+        epilog=f"commands:\n{listing}\n\n'fricenv <command> --help' shows a command's options."
+               "\n\nexample:\n  fricenv simulate --case 5a --out out/fig5a")
     p.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
     p.add_argument("command", choices=list(names), metavar="command",
                    help="one of: " + ", ".join(names))

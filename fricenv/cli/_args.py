@@ -1,4 +1,5 @@
-"""Argument types the ``fricenv`` commands share: parameter assignments and grid specs.
+"""What the ``fricenv`` commands share: the help formatter, parameter assignments and
+grid specs.
 
 Each parser raises ``argparse.ArgumentTypeError`` with the offending text, so argparse
 prints ``error: argument --set: ...`` and exits with status 2 before any work starts.
@@ -8,11 +9,53 @@ from __future__ import annotations
 
 import argparse
 import math
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
 
 from fricenv.params import FRICTION_LAWS, PAPER_CASES, OscillatorParams
+
+
+class HelpFormatter(argparse.RawDescriptionHelpFormatter):
+    """The help of every ``fricenv`` command: the description and the epilog (examples)
+    as written, and each option's default appended once, where it says something.
+
+    argparse's ``ArgumentDefaultsHelpFormatter`` appends ``(default: ...)`` to every
+    option, also after a help text that already names the default, and shows ``None`` and
+    ``False`` (an option left out, a flag). Here the default is appended only when the
+    help does not mention one and it is a value: not ``None``, ``False`` or empty. A list
+    shows as its items, as they are typed on the command line.
+    """
+
+    def _fill_text(self, text: str, width: int, indent: str) -> str:
+        """A one-paragraph description wrapped to the terminal; a text of several lines
+        (the examples) as written."""
+        if "\n" in text:
+            return super()._fill_text(text, width, indent)
+        return argparse.HelpFormatter._fill_text(self, text, width, indent)
+
+    def _get_help_string(self, action: argparse.Action) -> str | None:
+        text = action.help or ""
+        default = action.default
+        if (not action.option_strings or "(default" in text or "%(default)" in text
+                or default is None or default is False or default is argparse.SUPPRESS
+                or (isinstance(default, list | tuple) and not default)):
+            return action.help
+        shown = " ".join(map(str, default)) if isinstance(default, list | tuple) else \
+            str(default)
+        return f"{text} (default: {shown.replace('%', '%%')})"
+
+
+def parser(prog: str | None, description: str, examples: Sequence[str]
+           ) -> argparse.ArgumentParser:
+    """A command's parser: a one-line ``description`` (what the command does, a full
+    sentence) and its ``examples`` under the options."""
+    head = "example:" if len(examples) == 1 else "examples:"
+    return argparse.ArgumentParser(
+        prog=prog, description=description, formatter_class=HelpFormatter,
+        epilog=head + "\n" + "\n".join(f"  {e}" for e in examples))
+
 
 #: Most points a grid spec may ask for on one axis (a typo such as 2e9 would otherwise
 #: allocate gigabytes before the sweep's own checks run).
@@ -76,7 +119,7 @@ def add_plant_arguments(p: argparse.ArgumentParser, cases: bool) -> None:
     """``--law``, ``--set`` (and ``--case`` for time histories): which plant to run."""
     src = p.add_mutually_exclusive_group()
     src.add_argument("--law", choices=sorted(FRICTION_LAWS),
-                     help="friction law, with the paper's other defaults (default: coulomb)")
+                     help="friction law, with the paper's other parameters (default: coulomb)")
     if cases:
         src.add_argument("--case", choices=list(PAPER_CASES),
                          help="one of the paper's time-history cases (Figs. 4-7)")

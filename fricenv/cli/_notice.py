@@ -6,6 +6,9 @@ parsed (:func:`announce`). The commands whose modules keep parsers of their own
 few options that decide their workloads (:data:`COMMAND_NEEDS`); their own parser still
 judges every argument. Nothing here compiles or loads a kernel, and a check that fails
 for any reason stays silent rather than stopping the command.
+
+The long commands also log a line as each stage starts (:func:`stage`, the same logger):
+:func:`log_to_stderr` prints both kinds on stderr, and ``--quiet`` silences both.
 """
 
 from __future__ import annotations
@@ -41,6 +44,12 @@ def log_to_stderr(quiet: bool = False) -> Iterator[None]:
         LOGGER.removeHandler(handler)
         LOGGER.setLevel(level)
         LOGGER.propagate = propagate
+
+
+def stage(text: str) -> None:
+    """A progress line of a command's stage, before the stage starts: on stderr under the
+    ``fricenv`` command (silenced by ``--quiet``), on the ``fricenv`` logger otherwise."""
+    LOGGER.info(text)
 
 
 def announce(needs: Iterable[tuple[str, str]] | Callable[[], Iterable[tuple[str, str]]],

@@ -15,8 +15,7 @@ def main(argv: Sequence[str] | None = None, prog: str | None = None) -> int:
     except ImportError as e:
         p = argparse.ArgumentParser(prog=prog)
         p.error(f"the atlas needs the scale extra (pip install 'fricenv[scale]'): {e}")
-    p = argparse.ArgumentParser(prog=prog, description=cli.__doc__.split("\n\n")[0])
-    cli.add_arguments(p)
+    p = cli.build_parser(prog)
     args = p.parse_args(argv)
     _notice.announce(lambda: [("sweep", method_for_law(args.law or "coulomb"))])
     return cli.run(args)

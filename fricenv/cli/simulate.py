@@ -16,19 +16,22 @@ from pathlib import Path
 import numpy as np
 
 from fricenv.cli import _notice
-from fricenv.cli._args import add_plant_arguments, number, out_dir, plant
+from fricenv.cli._args import add_plant_arguments, number, out_dir, parser, plant
 from fricenv.layout import METHODS
 from fricenv.simulate import Trajectory, resolve_method
 
 
 def build_parser(prog: str | None = None) -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog=prog, description=__doc__.split("\n\n")[0],
-                                formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    p = parser(prog, "Simulate one plant from rest and write its time history as a figure "
+                     "and as data.",
+               ["fricenv simulate --case 5a --t-end 200 --out out/fig5a",
+                "fricenv simulate --law stribeck --set eta=0.111 --set u0=2 --format csv"])
     add_plant_arguments(p, cases=True)
-    p.add_argument("--t-end", type=number, default=200.0, help="end time (from rest at 0)")
+    p.add_argument("--t-end", type=number, default=200.0,
+                   help="end time, dimensionless (from rest at 0)")
     p.add_argument("--method", default="auto", choices=["auto", *METHODS],
                    help="integration method")
-    p.add_argument("--dt-out", type=number, default=0.1, help="output spacing")
+    p.add_argument("--dt-out", type=number, default=0.1, help="output spacing, dimensionless time")
     p.add_argument("--out", type=out_dir, default=Path("out/simulate"), help="output folder")
     p.add_argument("--format", default="npz", choices=["npz", "csv"], help="data format")
     return p

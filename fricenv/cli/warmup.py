@@ -41,10 +41,13 @@ def jobs(text: str) -> int:
 
 
 def build_parser(prog: str | None = None) -> argparse.ArgumentParser:
+    from fricenv.cli._args import parser
     from fricenv.envs.scenes import SCENES
 
-    p = argparse.ArgumentParser(prog=prog, description=__doc__.split("\n\n")[0],
-                                formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    p = parser(prog, "Compile the kernels of chosen workloads into numba's on-disk cache, "
+                     "so that later processes load them.",
+               ["fricenv warmup --laws coulomb stribeck --workloads simulate sweep --jobs 2",
+                "fricenv warmup --print-digest"])
     p.add_argument("--laws", nargs="+", default=["coulomb"], choices=sorted(FRICTION_LAWS),
                    metavar="LAW", help=f"friction laws, of {', '.join(sorted(FRICTION_LAWS))}")
     p.add_argument("--workloads", nargs="+", default=list(WORKLOADS),

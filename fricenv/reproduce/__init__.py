@@ -10,6 +10,7 @@ the module constants below and the defaults of :class:`fricenv.sweep.SweepSettin
 from __future__ import annotations
 
 import argparse
+import logging
 import os
 import platform
 import sys
@@ -68,6 +69,18 @@ from .time_histories import (  # noqa: F401
     figs4_7,
 )
 
+#: Progress lines go to the package's logger at INFO: the ``fricenv`` command prints them
+#: on stderr (``--quiet`` silences them); a program sees them where it configures logging.
+LOGGER = logging.getLogger("fricenv")
+
+#: Each part's progress line (the maps add one line per panel, from ``figs8_10``).
+PART_LINES = {
+    "2": "Fig. 2: the friction laws",
+    "3": "Fig. 3: amplitude against eta, simulated cells and the closed form",
+    "4-7": "Figs. 4-7: the time histories of the paper's six cases",
+    "8-10": "Figs. 8-10: twelve regime-map panels",
+}
+
 
 def run(out: str | os.PathLike, quick: bool = False, docs: str | os.PathLike | None = None,
         n_threads: int | None = None, progress: bool = True, only: Sequence[str] = PARTS,
@@ -75,8 +88,6 @@ def run(out: str | os.PathLike, quick: bool = False, docs: str | os.PathLike | N
     """Write the figures of the parts ``only`` and ``report.md`` into ``out`` (the map images
     also into ``docs``); return the report's path. Arguments are checked first
     (:func:`check_run_args`), so a bad one fails before anything is computed or written."""
-    from .. import plotting
-
     out, quick, docs, n_threads, progress, only, resolution = check_run_args(
         out, quick, docs, n_threads, progress, only, resolution)
     t_start = time.perf_counter()
@@ -87,16 +98,18 @@ def run(out: str | os.PathLike, quick: bool = False, docs: str | os.PathLike | N
     timings: dict[str, float] = {}
     _preamble(rep, quick, settings, res)
 
-    # -- Fig. 2 -----------------------------------------------------------------------
-    if "2" in only:
-        plotting.save(plotting.friction_laws_figure(), out / "fig2_friction_laws.png")
+    for i, part in enumerate(only, 1):
+        LOGGER.info(f"reproduce {i}/{len(only)}: {PART_LINES[part]}")
+        if part == "2":
+            from .. import plotting
 
-    if "3" in only:
-        fig3(rep, out, res, settings, n_threads, timings)
-    if "4-7" in only:
-        figs4_7(rep, out, settings, n_threads, timings)
-    if "8-10" in only:
-        figs8_10(rep, out, docs, res, settings, n_threads, progress, timings)
+            plotting.save(plotting.friction_laws_figure(), out / "fig2_friction_laws.png")
+        elif part == "3":
+            fig3(rep, out, res, settings, n_threads, timings)
+        elif part == "4-7":
+            figs4_7(rep, out, settings, n_threads, timings)
+        else:
+            figs8_10(rep, out, docs, res, settings, n_threads, progress, timings)
 
     # -- timings ------------------------------------------------------------------------
     total = time.perf_counter() - t_start
@@ -151,8 +164,12 @@ def _preamble(rep: Report, quick: bool, settings: SweepSettings, res: Resolution
 
 
 def main(argv: Sequence[str] | None = None, prog: str | None = None) -> int:
-    ap = argparse.ArgumentParser(prog=prog or "fricenv reproduce",
-                                 description=__doc__.split("\n")[0])
+    ap = argparse.ArgumentParser(
+        prog=prog or "fricenv reproduce", formatter_class=argparse.RawDescriptionHelpFormatter,
+        description="Reproduce the paper's Figs. 2-10 and report each of its observations "
+                    "against our simulations.",
+        epilog="examples:\n  fricenv reproduce --quick\n"
+               "  fricenv reproduce --only 8-10 --resolution 100 --out out/maps")
     ap.add_argument("--quick", action="store_true",
                     help=f"low resolution ({QUICK.n_u0}x{QUICK.n_nu} cells per map panel)")
     ap.add_argument("--out", type=Path, default=None,
@@ -164,18 +181,21 @@ def main(argv: Sequence[str] | None = None, prog: str | None = None) -> int:
                     help="cells per axis of each map panel (overrides the preset)")
     ap.add_argument("--only", default="2,3,4-7,8-10",
                     help="comma-separated parts: 2, 3, 4-7, 8-10 (default: all)")
-    ap.add_argument("--no-progress", action="store_true", help="no progress bars")
+    ap.add_argument("--no-progress", action="store_true",
+                    help="no progress bars (the stage lines stay)")
+    ap.add_argument("--quiet", action="store_true",
+                    help="no compile notice, stage lines or progress bars")
     a = ap.parse_args(argv)
     out = a.out or Path("out") / ("reproduce-quick" if a.quick else "reproduce")
     only = tuple(s.strip() for s in a.only.split(","))
     try:  # before any map is computed: a late error would leave half a report
-        check_run_args(out, a.quick, a.docs, a.threads, not a.no_progress, only,
+        check_run_args(out, a.quick, a.docs, a.threads, not (a.no_progress or a.quiet), only,
                        a.resolution, names=CLI_NAMES)
     except (TypeError, ValueError) as e:
         ap.error(str(e))
     t0 = time.perf_counter()
     path = run(out, quick=a.quick, docs=a.docs, n_threads=a.threads,
-               progress=not a.no_progress, only=only, resolution=a.resolution)
+               progress=not (a.no_progress or a.quiet), only=only, resolution=a.resolution)
     print(f"wrote {path} and figures in {out} ({time.perf_counter() - t0:.1f} s)")
     return 0
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import logging
 import math
 import shutil
 import sys
@@ -43,9 +44,13 @@ def figs8_10(rep: Report, out: Path, docs: Path | None, res: Resolution,
     from .. import plotting
 
     maps: dict[int, list[RegimeMap]] = {}
+    n_panels = sum(len(ps) for _, ps in MAP_FIGURES.values())
     for fig, (law, panels_) in MAP_FIGURES.items():
         maps[fig] = []
         for eta, u_range in panels_:
+            logging.getLogger("fricenv").info(
+                f"  panel {sum(map(len, maps.values())) + 1}/{n_panels}: Fig. {fig}, {law}, "
+                f"η = {eta_name(eta)}, {res.n_u0} x {res.n_nu} cells")
             u0, nu = map_grid(u_range, res)
             p = OscillatorParams.preset(law, eta=eta)
             path = _map_path(out, fig, law, eta, res)

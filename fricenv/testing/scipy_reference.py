@@ -6,8 +6,15 @@ tight tolerances and terminal events on ``v - V = 0``; a second pair of events o
 acceleration locates every local extremum of ``v`` so that tangential contacts (grazing) and
 double crossings hidden inside one step are not missed. Stick phases are exact (``x = x_s +
 V (t - t_s)``); their end, ``|f| > x_fs``, is found by a fine scan (including interior
-extrema of ``f``) and ``brentq``. SciPy is a test-only dependency; this module is imported
-lazily by the tests and the benchmark script.
+extrema of ``f``) and ``brentq``.
+
+It ships with the package so that the accuracy tests and the benchmarks (``fricenv bench
+solvers``, ``fricenv bench sweep``) compare against the same reference wherever fricenv is
+installed. SciPy is not a dependency of fricenv: importing this module without it raises
+``ImportError`` saying how to install it (``pip install scipy``, or the ``dev`` extra).
+
+Entry points: :func:`reference_run` (the events and the phases between them, which can be
+evaluated at any time) and :func:`reference_solution` (``x`` and ``v`` on a time grid).
 """
 
 from __future__ import annotations
@@ -17,8 +24,14 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from scipy.integrate import solve_ivp
-from scipy.optimize import brentq
+
+try:
+    from scipy.integrate import solve_ivp
+    from scipy.optimize import brentq
+except ImportError as _exc:  # (SciPy is optional for fricenv, required here)
+    raise ImportError(
+        "fricenv.testing.scipy_reference needs SciPy, which fricenv does not install: "
+        "pip install scipy (or pip install 'fricenv[dev]')") from _exc
 
 EVENT_STICK = 1  # slip -> stick
 EVENT_SLIP = 2  # stick -> slip
@@ -171,8 +184,9 @@ def _slip(p: _P, t0: float, x0: float, v0: float, s: int, t_end: float, rtol: fl
     def ev_contact(t: float, y: np.ndarray) -> float:
         return y[1] - V
 
-    ev_contact.terminal = True
-    ev_contact.direction = -s  # s=+1: v falls through V; s=-1: v rises through V
+    # (solve_ivp reads an event's settings from attributes of the function)
+    ev_contact.terminal = True  # type: ignore[attr-defined]
+    ev_contact.direction = -s  # type: ignore[attr-defined]  # s=+1: v falls through V
 
     def ev_min(t: float, y: np.ndarray) -> float:  # a: - -> +, local minimum of v
         return p.accel(t, y[0], y[1], s)
@@ -180,8 +194,8 @@ def _slip(p: _P, t0: float, x0: float, v0: float, s: int, t_end: float, rtol: fl
     def ev_max(t: float, y: np.ndarray) -> float:  # a: + -> -, local maximum of v
         return p.accel(t, y[0], y[1], s)
 
-    ev_min.direction = 1.0
-    ev_max.direction = -1.0
+    ev_min.direction = 1.0  # type: ignore[attr-defined]
+    ev_max.direction = -1.0  # type: ignore[attr-defined]
 
     sol = solve_ivp(rhs, (t0, t_end), [x0, v0], method="DOP853", rtol=rtol, atol=atol,
                     events=[ev_contact, ev_min, ev_max], dense_output=True,
