@@ -310,14 +310,14 @@ def _mpc(tmp: Path) -> None:
     """What one MPC (MPPI) decision computes: 256 action sequences of 12 intervals rolled
     out from one plant state (``fricenv.envs.rollout``, the batch rollout the agents' MPPI
     controller calls), so the library measures it without importing the agents."""
-    import gymnasium as gym
     import numpy as np
 
     from fricenv.envs.rollout import rollout_batch
+    from fricenv.envs.stick_slip import StickSlipEnv
 
-    env = gym.make("fricenv/StickSlipSelfExcited-v0").unwrapped
+    env = StickSlipEnv(scene="self_excited")
     env.reset(seed=0)
-    n_act = env.action_space.shape[0]
+    n_act = env.action_space.shape[0]  # type: ignore[index]
     actions = np.random.default_rng(0).uniform(-1.0, 1.0, (256, 12, n_act))
     rollout_batch(env, env.get_state(), actions)
     env.close()
