@@ -38,9 +38,11 @@ ATLAS_SPEC = {"base": "coulomb", "axes": {"u0": (0.5, 3.0, 8), "nu": (0.2, 2.0, 
               "chunks": (4, 5)}
 
 _HEAD = textwrap.dedent("""
-    import json, sys, threading, time
+    import json, signal, sys, threading, time
     import numpy as np
     import fricenv
+    # (a stress run started in the background hands SIGINT down ignored: restore Ctrl-C)
+    signal.signal(signal.SIGINT, signal.default_int_handler)
     def result(wrong=(), kind="returned", error=""):
         print("RESULT " + json.dumps({"kind": kind, "wrong": list(wrong), "error": error}),
               flush=True)

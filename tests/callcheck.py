@@ -423,6 +423,9 @@ def serve() -> None:
 
 
 if __name__ == "__main__":
+    # Ctrl-C as Python's default, even when the parent was a background job, which starts
+    # its children with SIGINT ignored: a hang's "Ctrl-C honoured" would read as ignored.
+    signal.signal(signal.SIGINT, signal.default_int_handler)
     here = str(Path(__file__).resolve().parent)
     sys.path[:] = [p for p in sys.path if p != here]  # the fricenv of PYTHONPATH only
     serve()

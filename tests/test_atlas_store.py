@@ -218,6 +218,17 @@ def test_huge_axes_refused_before_any_work_per_value(monkeypatch):
     assert time.perf_counter() - t < 5.0
 
 
+def test_huge_axes_refused_from_their_lengths_before_their_values():
+    """The cell limit is checked from the axes' lengths before any value is looked at: a
+    grid of 10^11 cells whose u0 axis repeats a value (a check that sorts every axis, 1-3 s
+    for two axes of 10^7 values) is refused for its size."""
+    axes = {"u0": np.zeros(10**5), "nu": np.linspace(0.1, 3.0, 10**3),
+            "eta": np.linspace(0.2, 2.0, 10**3)}
+    with pytest.raises(ValueError, match=r"\(100000, 1000, 1000\) has 1e\+11 cells, more "
+                                         r"than MAX_CELLS = 1e\+10"):
+        core.make_spec("coulomb", axes, None, None, 2)
+
+
 def test_large_axis_plans_without_a_fraction_per_value(monkeypatch):
     nu = np.linspace(0.013, 4.0, 10**5)
     core.make_spec("coulomb", {"nu": nu[:10], "u0": [1.0]}, None, None, 2)  # (warm up)

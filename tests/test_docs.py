@@ -160,6 +160,22 @@ def test_readme_links_point_to_files() -> None:
     assert not broken, "broken links in README.md:\n" + "\n".join(broken)
 
 
+#: A repository file named in inline code (`tests/test_x.py`); names with a placeholder in
+#: capitals (`scripts/bench_NAME.py`) and environment ids (`fricenv/StickSlip-v0`) are not
+#: files.
+_FILE_NAMED = re.compile(r"`((?:tests|scripts|fricenv|agents|docs|\.ci)/[\w./-]+\.[a-z]+)`")
+
+
+@pytest.mark.parametrize("page", PAGES, ids=_rel)
+def test_files_named_in_pages_exist(page: Path) -> None:
+    """A file the text names for the reader to open (a test, a script, a module) exists:
+    renaming or folding one leaves no page pointing at nothing."""
+    names = {m[1] for m in _FILE_NAMED.finditer(page.read_text(encoding="utf-8"))}
+    missing = sorted(n for n in names
+                     if not re.search(r"[A-Z]{3,}", n) and not (ROOT / n).exists())
+    assert not missing, f"{_rel(page)} names files the repository does not have: {missing}"
+
+
 def test_block_parser() -> None:
     page = "\n".join([
         "text", "```python", "print(1)", "```", "", "```text", "1", "```",

@@ -40,10 +40,13 @@ NU = np.linspace(0.3, 2.7, N)
 SETTINGS = fricenv.SweepSettings(window_min=4000.0)
 
 _CHILD = """
-import sys, time
+import signal, sys, time
 import numpy as np
 import fricenv
 from fricenv.calls import SweepInterrupted
+
+# (a test run started in the background hands SIGINT down ignored: restore Ctrl-C)
+signal.signal(signal.SIGINT, signal.default_int_handler)
 
 kind, path = sys.argv[1], sys.argv[2]
 settings = fricenv.SweepSettings(window_min=4000.0)
@@ -93,15 +96,21 @@ def full() -> fricenv.RegimeMap:
     return rmap
 
 
-def _interrupted_child(kind: str, path: Path, signum: int, full: fricenv.RegimeMap
-                       ) -> tuple[float, int]:
+def _interrupted_child(kind: str, path: Path, signum: int, full: fricenv.RegimeMap,
+                       ignoring: bool = False) -> tuple[float, int]:
     """Run the sweep ``kind`` in a child, send it ``signum`` once it is sweeping; the
     seconds from the signal until the exception reached the child's own code (the sweep
-    stopped and its cells saved), and the child's return code."""
+    stopped and its cells saved), and the child's return code. ``ignoring``: the child
+    starts with SIGINT ignored, as the children of a background job do."""
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
-    child = subprocess.Popen([sys.executable, "-c", _CHILD.format(n=N), kind, str(path)],
-                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                             env=env, cwd=ROOT)
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN) if ignoring else None
+    try:  # (an ignored signal stays ignored in a child, across exec)
+        child = subprocess.Popen([sys.executable, "-c", _CHILD.format(n=N), kind, str(path)],
+                                 stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                                 env=env, cwd=ROOT)
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGINT, previous)
     try:
         assert child.stdout is not None and child.stderr is not None
         line = child.stdout.readline().strip()
@@ -140,6 +149,16 @@ def test_a_stopped_regime_map_keeps_its_finished_cells(tmp_path, full, signum) -
     assert sum(ran) == N * N - kept.done.sum()  # only the rest
     for name in ("labels", "stats", "period", "status", "done"):
         np.testing.assert_array_equal(getattr(resumed, name), getattr(full, name))
+
+
+def test_a_sweep_started_with_ctrl_c_ignored_still_stops_on_it(tmp_path, full) -> None:
+    """A shell starts a background job (``pytest &``, ``nohup``) with SIGINT ignored, and
+    its children inherit that; the sweep child restores Python's Ctrl-C, so these tests
+    and the stress script's signal probes judge the sweep, not how the run was started."""
+    path = tmp_path / "m.npz"
+    latency, code = _interrupted_child("map", path, signal.SIGINT, full, ignoring=True)
+    assert latency <= STOP_S and code != 0
+    assert 0 < fricenv.RegimeMap.load(path).done.sum() < N * N
 
 
 def test_stopped_cell_statistics_hand_back_their_finished_cells(tmp_path, full) -> None:

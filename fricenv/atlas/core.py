@@ -148,8 +148,8 @@ def _check_base(base: object) -> OscillatorParams:
     return base
 
 
-def _check_grid(name: str, grid: object, base: OscillatorParams) -> np.ndarray:
-    """One axis as a 1-d float array, each value valid for its field alone."""
+def _axis_array(name: str, grid: object) -> np.ndarray:
+    """One axis as a 1-d float array (its values not looked at yet)."""
     arr = real_array(grid, f"axes[{name!r}] must be a 1-d array of real numbers")
     if arr.ndim == 0:
         arr = arr.reshape(1)
@@ -157,6 +157,18 @@ def _check_grid(name: str, grid: object, base: OscillatorParams) -> np.ndarray:
         raise ValueError(f"axes[{name!r}] must be 1-d, got shape {arr.shape}")
     if arr.size == 0:
         raise ValueError(f"axes[{name!r}] is empty")
+    return arr
+
+
+def _check_size(shape: tuple[int, ...]) -> None:
+    """``ValueError`` for a grid of more than ``MAX_CELLS`` cells, from its shape alone."""
+    if math.prod(shape) > MAX_CELLS:
+        raise ValueError(f"an atlas of shape {shape} has {math.prod(shape):.3g} cells, more "
+                         f"than MAX_CELLS = {MAX_CELLS:.3g}: split it into several atlases")
+
+
+def _check_grid(name: str, arr: np.ndarray, base: OscillatorParams) -> None:
+    """Each value of one axis valid for its field alone, and none repeated."""
     bad = ~(np.abs(arr) <= PARAM_LIMIT)  # NaN, inf, huge: each named by OscillatorParams
     rules = {"u0": arr >= 0, "nu": arr >= 0, "eta": arr > 0, "lam": arr >= 0,
              "xfk": arr >= 0}
@@ -173,7 +185,6 @@ def _check_grid(name: str, grid: object, base: OscillatorParams) -> np.ndarray:
         k = int(np.argmax(counts > 1))
         raise ValueError(f"axes[{name!r}] must not repeat a value, got {float(values[k])!r} "
                          f"{int(counts[k])} times")
-    return arr
 
 
 def _check_axes(axes: object, base: OscillatorParams) -> dict[str, np.ndarray]:
@@ -187,7 +198,10 @@ def _check_axes(axes: object, base: OscillatorParams) -> dict[str, np.ndarray]:
         if name not in AXIS_FIELDS:
             raise ValueError(f"axes: {name!r} is not a parameter an atlas can sweep; "
                              f"expected some of {list(AXIS_FIELDS)}")
-        out[name] = _check_grid(name, grid, base)
+        out[name] = _axis_array(name, grid)
+    _check_size(tuple(a.size for a in out.values()))  # (before any work per value)
+    for name, arr in out.items():
+        _check_grid(name, arr, base)
     _check_friction_levels(out, base)
     return out
 
@@ -295,9 +309,6 @@ def make_spec(base: object, axes: object, settings: Any, chunks: object,
     axes = _check_axes(axes, base)
     settings = settings_with(settings, {})
     shape = tuple(a.size for a in axes.values())
-    if math.prod(shape) > MAX_CELLS:
-        raise ValueError(f"an atlas of shape {shape} has {math.prod(shape):.3g} cells, more "
-                         f"than MAX_CELLS = {MAX_CELLS:.3g}: split it into several atlases")
     _check_cells(axes, base, settings)
     return AtlasSpec(base, axes, settings, check_chunks(chunks, list(axes), shape, n_threads))
 
