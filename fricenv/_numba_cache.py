@@ -2,8 +2,9 @@
 
 numba stamps a cached function with its own source file only, so a function that inlines
 functions or constants from another module was loaded stale after that module changed
-(numba issue #1833): edit ``core.py``, and the environments' kernels kept the old physics
-until the cache was deleted by hand. ``install`` stamps every cached function of a package
+(numba issue #1833): after an edit of a ``fricenv/core/`` module, the environments' kernels,
+which inline its functions, would keep the old physics until the cache was deleted by
+hand. ``install`` stamps every cached function of a package
 with one digest of all the package's sources instead, so an edit anywhere in it recompiles
 what was cached from it. Cache directories stay where numba would put them.
 """
@@ -12,11 +13,18 @@ from __future__ import annotations
 
 import hashlib
 from pathlib import Path
+from typing import Any
 
-from numba.core import caching
 
-# (numba < 0.62 names the class _CacheImpl)
-_CACHE_IMPL = getattr(caching, "CacheImpl", None) or getattr(caching, "_CacheImpl", None)
+def _locator_classes() -> Any:
+    """numba's list of cache locator classes (None on a numba without it). numba is
+    imported here, not at the top, so that :func:`source_digest` loads none of it:
+    :mod:`fricenv.jit` imports numba first (see its docstring)."""
+    from numba.core import caching
+
+    # (numba < 0.62 names the class _CacheImpl)
+    impl = getattr(caching, "CacheImpl", None) or getattr(caching, "_CacheImpl", None)
+    return getattr(impl, "_locator_classes", None)
 
 
 def source_digest(package_dir: Path) -> str:
@@ -33,7 +41,7 @@ def source_digest(package_dir: Path) -> str:
 def installed_for(package_dir: str | Path) -> bool:
     """Whether ``install`` took effect for ``package_dir``."""
     root = Path(package_dir).resolve()
-    classes = getattr(_CACHE_IMPL, "_locator_classes", ())
+    classes = _locator_classes() or ()
     return any(getattr(cls, "package_dir", None) == root for cls in classes)
 
 
@@ -42,8 +50,10 @@ def install(package_dir: str | Path) -> bool:
     package's source digest. Call it before those functions are decorated (their cache
     picks its locator then). Idempotent; returns False, changing nothing, on a numba
     without the locator list this relies on (its per-file stamps then apply)."""
+    from numba.core import caching
+
     root = Path(package_dir).resolve()
-    classes = getattr(_CACHE_IMPL, "_locator_classes", None)
+    classes = _locator_classes()
     if not isinstance(classes, list):
         return False
     if installed_for(root):
@@ -87,5 +97,3 @@ def install(package_dir: str | Path) -> bool:
     classes.insert(0, PackageLocator)
     return True
 
-
-install(Path(__file__).parent)  # on import, which fricenv/__init__.py does first

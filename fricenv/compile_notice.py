@@ -172,11 +172,11 @@ def cache_location() -> str:
     """Where numba keeps fricenv's compiled kernels: ``NUMBA_CACHE_DIR`` if set, else the
     ``__pycache__`` folders beside the package's sources (or numba's per-user fallback
     where those are not writable)."""
-    import numba
+    from .jit import cache_dir
 
-    configured = getattr(numba.config, "CACHE_DIR", "")
+    configured = cache_dir()
     if configured:
-        return str(configured)
+        return configured
     try:
         path = resolve(ENTRY_KERNELS["simulate"]["exact"][0])._cache.cache_path
     except Exception:

@@ -37,8 +37,8 @@ sums whose order does not matter may carry them.
 
 Threading layer
 ---------------
-The parallel kernels (sweeps, ``cell_statistics``, the vector environment from
-``PARALLEL_MIN_PLANTS`` plants, batch rollouts) run on numba's threading layer, which
+The parallel kernels (sweeps, ``cell_statistics``, the vector environment, batch
+rollouts) run on numba's threading layer, which
 numba picks when the first of them starts. Its default here is GNU OpenMP, which is not
 fork-safe: after any parallel kernel has run, a ``multiprocessing`` pool,
 ``ProcessPoolExecutor`` or joblib's multiprocessing backend started by ``fork`` prints
@@ -80,10 +80,6 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
-
-import numba
-from numba import njit
-from numba.core import types
 
 #: The file name numba's TBB extension asks the loader for (its soname), per platform.
 TBB_LIBRARY = {"win32": "tbb12.dll", "darwin": "libtbb.12.dylib"}.get(sys.platform,
@@ -139,7 +135,19 @@ def _tbb_loads() -> bool:
     return True
 
 
-TBB_PATH = _preload_tbb()  # on import, before numba can look for TBB
+# The TBB library is loaded before numba is imported, numba's cache is keyed on the
+# package's source before any kernel is decorated (every kernel passes through ``kernel``
+# below), and the threading layer is chosen before any parallel kernel can run: this
+# module is the first of fricenv to import numba, and ``import fricenv`` imports neither.
+TBB_PATH = _preload_tbb()
+
+import numba  # noqa: E402
+from numba import njit  # noqa: E402
+from numba.core import types  # noqa: E402
+
+from . import _numba_cache  # noqa: E402
+
+_numba_cache.install(Path(__file__).parent)
 TBB_LOADS = _tbb_loads()
 
 
@@ -199,6 +207,24 @@ def parallel_section(parallel: bool = True) -> contextlib.AbstractContextManager
     if not parallel:
         return _NO_LOCK
     return _section if _section is not None else _decide_section()
+
+
+def num_threads() -> int:
+    """Numba threads a parallel kernel uses when called from this thread (starts numba's
+    threading layer, as the first parallel kernel would)."""
+    return int(numba.get_num_threads())
+
+
+def max_threads() -> int:
+    """Numba threads a parallel kernel may use at most (``NUMBA_NUM_THREADS``)."""
+    config: Any = numba.config
+    return int(config.NUMBA_NUM_THREADS)
+
+
+def cache_dir() -> str:
+    """``NUMBA_CACHE_DIR`` as numba read it; empty when unset (the cache then lives beside
+    the sources)."""
+    return str(getattr(numba.config, "CACHE_DIR", "") or "")
 
 
 @dataclass(frozen=True)

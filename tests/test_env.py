@@ -1232,23 +1232,23 @@ def test_cells_of_a_region_cover_it_once_for_any_meeting_point(size):
     worker's tile the region exactly; a region of a few chunks or more opens with two big
     cells, one for each worker's first claim, of at most a third of it each, and keeps at
     least two chunks between them."""
-    from fricenv.envs import kernels
+    from fricenv.envs import batch
 
     lo, hi = 5, 5 + size
-    big, n_cells = kernels._cells(lo, hi)
-    if size >= 4 * kernels.CHUNK:
+    big, n_cells = batch._cells(lo, hi)
+    if size >= 4 * batch.CHUNK:
         assert big > 0 and n_cells >= 4
-        assert size - 2 * big >= 2 * kernels.CHUNK
+        assert size - 2 * big >= 2 * batch.CHUNK
     # a worker slowed to half its partner's speed can still end with its balanced third
     assert 3 * big <= size
     for a in range(n_cells + 1):
         hits = np.zeros(hi, dtype=np.int64)
         for done in range(a):
-            start, end = kernels._cell(lo, hi, big, n_cells, done, False)
+            start, end = batch._cell(lo, hi, big, n_cells, done, False)
             assert start < end
             hits[start:end] += 1
         for done in range(n_cells - a):
-            start, end = kernels._cell(lo, hi, big, n_cells, done, True)
+            start, end = batch._cell(lo, hi, big, n_cells, done, True)
             assert start < end
             hits[start:end] += 1
         assert np.all(hits[lo:hi] == 1) and np.all(hits[:lo] == 0)
@@ -1256,13 +1256,13 @@ def test_cells_of_a_region_cover_it_once_for_any_meeting_point(size):
 
 @pytest.mark.parametrize("n_workers", [1, 2, 3, 5, 8])
 def test_regions_tile_the_plants(n_workers):
-    from fricenv.envs import kernels
+    from fricenv.envs import batch
 
     for n in (0, 1, 3, 64, 77, 256):
         hits = np.zeros(n, dtype=np.int64)
         for first in range(0, n_workers, 2):
-            lo, hi = kernels._region(first, n_workers, n)
-            assert kernels._region(min(first + 1, n_workers - 1), n_workers, n) == (lo, hi)
+            lo, hi = batch._region(first, n_workers, n)
+            assert batch._region(min(first + 1, n_workers - 1), n_workers, n) == (lo, hi)
             hits[lo:hi] += 1
         assert np.all(hits == 1)
 

@@ -11,7 +11,7 @@ import pytest
 
 import fricenv
 from fricenv import _numba_cache, core
-from fricenv.envs import kernels
+from fricenv.envs import batch
 
 _INIT = """\
 import os
@@ -40,7 +40,7 @@ def test_fricenv_kernels_are_keyed_on_the_whole_package():
     root = Path(fricenv.__file__).parent
     assert _numba_cache.installed_for(root)
     digest = _numba_cache.source_digest(root)
-    for kernel in (core.advance, kernels.step_batch, kernels.step_batch_parallel):
+    for kernel in (core.advance, batch.step_batch, batch.step_batch_parallel):
         assert kernel._cache._impl.locator.get_source_stamp() == digest
 
 

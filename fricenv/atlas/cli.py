@@ -21,7 +21,6 @@ from typing import Any
 import numpy as np
 
 from ..cli._args import add_plant_arguments, grid, plant
-from ..sweep import SweepSettings
 
 
 def parse_axis(spec: str) -> tuple[str, np.ndarray]:
@@ -76,7 +75,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from .api import atlas  # (zarr and xarray load here, not with the parser)
+    # (the kernels, zarr and xarray load here, not with the parser)
+    from ..sweep import SweepSettings
+    from .api import atlas
 
     try:
         axes = dict(parse_axis(a) for a in args.axis)

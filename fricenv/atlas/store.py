@@ -42,7 +42,7 @@ import zarr
 from zarr.codecs import Crc32cCodec, ZstdCodec
 from zarr.core.array_spec import ArrayConfig
 
-from .. import __version__
+from .._version import __version__
 from ..checks import check_path, got
 from ..params import OscillatorParams
 from ..regimes import Regime

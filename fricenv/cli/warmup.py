@@ -41,7 +41,7 @@ def jobs(text: str) -> int:
 
 
 def build_parser(prog: str | None = None) -> argparse.ArgumentParser:
-    from fricenv.envs.scenes import SCENES
+    from fricenv.envs import HORIZONS as SCENES  # (the scenes' names, without their kernels)
 
     p = argparse.ArgumentParser(prog=prog, description=__doc__.split("\n\n")[0],
                                 formatter_class=argparse.ArgumentDefaultsHelpFormatter)

@@ -12,23 +12,19 @@ id                                 scene           max_episode_steps
 ``fricenv/StickSlipViscous-v0``    ``viscous``     300
 =================================  ==============  =================
 
-Registration imports nothing heavy: the classes (and numba) load on the first ``make``.
+Registration imports Gymnasium's registry alone: the environments' classes, and numba
+with them, load on the first ``make`` (``tests/test_imports.py`` checks it).
 """
 
 from __future__ import annotations
 
 from typing import Any
 
-#: Registered ids and the scene each one makes.
-ENV_IDS: dict[str, str] = {
-    "fricenv/StickSlip-v0": "paper",
-    "fricenv/StickSlipSelfExcited-v0": "self_excited",
-    "fricenv/StickSlipStribeck-v0": "stribeck",
-    "fricenv/StickSlipViscous-v0": "viscous",
-}
+from fricenv.envs.ids import ENV_IDS, HORIZONS
 
 __all__ = [
     "ENV_IDS",
+    "HORIZONS",
     "SCENES",
     "Scene",
     "StickSlipEnv",
@@ -42,8 +38,6 @@ def register_envs() -> None:
     """Register the environments with Gymnasium (idempotent)."""
     from gymnasium.envs.registration import register, registry
 
-    from fricenv.envs.scenes import SCENES
-
     for env_id, scene in ENV_IDS.items():
         if env_id in registry:
             continue
@@ -51,7 +45,7 @@ def register_envs() -> None:
             id=env_id,
             entry_point="fricenv.envs.stick_slip:StickSlipEnv",
             vector_entry_point="fricenv.envs.vector:StickSlipVectorEnv",
-            max_episode_steps=SCENES[scene].max_episode_steps,
+            max_episode_steps=HORIZONS[scene],
             kwargs={"scene": scene},
         )
 

@@ -393,19 +393,3 @@ def sample_interval(P, S, ctrl, cfg, a, stats, t_out, v_out, stick_out) -> int:
     """``sample_interval_with`` by ``core.advance``."""
     return sample_interval_with(advance, P, S, ctrl, cfg, a, stats, t_out, v_out, stick_out)
 
-
-# The vector environment's kernels live in .batch (which builds on this module); their names
-# stay importable from here, looked up on first use.
-_BATCH_NAMES = frozenset((
-    "CHUNK", "_cell", "_cells", "_count", "_plant_rows", "_plant_step", "_region",
-    "_start_next", "_step_range", "first_bad_action", "start_batch", "step_batch",
-    "step_batch_parallel", "step_batch_parallel_with", "step_batch_with", "step_range_with",
-))
-
-
-def __getattr__(name: str):
-    if name in _BATCH_NAMES:
-        from fricenv.envs import batch
-
-        return getattr(batch, name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -24,6 +24,7 @@ from gymnasium.vector.utils import batch_space
 from fricenv.checks import check_dict, check_int, got, is_int, items_of
 from fricenv.core import new_workspace
 from fricenv.envs import kernels as K
+from fricenv.envs.batch import first_bad_action, start_batch
 from fricenv.envs.scenes import N_DRAWS, N_INIT, Scene, check_episode_cost
 from fricenv.envs.setup import ACTION_DTYPES, EnvSetup, coerce_action, raise_status
 from fricenv.envs.steppers import Steppers, steppers_for_plants
@@ -415,7 +416,7 @@ class StickSlipVectorEnv(VectorPlants, VectorRendering, VectorEnv):
             raise
         for i, (_, used) in fresh.items():
             self._seeds[i] = used
-        K.start_batch(self._table, self._cfg, mask, self._obs_pair, self._flags, self._counters)
+        start_batch(self._table, self._cfg, mask, self._obs_pair, self._flags, self._counters)
         # options may have given the plants another law or damping than the draws' bounds
         self._fit_steppers()
         if self._bank is not None:
@@ -491,7 +492,7 @@ class StickSlipVectorEnv(VectorPlants, VectorRendering, VectorEnv):
             a = self._actuate(a)
         if self._traces is not None:
             # every action checked before any trace moves (the kernel checks them too)
-            bad = K.first_bad_action(a, self._autoreset, self._ivars[K.IV_MODE])
+            bad = first_bad_action(a, self._autoreset, self._ivars[K.IV_MODE])
             if bad >= 0:
                 raise_status(K.STATUS_BAD_ACTION, a[bad], f" {bad}")
             self._record_traces(a)

@@ -18,6 +18,7 @@ from gymnasium.vector import AutoresetMode
 
 from fricenv.checks import check_int
 from fricenv.envs import kernels as K
+from fricenv.envs.batch import first_bad_action
 from fricenv.envs.scenes import Scene
 from fricenv.envs.sensors import InstrumentBank, actuate_batch
 from fricenv.envs.setup import EnvSetup, raise_status
@@ -100,7 +101,7 @@ class VectorPlants:
         first, as the kernel would); the kernel then gets zero actions."""
         bank = self._bank
         assert bank is not None  # an actuator (self._act) comes with its buffers
-        bad = K.first_bad_action(a, self._autoreset, self._ivars[K.IV_MODE])
+        bad = first_bad_action(a, self._autoreset, self._ivars[K.IV_MODE])
         if bad >= 0:
             raise_status(K.STATUS_BAD_ACTION, a[bad], f" {bad}")
         # (a plant the kernel resets instead of stepping ignores its action)
