@@ -4,9 +4,10 @@ numba stamps a cached function with its own source file only, so a function that
 functions or constants from another module was loaded stale after that module changed
 (numba issue #1833): after an edit of a ``fricenv/core/`` module, the environments' kernels,
 which inline its functions, would keep the old physics until the cache was deleted by
-hand. ``install`` stamps every cached function of a package
-with one digest of all the package's sources instead, so an edit anywhere in it recompiles
-what was cached from it. Cache directories stay where numba would put them.
+hand. ``install`` stamps every cached function of a package with one digest of all the
+package's sources instead, so an edit anywhere in it recompiles what was cached from it.
+Cache directories stay where numba would put them. :mod:`fricenv.jit` calls it on import,
+before any kernel is decorated.
 """
 
 from __future__ import annotations

@@ -38,11 +38,11 @@ sums whose order does not matter may carry them.
 Threading layer
 ---------------
 The parallel kernels (sweeps, ``cell_statistics``, the vector environment, batch
-rollouts) run on numba's threading layer, which
-numba picks when the first of them starts. Its default here is GNU OpenMP, which is not
-fork-safe: after any parallel kernel has run, a ``multiprocessing`` pool,
-``ProcessPoolExecutor`` or joblib's multiprocessing backend started by ``fork`` prints
-``fork() called from a process already using GNU OpenMP`` and its workers hang or crash.
+rollouts) run on numba's threading layer, which numba picks when the first of them
+starts. Its default here is GNU OpenMP, which is not fork-safe: after any parallel kernel
+has run, a ``multiprocessing`` pool, ``ProcessPoolExecutor`` or joblib's multiprocessing
+backend started by ``fork`` prints ``fork() called from a process already using GNU
+OpenMP`` and its workers hang or crash.
 This module therefore asks numba for the ``"safe"`` layer, Intel TBB (a dependency where
 its wheels exist): safe after ``fork`` and safe to call from several Python threads at once
 (Dask workers with several threads, a thread per environment).
@@ -135,10 +135,12 @@ def _tbb_loads() -> bool:
     return True
 
 
-# The TBB library is loaded before numba is imported, numba's cache is keyed on the
+# On import, in this order: TBB is loaded before numba is imported here (numba itself
+# looks for it only when it starts a threading layer), numba's cache is keyed on the
 # package's source before any kernel is decorated (every kernel passes through ``kernel``
-# below), and the threading layer is chosen before any parallel kernel can run: this
-# module is the first of fricenv to import numba, and ``import fricenv`` imports neither.
+# below), and the threading layer is chosen before any parallel kernel can run. Every
+# fricenv module that imports numba imports this module at its top as well
+# (tests/test_import_graph.py); ``import fricenv`` imports neither.
 TBB_PATH = _preload_tbb()
 
 import numba  # noqa: E402
