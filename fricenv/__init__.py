@@ -1,32 +1,44 @@
-"""fricenv: exact event-driven simulation of a two-tone forced dry-friction oscillator."""
+"""fricenv: exact event-driven simulation of a two-tone forced dry-friction oscillator.
 
+``import fricenv`` loads no numba: the public names below are resolved on first use
+(PEP 562), so that the command line's help, Gymnasium's registry and a process that only
+reads a map file start in a fraction of a second. The first use of a name that needs the
+kernels imports numba through :mod:`fricenv.jit`. The Gymnasium ids are registered on
+import (:func:`fricenv.envs.register_envs`), which loads Gymnasium but not the
+environments' classes.
+"""
+
+from __future__ import annotations
+
+import importlib
 import logging as _logging
+import sys
+import types
+from typing import TYPE_CHECKING, Any
 
-# First, before any module with compiled kernels: keys their numba cache on the whole
-# package's source (see _numba_cache).
-from . import _numba_cache  # noqa: F401
-from .calls import SweepInterrupted
-from .jit import threading_info
-from .mapfile import MapInUseError
-from .params import FRICTION_LAWS, OscillatorParams
-from .regimes import Regime, classify, classify_stats, strobe_period
-from .simulate import (
-    EVENT_NAMES,
-    MAX_STEPS_PER_CALL,
-    MAX_STEPS_PER_TAU,
-    OscillatorState,
-    RunStats,
-    SimulationError,
-    Trajectory,
-    run_stats,
-    simulate,
-)
-from .sweep import RegimeMap, SweepSettings, cell_statistics, regime_map
-from .warmup import warmup
+from ._version import __version__ as __version__
 
-# The package logs (the compile notice of fricenv.compile_notice) through the "fricenv"
-# logger; as a library it adds only a NullHandler: the application decides what is shown.
-_logging.getLogger(__name__).addHandler(_logging.NullHandler())
+if TYPE_CHECKING:
+    from . import atlas as atlas
+    from .atlas.store import open_atlas as open_atlas
+    from .calls import SweepInterrupted
+    from .jit import threading_info
+    from .mapfile import MapInUseError
+    from .params import FRICTION_LAWS, OscillatorParams
+    from .regimes import Regime, classify, classify_stats, strobe_period
+    from .simulate import (
+        EVENT_NAMES,
+        MAX_STEPS_PER_CALL,
+        MAX_STEPS_PER_TAU,
+        OscillatorState,
+        RunStats,
+        SimulationError,
+        Trajectory,
+        run_stats,
+        simulate,
+    )
+    from .sweep import RegimeMap, SweepSettings, cell_statistics, regime_map
+    from .warmup import warmup
 
 __all__ = [
     "EVENT_NAMES",
@@ -53,19 +65,59 @@ __all__ = [
     "threading_info",
     "warmup",
 ]
-__version__ = "0.1.0"
+
+#: Where each public name lives (module relative to the package), imported on first use.
+_HOMES: dict[str, str] = {
+    "SweepInterrupted": "calls",
+    "threading_info": "jit",
+    "MapInUseError": "mapfile",
+    "FRICTION_LAWS": "params",
+    "OscillatorParams": "params",
+    **dict.fromkeys(("Regime", "classify", "classify_stats", "strobe_period"), "regimes"),
+    **dict.fromkeys(("EVENT_NAMES", "MAX_STEPS_PER_CALL", "MAX_STEPS_PER_TAU",
+                     "OscillatorState", "RunStats", "SimulationError", "Trajectory",
+                     "run_stats", "simulate"), "simulate"),
+    **dict.fromkeys(("RegimeMap", "SweepSettings", "cell_statistics", "regime_map"),
+                    "sweep"),
+    "warmup": "warmup",
+    "open_atlas": "atlas.store",
+}
+#: Public functions named like the module that defines them: importing that module
+#: (``import fricenv.simulate``) must not rebind ``fricenv.simulate`` to the module.
+_SHADOWED = ("simulate", "warmup")
 
 
-def __getattr__(name: str) -> object:
-    """``fricenv.atlas`` and ``fricenv.open_atlas`` on first use: they need Dask, Zarr
-    and xarray (the ``scale`` extra), which ``import fricenv`` must not load."""
-    if name in ("atlas", "open_atlas"):
-        import importlib
+def __getattr__(name: str) -> Any:
+    """Import a public name's module on first use (``fricenv.atlas`` is the callable
+    package, which needs Dask, Zarr and xarray: the ``scale`` extra)."""
+    if name == "atlas":
+        return importlib.import_module(".atlas", __name__)
+    if name not in _HOMES:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(f".{_HOMES[name]}", __name__), name)
+    globals()[name] = value  # later lookups skip this function
+    return value
 
-        module = importlib.import_module(".atlas", __name__)  # callable: fricenv.atlas(...)
-        return module if name == "atlas" else module.open_atlas
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__) | {"atlas", "open_atlas"})
+
+
+class _Package(types.ModuleType):
+    """The package module: keeps ``fricenv.simulate`` and ``fricenv.warmup`` the functions
+    when the import system binds their modules as attributes of the package."""
+
+    def __setattr__(self, name: str, value: Any) -> None:
+        if name in _SHADOWED and isinstance(value, types.ModuleType):
+            value = getattr(value, name)
+        super().__setattr__(name, value)
+
+
+sys.modules[__name__].__class__ = _Package
+
+# The package logs (the compile notice of fricenv.compile_notice) through the "fricenv"
+# logger; as a library it adds only a NullHandler: the application decides what is shown.
+_logging.getLogger(__name__).addHandler(_logging.NullHandler())
 
 from .envs import register_envs as _register_envs  # noqa: E402
 

@@ -24,21 +24,30 @@ the per-user folder cannot be written, numba's own locations apply.
 A folder per digest means every edit of the package starts a new one. ``install`` removes
 the folders of other digests that no process has used for ``PRUNE_AFTER_S``, keeping the
 ``KEEP_DIGESTS`` most recently used in any case.
+
+:mod:`fricenv.jit` calls :func:`install` on import, before any kernel is decorated. numba
+is imported only inside the functions that need it, so that :func:`source_digest` (the
+compile notice, ``fricenv warmup --print-digest``) loads none of it.
 """
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import os
 import shutil
 import time
 from pathlib import Path
+from typing import Any
 
-import numba
-from numba.core import caching
 
-# (numba < 0.62 names the class _CacheImpl)
-_CACHE_IMPL = getattr(caching, "CacheImpl", None) or getattr(caching, "_CacheImpl", None)
+def _locator_classes() -> Any:
+    """numba's list of cache locator classes (None on a numba without it)."""
+    from numba.core import caching
+
+    # (numba < 0.62 names the class _CacheImpl)
+    impl = getattr(caching, "CacheImpl", None) or getattr(caching, "_CacheImpl", None)
+    return getattr(impl, "_locator_classes", None)
 
 #: Digest folders always kept, the most recently used first (one per source in use).
 KEEP_DIGESTS = 4
@@ -61,6 +70,8 @@ def source_digest(package_dir: Path) -> str:
 
 def _numba_cache_dir() -> str:
     """``NUMBA_CACHE_DIR`` as numba read it ("" when unset)."""
+    import numba
+
     return str(getattr(numba.config, "CACHE_DIR", "") or "")
 
 
@@ -75,6 +86,8 @@ def user_cache_root() -> Path:
 
 def user_cache_dir(package_dir: str | Path, digest: str) -> Path:
     """The per-user folder of the package at ``package_dir`` with source ``digest``."""
+    import numba
+
     name = Path(package_dir).resolve().name
     return user_cache_root() / name / "numba" / f"{numba.__version__}-{digest}"
 
@@ -96,7 +109,7 @@ def cache_dir_for(package_dir: str | Path) -> Path | None:
 
 def _locator_for(package_dir: str | Path) -> type | None:
     root = Path(package_dir).resolve()
-    for cls in getattr(_CACHE_IMPL, "_locator_classes", ()):
+    for cls in _locator_classes() or ():
         if getattr(cls, "package_dir", None) == root:
             return cls
     return None
@@ -135,8 +148,10 @@ def install(package_dir: str | Path) -> bool:
     Call it before those functions are decorated (their cache picks its locator then).
     Idempotent; returns False, changing nothing, on a numba without the locator list this
     relies on (its per-file stamps and locations then apply)."""
+    from numba.core import caching
+
     root = Path(package_dir).resolve()
-    classes = getattr(_CACHE_IMPL, "_locator_classes", None)
+    classes = _locator_classes()
     if not isinstance(classes, list):
         return False
     if installed_for(root):
@@ -149,6 +164,15 @@ def install(package_dir: str | Path) -> bool:
         folder = None
     if folder is not None and not _numba_cache_dir():
         _mark_used(folder)
+
+    @functools.cache
+    def relative(py_file: str) -> Path | None:
+        """``py_file`` relative to the package, None if it lies outside (asked once per
+        file, not per kernel: resolving the path was a third of decorating a kernel)."""
+        try:
+            return Path(py_file).resolve().relative_to(root)
+        except (ValueError, OSError):
+            return None
 
     class PackageLocator(caching._CacheLocator):
         """The package's digest as the stamp; the per-user folder (the source file's
@@ -166,9 +190,8 @@ def install(package_dir: str | Path) -> bool:
 
         @classmethod
         def from_function(cls, py_func, py_file):
-            try:
-                rel = Path(py_file).resolve().relative_to(root)
-            except (ValueError, OSError):
+            rel = relative(str(py_file))
+            if rel is None:
                 return None  # not ours: numba's own locators take it
             if folder is not None and not _numba_cache_dir():
                 own = cls(py_func, py_file, str(folder.joinpath(*rel.parent.parts)), None)
@@ -196,5 +219,3 @@ def install(package_dir: str | Path) -> bool:
     classes.insert(0, PackageLocator)
     return True
 
-
-install(Path(__file__).parent)  # on import, which fricenv/__init__.py does first

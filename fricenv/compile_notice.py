@@ -175,11 +175,11 @@ def cache_location() -> str:
     per-user folder of this source digest (:mod:`fricenv._numba_cache`), or, where that
     cannot be written, the ``__pycache__`` folders beside the package's sources (or
     numba's per-user fallback where those are not writable)."""
-    import numba
+    from .jit import cache_dir
 
-    configured = getattr(numba.config, "CACHE_DIR", "")
+    configured = cache_dir()
     if configured:
-        return str(configured)
+        return configured
     folder = cache_dir_for(Path(__file__).resolve().parent)
     if folder is not None:
         return os.fspath(folder)

@@ -81,10 +81,6 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import numba
-from numba import njit
-from numba.core import types
-
 #: The file name numba's TBB extension asks the loader for (its soname), per platform.
 TBB_LIBRARY = {"win32": "tbb12.dll", "darwin": "libtbb.12.dylib"}.get(sys.platform,
                                                                      "libtbb.so.12")
@@ -139,7 +135,21 @@ def _tbb_loads() -> bool:
     return True
 
 
-TBB_PATH = _preload_tbb()  # on import, before numba can look for TBB
+# On import, in this order: TBB is loaded before numba is imported here (numba itself
+# looks for it only when it starts a threading layer), numba's cache is keyed on the
+# package's source before any kernel is decorated (every kernel passes through ``kernel``
+# below), and the threading layer is chosen before any parallel kernel can run. Every
+# fricenv module that imports numba imports this module at its top as well
+# (tests/test_import_graph.py); ``import fricenv`` imports neither.
+TBB_PATH = _preload_tbb()
+
+import numba  # noqa: E402
+from numba import njit  # noqa: E402
+from numba.core import types  # noqa: E402
+
+from . import _numba_cache  # noqa: E402
+
+_numba_cache.install(Path(__file__).parent)
 TBB_LOADS = _tbb_loads()
 
 
@@ -199,6 +209,24 @@ def parallel_section(parallel: bool = True) -> contextlib.AbstractContextManager
     if not parallel:
         return _NO_LOCK
     return _section if _section is not None else _decide_section()
+
+
+def num_threads() -> int:
+    """Numba threads a parallel kernel uses when called from this thread (starts numba's
+    threading layer, as the first parallel kernel would)."""
+    return int(numba.get_num_threads())
+
+
+def max_threads() -> int:
+    """Numba threads a parallel kernel may use at most (``NUMBA_NUM_THREADS``)."""
+    config: Any = numba.config
+    return int(config.NUMBA_NUM_THREADS)
+
+
+def cache_dir() -> str:
+    """``NUMBA_CACHE_DIR`` as numba read it; empty when unset (the cache then lives beside
+    the sources)."""
+    return str(getattr(numba.config, "CACHE_DIR", "") or "")
 
 
 @dataclass(frozen=True)

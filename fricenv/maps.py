@@ -38,7 +38,6 @@ from .params import PARAM_LIMIT, OscillatorParams
 from .regimes import Regime
 
 if TYPE_CHECKING:
-    import xarray as xr
     from matplotlib.axes import Axes
 
 FORMAT = "fricenv.regime_map"
@@ -127,13 +126,6 @@ class RegimeMap:
     def counts(self) -> dict[str, int]:
         """Number of computed cells per regime name."""
         return {r.name: int(np.sum(self.labels == r)) for r in Regime}
-
-    def to_xarray(self) -> xr.Dataset:
-        """This map as an ``xarray.Dataset`` over ``(u0, nu)``, laid out as an atlas
-        (:func:`fricenv.atlas`); needs the ``scale`` extra."""
-        from .atlas.store import regime_map_dataset
-
-        return regime_map_dataset(self)
 
     # -- storage -----------------------------------------------------------------------
     def metadata(self) -> dict:

@@ -62,9 +62,9 @@ from enum import IntEnum
 from fractions import Fraction
 
 import numpy as np
-from numba import njit
 
 from .checks import check_finite_real, check_int, check_real, got, real_array
+from .jit import kernel
 from .layout import (
     N_STATS,
     ST_DURATION,
@@ -234,7 +234,7 @@ def exact_rationals(nu: object, q: object) -> np.ndarray:
     return out
 
 
-@njit(cache=True, error_model="numpy")
+@kernel
 def _strobe_period(xs: np.ndarray, vs: np.ndarray, m_max: int, tol: float) -> int:
     n = xs.shape[0]
     scale = 1.0

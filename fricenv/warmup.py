@@ -25,8 +25,6 @@ from typing import NamedTuple
 from . import compile_notice
 from ._numba_cache import source_digest
 from .params import FRICTION_LAWS, OscillatorParams
-from .simulate import run_stats, simulate
-from .sweep import cell_statistics
 
 #: What :func:`warmup` can prepare.
 WORKLOADS = ("simulate", "sweep", "env", "vector_env")
@@ -136,12 +134,18 @@ def warmup(laws: Iterable[str] = ("coulomb",), workloads: Iterable[str] = WORKLO
 
 
 def _simulate(law: str, parallel: bool) -> None:
+    """``simulate`` and ``run_stats`` (the workloads import what they run, so that
+    ``fricenv warmup --help`` and the part list load no kernels)."""
+    from .simulate import run_stats, simulate
+
     p = OscillatorParams.preset(law, u0=1.0, nu=0.5)
     simulate(p, 1.0, dt_out=0.5)
     run_stats(p, 1.0)
 
 
 def _sweep(law: str, parallel: bool) -> None:
+    from .sweep import cell_statistics
+
     p = OscillatorParams.preset(law, u0=1.0, nu=0.5)
     cell_statistics([p], transient_min=1.0, window_min=1.0, n_strobe=2)
 

@@ -37,6 +37,7 @@ import numba
 import numpy as np
 
 import fricenv
+from fricenv.atlas import regime_map_dataset
 from fricenv.params import OscillatorParams
 
 #: Grids: u0 geometric over the Fig. 10 (eta = 3/5) range, nu uniform with integers on it.
@@ -124,7 +125,7 @@ def dask_overhead(client, rounds: int) -> dict:
                   flush=True)
     rss = client.run(lambda: __import__("psutil").Process().memory_info().rss)
     same = results["dask"].identical(results["local"])
-    ref = results["regime_map"].to_xarray()
+    ref = regime_map_dataset(results["regime_map"])
     same_map = results["local"].identical(ref)
     med = {k: statistics.median(v) for k, v in times.items()}
     ratios = [d / loc for d, loc in zip(times["dask"], times["local"], strict=True)]

@@ -23,7 +23,7 @@ from closed_forms import slip_phase_params  # noqa: E402
 from fricenv.layout import EVENT_STICK  # noqa: E402
 from fricenv.params import PAPER_CASES as PAPER_OVERRIDES  # noqa: E402
 from fricenv.params import OscillatorParams  # noqa: E402
-from fricenv.simulate import OscillatorState  # noqa: E402
+from fricenv.simulate import OscillatorState, simulate  # noqa: E402
 from fricenv.testing.scipy_reference import (  # noqa: E402
     reference_run,
     reference_solution,
@@ -55,14 +55,6 @@ PURE_X0, PURE_V0 = 0.3, -0.2
 #: Bound on max |x| difference to the SciPy reference (which is itself good to ~1e-11).
 SCIPY_X_TOL = 1e-7
 SCIPY_EVENT_T_TOL = 1e-7
-
-
-def _sim():
-    """``fricenv.simulate``, or skip while the kernels are not there yet."""
-    fricenv = pytest.importorskip("fricenv")
-    if not hasattr(fricenv, "simulate"):
-        pytest.skip("fricenv.simulate not available yet")
-    return fricenv.simulate
 
 
 @functools.cache
@@ -115,7 +107,6 @@ def test_closed_forms_match_scipy_reference(name: str) -> None:
 # --------------------------------------------------------------------------------------
 @pytest.mark.parametrize("name", list(PURE_SLIP_CASES))
 def test_exact_matches_closed_forms_in_pure_slip(name: str) -> None:
-    simulate = _sim()
     p = PURE_SLIP_CASES[name]
     start = OscillatorState.start(p, PURE_X0, PURE_V0)
     traj = simulate(p, T_END, state=start, dt_out=0.1, method="exact")
@@ -131,7 +122,6 @@ def test_exact_matches_closed_forms_in_pure_slip(name: str) -> None:
 
 @pytest.mark.parametrize("name", list(PURE_SLIP_CASES))
 def test_event_matches_closed_forms_in_pure_slip(name: str) -> None:
-    simulate = _sim()
     p = PURE_SLIP_CASES[name]
     start = OscillatorState.start(p, PURE_X0, PURE_V0)
     traj = simulate(p, T_END, state=start, dt_out=0.1, method="event")
@@ -144,7 +134,6 @@ def test_event_matches_closed_forms_in_pure_slip(name: str) -> None:
 
 @pytest.mark.parametrize("name", list(PAPER_CASES))
 def test_exact_and_event_agree_on_paper_cases(name: str) -> None:
-    simulate = _sim()
     p = PAPER_CASES[name]
     ex = simulate(p, T_END, dt_out=0.1, method="exact")
     ev = simulate(p, T_END, dt_out=0.1, method="event")
@@ -163,7 +152,6 @@ def test_exact_and_event_agree_on_paper_cases(name: str) -> None:
 @pytest.mark.parametrize("method", ["exact", "event"])
 @pytest.mark.parametrize("name", list(PAPER_CASES))
 def test_paper_cases_match_scipy_reference(name: str, method: str) -> None:
-    simulate = _sim()
     t, x_ref, _, mode_ref, ev_ref = _reference(name)
     traj = simulate(PAPER_CASES[name], T_END, dt_out=0.1, method=method)
     err = float(np.abs(_on_grid(traj, t) - x_ref).max())
@@ -176,7 +164,6 @@ def test_paper_cases_match_scipy_reference(name: str, method: str) -> None:
 
 @pytest.mark.parametrize("name", list(NONLINEAR_CASES))
 def test_nonlinear_laws_match_scipy_reference(name: str) -> None:
-    simulate = _sim()
     t, x_ref, _, _, ev_ref = _reference(name)
     traj = simulate(NONLINEAR_CASES[name], T_END, dt_out=0.1, method="event")
     err = float(np.abs(_on_grid(traj, t) - x_ref).max())
@@ -189,7 +176,6 @@ def test_nonlinear_laws_match_scipy_reference(name: str) -> None:
 
 def test_auto_method_is_accurate_for_every_law() -> None:
     """Whatever "auto" picks, it must be as good as the reference bound."""
-    simulate = _sim()
     for name, p in (("fig5a", PAPER_CASES["fig5a"]), ("stribeck", NONLINEAR_CASES["stribeck"])):
         t, x_ref, _, _, ev_ref = _reference(name)
         traj = simulate(p, T_END, dt_out=0.1)
@@ -214,7 +200,7 @@ def test_near_resonance_is_accurate(lam: float, eta: float, nu: float) -> None:
     t_end = 60.0
     t, x_ref, _, _, ev_ref = reference_solution(p, t_end, t_eval=np.arange(601) * 0.1)
     for method in ("auto", "exact"):
-        traj = _sim()(p, t_end, dt_out=0.1, method=method)
+        traj = simulate(p, t_end, dt_out=0.1, method=method)
         assert traj.method == "event"
         assert np.abs(_on_grid(traj, t) - x_ref).max() <= SCIPY_X_TOL
         assert _compare_events(_event_list(traj), ev_ref, "near resonance") <= SCIPY_EVENT_T_TOL
@@ -231,7 +217,7 @@ def test_near_resonance_is_accurate(lam: float, eta: float, nu: float) -> None:
 
 def test_exact_resonance_keeps_the_closed_form() -> None:
     """lam = 0 with a tone exactly at w = 1 has its own closed form (x_p ~ tau sin tau)."""
-    assert _sim()(PURE_SLIP_CASES["resonant1"], 10.0).method == "exact"
+    assert simulate(PURE_SLIP_CASES["resonant1"], 10.0).method == "exact"
 
 
 # --------------------------------------------------------------------------------------
@@ -273,7 +259,7 @@ def test_grazing_contact_is_detected(method: str) -> None:
             events = reference_run(p, t_end, x0, v0).events
         else:
             start = OscillatorState.start(p, x0, v0)
-            traj = _sim()(p, t_end, state=start, dt_out=0.1, method=method)
+            traj = simulate(p, t_end, state=start, dt_out=0.1, method=method)
             events = _event_list(traj)
         print(f"\n[grazing/{method}] V = v_max {dv:+.0e}: events {events}, t* = {t_star:.6f}")
         if sticks:
@@ -295,7 +281,6 @@ def test_event_error_follows_tolerance() -> None:
     with the tolerance (``core.taylor_order``) and their length is capped, so the step
     count is not a power of the error; what a user relies on is the error tracking rtol.
     """
-    simulate = _sim()
     p = C("stribeck", eta=0.6, nu=0.1, u0=0.5)
     x0 = p.xfk - p.b1 * p.V + p.b3 * p.V**3
     start = OscillatorState.start(p, x0, 0.0)
@@ -326,7 +311,6 @@ def test_event_error_follows_tolerance() -> None:
 def test_rk4_baseline_misses_stick_slip(name: str) -> None:
     """Fixed-step RK4 with sgn cannot stick: an O(0.1-1) error that refining dt does not
     remove (docs/model.md). Documents why the exact/event solvers exist."""
-    simulate = _sim()
     p = PAPER_CASES[name]
     ex = simulate(p, T_END, dt_out=0.1, method="exact")
     errs = {}
@@ -348,7 +332,6 @@ def test_rk4_baseline_misses_stick_slip(name: str) -> None:
 def test_random_cases_match_scipy_reference() -> None:
     """60 random (law, eta, nu, u0, lam, V) over tau in [0, 100]: same event sequence and
     x within the reference bound, with exact and event alike."""
-    simulate = _sim()
     rng = np.random.default_rng(1)
     worst = 0.0
     for i in range(60):

@@ -21,7 +21,7 @@ from distributed import Client, LocalCluster
 
 import fricenv
 from fricenv import cells
-from fricenv.atlas import api, core, distributed, store
+from fricenv.atlas import api, core, distributed, regime_map_dataset, store
 from fricenv.params import OscillatorParams
 from fricenv.regimes import Regime
 from fricenv.sweep import SweepSettings, cell_statistics, regime_map
@@ -69,7 +69,7 @@ def test_import_fricenv_loads_no_scale_dependency():
 @pytest.mark.parametrize("law", LAWS)
 def test_equals_regime_map_bit_for_bit(law):
     ds = _run(law, {"u0": U0, "nu": NU}, chunks=8)
-    ref = regime_map(law, U0, NU, progress=False).to_xarray()
+    ref = regime_map_dataset(regime_map(law, U0, NU, progress=False))
     xr.testing.assert_identical(ds, ref)
     assert set(np.unique(ds.label.values)) > {Regime.WM1, Regime.SSM1}
 
@@ -84,7 +84,7 @@ def test_distributed_equals_local_bit_for_bit(client, law):
         ref = regime_map(OscillatorParams.preset(law, eta=eta), U0, NU, progress=False)
         for v in core.VARIABLES:
             np.testing.assert_array_equal(local[v].isel(eta=k).values,
-                                          ref.to_xarray()[v].values, err_msg=v)
+                                          regime_map_dataset(ref)[v].values, err_msg=v)
 
 
 def _warm_count(dask_worker) -> int:
@@ -292,7 +292,7 @@ def test_client_memory_bounded_on_a_million_cells(client, tmp_path, monkeypatch)
 def test_regime_map_npz_converts(tmp_path):
     m = regime_map("coulomb", U0[:3], NU[:2], progress=False, path=tmp_path / "m.npz")
     ds = fricenv.open_atlas(tmp_path / "m.npz")
-    xr.testing.assert_identical(ds, m.to_xarray())
+    xr.testing.assert_identical(ds, regime_map_dataset(m))
     xr.testing.assert_identical(ds, _run("coulomb", {"u0": U0[:3], "nu": NU[:2]}))
 
     def stop(rmap, n):

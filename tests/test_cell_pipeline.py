@@ -12,6 +12,7 @@ from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 import fricenv
+from fricenv.atlas import regime_map_dataset
 from fricenv.cells import CELL_FIELDS, NOT_COMPUTED, measure_cells
 from fricenv.layout import ST_N_REVERSAL, ST_N_SLIP, ST_N_STICK, ST_STICK_TIME, STATUS_OK
 from fricenv.params import OscillatorParams
@@ -36,7 +37,7 @@ def _three_ways(base: OscillatorParams, u0: list[float], nu: list[float],
 
 
 def _assert_same_bits(ds: xr.Dataset, rmap: fricenv.RegimeMap, cells: tuple) -> None:
-    xr.testing.assert_identical(ds, rmap.to_xarray())  # labels and every stored variable
+    xr.testing.assert_identical(ds, regime_map_dataset(rmap))  # labels and every stored variable
     labels, stats, period, status = cells
     shape = rmap.shape
     np.testing.assert_array_equal(labels.reshape(shape), rmap.labels)

@@ -12,6 +12,7 @@ from matplotlib.figure import Figure
 
 import fricenv
 from fricenv import plotting
+from fricenv.atlas import regime_map_dataset
 from fricenv.params import OscillatorParams
 from fricenv.sweep import regime_map
 
@@ -88,7 +89,7 @@ def test_regime_map_plot_and_plot_slice_read_the_same(small_map) -> None:
     """RegimeMap.plot and fricenv.atlas.plot_slice draw the same colours with the same
     legend: one entry per regime present, then the boundary lines."""
     ax_map = small_map.plot(Figure().add_subplot())
-    ax_slice = fricenv.atlas.plot_slice(small_map.to_xarray(), Figure().add_subplot())
+    ax_slice = fricenv.atlas.plot_slice(regime_map_dataset(small_map), Figure().add_subplot())
     for ax in (ax_map, ax_slice):
         assert ax.get_title().startswith("Coulomb law")
         assert "(dimensionless" in ax.get_xlabel() and "(dimensionless" in ax.get_ylabel()
@@ -103,7 +104,7 @@ def test_regime_map_plot_and_plot_slice_read_the_same(small_map) -> None:
 
 
 def test_atlas_figures_have_titles(small_map) -> None:
-    ds = small_map.to_xarray()
+    ds = regime_map_dataset(small_map)
     fig = fricenv.atlas.slice_figure(ds)
     assert _title(fig).startswith("Coulomb law: regimes over (u0, nu)") and fig.legends
     _check_labels(fig)

@@ -145,7 +145,7 @@ if __name__ == "__main__":
 
 
 def test_dask_worker_with_two_threads_equals_the_local_atlas(tmp_path):
-    pytest.importorskip("distributed")
+    pytest.importorskip("distributed", reason="Dask is the scale extra")
     out = _run(_DASK, tmp_path)
     assert "same" in out
     if _has_tbb_wheel():
@@ -203,10 +203,10 @@ def test_fork_pools_work_after_parallel_kernels_in_threads(tmp_path, layer):
 
 
 def test_the_layer_asked_for_is_fork_safe() -> None:
-    """What fricenv asks numba for on import (``fricenv.jit``)."""
+    """What fricenv asks numba for when ``fricenv.jit`` is imported."""
     import numba
 
-    import fricenv  # noqa: F401  (its import sets the layer)
+    import fricenv.jit  # noqa: F401  (its import sets the layer)
 
     if os.environ.get("NUMBA_THREADING_LAYER"):
         pytest.skip("the user chose the threading layer")

@@ -7,13 +7,13 @@ from collections.abc import Iterable, Mapping
 from dataclasses import replace
 from typing import Any
 
-import numba
 import numpy as np
 import xarray as xr
 
 from ..calls import SweepInterrupted, sweep_signals
 from ..cells import NOT_COMPUTED, STATUS_NOT_RUN, SweepSettings
 from ..checks import check_bool, got
+from ..jit import num_threads
 from ..mapfile import writer_lock
 from ..params import OscillatorParams
 from .core import (
@@ -38,7 +38,7 @@ from .store import (
 def _executor_threads(client: Any) -> int:
     """Threads that will run chunks at once (sets the default chunk size)."""
     if client is None:
-        return numba.get_num_threads()
+        return num_threads()
     from .distributed import total_threads
 
     return total_threads(client)

@@ -23,7 +23,6 @@ from typing import Any
 
 import numpy as np
 
-from ..cells import SweepSettings
 from ..cli import _notice
 from ..cli._args import add_plant_arguments, grid, parser, plant
 
@@ -91,6 +90,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    # (the kernels, zarr and xarray load here, not with the parser)
+    from ..cells import SweepSettings
+    from .api import atlas
+
     try:
         axes = dict(parse_axis(a) for a in args.axis)
         if len(axes) != len(args.axis):
@@ -105,7 +108,6 @@ def run(args: argparse.Namespace) -> int:
                   + (f" on the Dask scheduler {args.scheduler}" if args.scheduler else
                      f" on {args.local_workers} local Dask workers" if args.local_workers
                      else ""))
-    from .api import atlas  # (zarr and xarray load here, not with the parser)
 
     client = cluster = None
     if args.scheduler or args.local_workers:

@@ -21,13 +21,12 @@ from __future__ import annotations
 
 import uuid
 from collections.abc import Iterator, Sequence
-from typing import Any
 
-import numba
 import numpy as np
 from distributed import Client, WorkerPlugin, as_completed, get_worker
 
 from ..cells import SweepSettings
+from ..jit import max_threads
 from ..params import OscillatorParams
 from .core import ChunkTask, compute_chunk
 
@@ -72,8 +71,7 @@ def _worker_threads() -> int:
         n = get_worker().state.nthreads
     except (ValueError, AttributeError):  # not on a worker (a test's direct call)
         n = 1
-    config: Any = numba.config  # (numba sets its options as module attributes at run time)
-    return max(1, min(int(n), config.NUMBA_NUM_THREADS))
+    return max(1, min(int(n), max_threads()))
 
 
 def run_chunk(task: ChunkTask, stop_event: str | None = None

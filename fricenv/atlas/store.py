@@ -47,11 +47,12 @@ import zarr
 from zarr.codecs import Crc32cCodec, ZstdCodec
 from zarr.core.array_spec import ArrayConfig
 
-from .. import __version__
+from .._version import __version__
+from ..cells import NOT_COMPUTED, SweepSettings, plan_cells
 from ..checks import check_path, got
+from ..maps import ALGORITHM, RegimeMap
 from ..params import OscillatorParams
 from ..regimes import Regime
-from ..sweep import ALGORITHM, NOT_COMPUTED, RegimeMap, SweepSettings, plan_cells
 from .core import STATUS_NOT_RUN, VARIABLES, AtlasSpec, chunk_slices, variables_from_stats
 
 FORMAT = "fricenv.atlas"
@@ -133,7 +134,7 @@ def to_dataset(spec: AtlasSpec, arrays: dict[str, np.ndarray], algorithm: int = 
 
 
 def regime_map_dataset(rmap: RegimeMap) -> xr.Dataset:
-    """A :class:`~fricenv.sweep.RegimeMap` as an atlas over ``(u0, nu)`` (cells not done
+    """A :class:`~fricenv.RegimeMap` as an atlas over ``(u0, nu)`` (cells not done
     hold the fill values; the map's own algorithm version is kept)."""
     if not isinstance(rmap, RegimeMap):
         raise TypeError(f"rmap must be a fricenv.RegimeMap, {got(rmap)}")
@@ -526,7 +527,7 @@ def open_atlas(path: str | os.PathLike, chunks: Any = None) -> xr.Dataset:
     read as not computed."""
     p = check_path("path", path)
     if p.suffix == ".npz" or (not p.exists() and p.with_name(p.name + ".npz").exists()):
-        return RegimeMap.load(p).to_xarray()
+        return regime_map_dataset(RegimeMap.load(p))
     if not p.exists():
         raise FileNotFoundError(f"no atlas at {str(p)!r}")
     if not p.is_dir():

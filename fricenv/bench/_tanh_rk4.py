@@ -10,6 +10,8 @@ import math
 import numba
 import numpy as np
 
+from fricenv.jit import THREADING_LAYER  # noqa: F401  (TBB, cache key, layer: before numba runs)
+
 
 @numba.njit(cache=True)
 def _tanh_accel(t: float, x: float, v: float, p: np.ndarray, eps: float) -> float:

@@ -119,12 +119,11 @@ def physics_floor(env_id: str, snapshots: int) -> float:
     workspace's cached transition constants stay valid). No vector env on this core can
     be cheaper per plant-step than that, with one thread.
     """
-    import numba
-
     from fricenv.core import advance_ws, reset_stats
     from fricenv.envs.kernels import C_ATOL, C_RTOL, _method
+    from fricenv.jit import njit as numba_njit
 
-    njit: Any = numba.njit  # (_nrt is not in numba's typed signature)
+    njit: Any = numba_njit  # (_nrt is not in numba's typed signature)
 
     @njit(_nrt=False)  # as the env kernels: no reference counting of the row views
     def advance_all(P, S, stats, cfg, dt, work):
@@ -179,10 +178,10 @@ def thread_ceiling(rounds: int) -> tuple[float, int]:
     vector env can gain more from threads than that (a virtual machine's two vCPUs often
     give less than 2x).
     """
-    import numba
-    from numba import prange
+    from fricenv import jit  # numba through fricenv.jit: TBB and the threading layer first
 
-    njit: Any = numba.njit  # (_nrt is not in numba's typed signature)
+    njit: Any = jit.numba.njit  # (_nrt is not in numba's typed signature)
+    prange = jit.numba.prange
 
     @njit(_nrt=False)
     def item(x):
@@ -205,7 +204,7 @@ def thread_ceiling(rounds: int) -> tuple[float, int]:
     samples = _rounds({"serial": (lambda: serial(out), 200),
                        "parallel": (lambda: parallel(out), 200)}, rounds)
     t = {k: statistics.median(v) for k, v in samples.items()}
-    return t["serial"] / t["parallel"], numba.get_num_threads()
+    return t["serial"] / t["parallel"], jit.num_threads()
 
 
 def _first_step_after_idle(vec, repeats: int = 15) -> float:

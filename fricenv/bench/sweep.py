@@ -77,9 +77,9 @@ def _scipy_final(p: OscillatorParams, t_end: float, rtol: float, atol: float,
 
 def _max_threads() -> int:
     """numba's thread pool size (``NUMBA_NUM_THREADS``), the default of ``--threads``."""
-    import numba  # (here, not above: --help loads no numba)
+    from fricenv.jit import max_threads  # (here, not above: --help loads no numba)
 
-    return int(numba.config.NUMBA_NUM_THREADS)  # type: ignore[attr-defined]
+    return max_threads()
 
 
 def compare_with_scipy(law: str, ours_rtol: float, scipy_rtols: list[float], reps: int,

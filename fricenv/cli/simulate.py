@@ -12,13 +12,16 @@ from __future__ import annotations
 import argparse
 from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from fricenv.cli import _notice
 from fricenv.cli._args import add_plant_arguments, number, out_dir, parser, plant
 from fricenv.layout import METHODS
-from fricenv.simulate import Trajectory, resolve_method
+
+if TYPE_CHECKING:
+    from fricenv.simulate import Trajectory
 
 
 def build_parser(prog: str | None = None) -> argparse.ArgumentParser:
@@ -59,6 +62,7 @@ def main(argv: Sequence[str] | None = None, prog: str | None = None) -> int:
     args = parser.parse_args(argv)
     import fricenv
     from fricenv import plotting
+    from fricenv.simulate import resolve_method
 
     try:
         params = plant(args)

@@ -42,7 +42,7 @@ def jobs(text: str) -> int:
 
 def build_parser(prog: str | None = None) -> argparse.ArgumentParser:
     from fricenv.cli._args import parser
-    from fricenv.envs.scenes import SCENES
+    from fricenv.envs import HORIZONS as SCENES  # (the scenes' names, without their kernels)
 
     p = parser(prog, "Compile the kernels of chosen workloads into numba's on-disk cache, "
                      "so that later processes load them.",

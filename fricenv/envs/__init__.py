@@ -12,27 +12,24 @@ id                                 scene           max_episode_steps
 ``fricenv/StickSlipViscous-v0``    ``viscous``     300
 =================================  ==============  =================
 
-Registration imports nothing heavy: the classes (and numba) load on the first ``make``.
+Registration imports Gymnasium's registry alone: the environments' classes, and numba
+with them, load on the first ``make`` (``tests/test_imports.py`` checks it).
 """
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from fricenv.envs.settings import EnvKwargs, EnvSettings
+from fricenv.envs.ids import ENV_IDS, HORIZONS
 
-#: Registered ids and the scene each one makes.
-ENV_IDS: dict[str, str] = {
-    "fricenv/StickSlip-v0": "paper",
-    "fricenv/StickSlipSelfExcited-v0": "self_excited",
-    "fricenv/StickSlipStribeck-v0": "stribeck",
-    "fricenv/StickSlipViscous-v0": "viscous",
-}
+if TYPE_CHECKING:
+    from fricenv.envs.settings import EnvKwargs, EnvSettings
 
 __all__ = [
     "ENV_IDS",
     "EnvKwargs",
     "EnvSettings",
+    "HORIZONS",
     "SCENES",
     "Scene",
     "StickSlipEnv",
@@ -46,8 +43,6 @@ def register_envs() -> None:
     """Register the environments with Gymnasium (idempotent)."""
     from gymnasium.envs.registration import register, registry
 
-    from fricenv.envs.scenes import SCENES
-
     for env_id, scene in ENV_IDS.items():
         if env_id in registry:
             continue
@@ -55,12 +50,16 @@ def register_envs() -> None:
             id=env_id,
             entry_point="fricenv.envs.stick_slip:StickSlipEnv",
             vector_entry_point="fricenv.envs.vector:StickSlipVectorEnv",
-            max_episode_steps=SCENES[scene].max_episode_steps,
+            max_episode_steps=HORIZONS[scene],
             kwargs={"scene": scene},
         )
 
 
 def __getattr__(name: str) -> Any:  # lazy exports keep ``import fricenv`` light
+    if name in ("EnvKwargs", "EnvSettings"):
+        from fricenv.envs import settings
+
+        return getattr(settings, name)
     if name in ("SCENES", "Scene"):
         from fricenv.envs import scenes
 

@@ -24,6 +24,7 @@ from fricenv.checks import (
     got,
     real_tuple,
 )
+from fricenv.envs.ids import HORIZONS
 from fricenv.envs.tables import (  # noqa: F401  (the draws' order and starting vector)
     I_NU,
     I_PHI1,
@@ -350,7 +351,7 @@ SCENES: dict[str, Scene] = {
         u0_range=(0.0, 4.0),
         nu_range=(0.1, 2.0),
         action_mode="frequency",
-        max_episode_steps=200,
+        max_episode_steps=HORIZONS["paper"],
         reward_weights=(1.0, 0.5, 0.1),
         x0_range=(-1.0, 1.0),
         v0_range=(-0.5, 0.5),
@@ -369,7 +370,7 @@ SCENES: dict[str, Scene] = {
         u0_range=(0.0, 2.0),
         nu_range=(0.5, 1.5),
         action_mode="both",
-        max_episode_steps=400,
+        max_episode_steps=HORIZONS["self_excited"],
         reward_weights=(1.0, 0.5, 0.1),
         x0_range=(-1.0, 1.0),
         v0_range=(-0.5, 0.5),
@@ -390,7 +391,7 @@ SCENES: dict[str, Scene] = {
         params=OscillatorParams.preset("stribeck", lam=0.1, V=0.3, eta=6.0, u0=0.0, nu=1.0),
         u0_range=(0.0, 6.0),
         nu_range=(0.5, 1.5),
-        max_episode_steps=300,
+        max_episode_steps=HORIZONS["stribeck"],
         # every corner keeps the sliding unstable: lam - b1 + 3 b3 V^2 < 0 up to lam = 0.13
         # with V = 0.35
         randomization={"lam": (0.07, 0.13), "V": (0.25, 0.35), "xfk": (2.2, 2.8),
@@ -409,7 +410,7 @@ SCENES: dict[str, Scene] = {
         params=OscillatorParams.preset("viscous", lam=0.1, eta=6.0, u0=0.0, nu=1.0),
         u0_range=(0.0, 6.0),
         nu_range=(0.5, 1.5),
-        max_episode_steps=300,
+        max_episode_steps=HORIZONS["viscous"],
         # lam stays below b1 = 0.2 in every corner: the sliding stays unstable
         randomization={"lam": (0.05, 0.15), **_PLANT_RANDOMIZATION},
     ),

@@ -10,6 +10,7 @@ the module constants below and the defaults of :class:`fricenv.sweep.SweepSettin
 from __future__ import annotations
 
 import argparse
+import importlib
 import logging
 import os
 import platform
@@ -17,18 +18,11 @@ import sys
 import time
 from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
-from ..sweep import SweepSettings
-from .amplitude import (  # noqa: F401
-    _fwhm,
-    _peaks,
-    amplitude_data,
-    fig3,
-    linear_amplitude,
-)
-
-# The parts of the reproduction; every name stays importable from here.
-from .common import (  # noqa: F401
+# The parts of the reproduction. ``common`` loads no kernels, so that ``fricenv reproduce
+# --help`` starts at once; the figure parts import the sweeps and are imported when run.
+from .common import (
     AMP_PANELS,
     AMP_U0,
     API_NAMES,
@@ -45,29 +39,42 @@ from .common import (  # noqa: F401
     Band,
     Report,
     Resolution,
-    _frac,
-    _map_path,
-    _mean,
-    _median,
     _ncpu,
     _nthreads,
-    _outputs,
     _resolution,
-    _straightness,
-    _verdict,
     band,
     check_run_args,
     contact_category,
     eta_name,
     map_grid,
 )
-from .maps import (  # noqa: F401
-    _map_observations,
-    figs8_10,
-)
-from .time_histories import (  # noqa: F401
-    figs4_7,
-)
+
+if TYPE_CHECKING:
+    from ..sweep import SweepSettings
+    from .amplitude import amplitude_data, fig3, linear_amplitude
+    from .maps import figs8_10
+    from .time_histories import figs4_7
+
+__all__ = [
+    "AMP_PANELS", "AMP_U0", "API_NAMES", "CLI_NAMES", "ETA_NAMES", "FULL",
+    "LINEAR_MATCH_TOL", "MAP_FIGURES", "MAX_RESOLUTION", "NU_MAX", "PARTS", "QUICK",
+    "TIME_HISTORIES", "Band", "Report", "Resolution", "amplitude_data", "band",
+    "check_run_args", "contact_category", "eta_name", "fig3", "figs4_7", "figs8_10",
+    "linear_amplitude", "main", "map_grid", "run",
+]
+#: The names of the figure parts, imported on first use.
+_HOMES = {"amplitude_data": "amplitude", "fig3": "amplitude", "linear_amplitude": "amplitude",
+          "figs4_7": "time_histories", "figs8_10": "maps"}
+
+
+def __getattr__(name: str) -> Any:
+    if name in _HOMES:
+        return getattr(importlib.import_module(f".{_HOMES[name]}", __name__), name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))
 
 #: Progress lines go to the package's logger at INFO: the ``fricenv`` command prints them
 #: on stderr (``--quiet`` silences them); a program sees them where it configures logging.
@@ -88,6 +95,12 @@ def run(out: str | os.PathLike, quick: bool = False, docs: str | os.PathLike | N
     """Write the figures of the parts ``only`` and ``report.md`` into ``out`` (the map images
     also into ``docs``); return the report's path. Arguments are checked first
     (:func:`check_run_args`), so a bad one fails before anything is computed or written."""
+    from .. import plotting
+    from ..sweep import SweepSettings
+    from .amplitude import fig3
+    from .maps import figs8_10
+    from .time_histories import figs4_7
+
     out, quick, docs, n_threads, progress, only, resolution = check_run_args(
         out, quick, docs, n_threads, progress, only, resolution)
     t_start = time.perf_counter()

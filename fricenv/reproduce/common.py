@@ -8,6 +8,7 @@ import os
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -24,10 +25,9 @@ from ..layout import (
     ST_STICK_TIME,
 )
 from ..params import PAPER_CASES
-from ..sweep import (
-    RegimeMap,
-    check_n_threads,
-)
+
+if TYPE_CHECKING:
+    from ..maps import RegimeMap
 
 #: Time histories of Figs. 4-7: (figure, panel, overrides, the paper's label).
 TIME_HISTORIES: list[tuple[int, str, dict, str]] = [
@@ -256,6 +256,8 @@ def check_run_args(out: object, quick: object = False, docs: object = None,
     docs = None if docs is None else check_path(names["docs"], docs, "folder")
     progress = check_bool(names["progress"], progress)
     if n_threads is not None:
+        from ..sweep import check_n_threads
+
         try:
             n_threads = check_n_threads(n_threads)
         except (TypeError, ValueError) as e:
@@ -294,6 +296,6 @@ def _ncpu() -> int:
 
 
 def _nthreads(n: int | None) -> int:
-    import numba
+    from ..jit import num_threads
 
-    return int(n) if n else numba.get_num_threads()
+    return int(n) if n else num_threads()

@@ -1,0 +1,15 @@
+"""The environments' Gymnasium ids and horizons: what registering them needs, kept apart
+from :mod:`fricenv.envs.scenes` (which imports the kernels) so that ``import fricenv``
+registers the ids without loading numba."""
+
+from __future__ import annotations
+
+#: Registered ids and the scene each one makes.
+ENV_IDS: dict[str, str] = {
+    "fricenv/StickSlip-v0": "paper",
+    "fricenv/StickSlipSelfExcited-v0": "self_excited",
+    "fricenv/StickSlipStribeck-v0": "stribeck",
+    "fricenv/StickSlipViscous-v0": "viscous",
+}
+#: Each scene's horizon: the ``max_episode_steps`` of its id and of its ``Scene``.
+HORIZONS: dict[str, int] = {"paper": 200, "self_excited": 400, "stribeck": 300, "viscous": 300}

@@ -1,0 +1,106 @@
+"""What ``import fricenv`` and the command line's help load: no numba, no torch.
+
+Each check runs in a fresh interpreter, since this process has long imported both.
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+import fricenv
+from fricenv.cli import COMMANDS
+
+ROOT = Path(__file__).resolve().parents[1]
+HEAVY = ("numba", "torch", "stable_baselines3", "scipy", "dask", "xarray", "zarr")
+
+#: The agents' commands (entry points of ``fricenv_agents``): their modules import the
+#: environments' kernels at their top, so their help loads numba, but never torch.
+PLUGIN_COMMANDS = ("train", "evaluate")
+
+
+def _fresh(code: str) -> Any:
+    """Run ``code`` in a new interpreter from the checkout; it prints a JSON object."""
+    out = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True,
+                         text=True, timeout=300, check=True)
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+_REPORT = ("import json, sys; print(json.dumps({'heavy': [m for m in HEAVY if m in "
+           "sys.modules], 'fricenv': sorted(m for m in sys.modules "
+           "if m.split('.')[0] == 'fricenv')}))").replace("HEAVY", repr(HEAVY))
+
+
+def test_import_fricenv_loads_no_numba() -> None:
+    """The package and the environments' ids, nothing of the kernels."""
+    got = _fresh("import fricenv; " + _REPORT)
+    assert got == {"heavy": [], "fricenv": ["fricenv", "fricenv._version", "fricenv.envs",
+                                            "fricenv.envs.ids"]}
+
+
+def test_import_fricenv_is_quick() -> None:
+    """A bound that only proves the import does no compile-sized work (about 0.2 s warm
+    on 2 cores; far more only under heavy load)."""
+    got = _fresh("import time; t = time.perf_counter(); import fricenv; "
+                 "import json; print(json.dumps({'s': time.perf_counter() - t}))")
+    assert got["s"] < 3.0
+
+
+def _help_report(argv: list[str]) -> Any:
+    return _fresh("import contextlib, io\nfrom fricenv.cli import main\n"
+                  "with contextlib.redirect_stdout(io.StringIO()):\n"
+                  f"    try: main({argv!r})\n"
+                  "    except SystemExit: pass\n" + _REPORT)
+
+
+@pytest.mark.parametrize("command", ["", *COMMANDS])
+def test_help_loads_neither_numba_nor_torch(command: str) -> None:
+    got = _help_report([command, "--help"] if command else ["--help"])
+    assert got["heavy"] == []
+
+
+@pytest.mark.parametrize("command", PLUGIN_COMMANDS)
+def test_the_agents_help_loads_no_torch(command: str) -> None:
+    got = _help_report([command, "--help"])
+    assert "torch" not in got["heavy"] and "stable_baselines3" not in got["heavy"]
+
+
+def test_make_loads_the_kernels_registration_does_not() -> None:
+    got = _fresh("import gymnasium as gym, fricenv, sys\n"
+                 "before = 'numba' in sys.modules\n"
+                 "env = gym.make('fricenv/StickSlip-v0')\n"
+                 "import json; print(json.dumps({'before': before, "
+                 "'after': 'numba' in sys.modules, 'steps': env.spec.max_episode_steps}))")
+    assert got == {"before": False, "after": True, "steps": 200}
+
+
+def test_public_names_resolve_and_are_listed() -> None:
+    """``from fricenv import X`` for every name of ``__all__``; ``dir()`` lists them."""
+    for name in fricenv.__all__:
+        assert getattr(fricenv, name) is not None, name
+    assert set(fricenv.__all__) <= set(dir(fricenv))
+    with pytest.raises(AttributeError, match="no attribute 'nope'"):
+        fricenv.nope  # noqa: B018
+
+
+def test_importing_a_module_keeps_the_function_of_its_name() -> None:
+    """``import fricenv.simulate`` (or ``fricenv.warmup``) first must not turn
+    ``fricenv.simulate`` into the module."""
+    got = _fresh("import fricenv, fricenv.simulate, fricenv.warmup, json; "
+                 "print(json.dumps([callable(fricenv.simulate), callable(fricenv.warmup), "
+                 "fricenv.simulate.__module__, fricenv.warmup.__module__]))")
+    assert got == [True, True, "fricenv.simulate", "fricenv.warmup"]
+
+
+def test_horizons_are_the_scenes() -> None:
+    """The ids are registered from ``HORIZONS``; the scenes take theirs from it too."""
+    from fricenv.envs import ENV_IDS, HORIZONS
+    from fricenv.envs.scenes import SCENES
+
+    assert set(HORIZONS) == set(SCENES) == set(ENV_IDS.values())
+    assert all(SCENES[s].max_episode_steps == n for s, n in HORIZONS.items())
