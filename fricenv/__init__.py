@@ -10,6 +10,7 @@ environments' classes.
 
 from __future__ import annotations
 
+import copyreg as _copyreg
 import importlib
 import logging as _logging
 import sys
@@ -113,7 +114,14 @@ class _Package(types.ModuleType):
         super().__setattr__(name, value)
 
 
+def _import_package(name: str) -> types.ModuleType:
+    return importlib.import_module(name)
+
+
 sys.modules[__name__].__class__ = _Package
+# pickle (and cloudpickle, as Dask sends a function that names the package) reduces a
+# plain module by its name; the subclass needs saying so
+_copyreg.pickle(_Package, lambda module: (_import_package, (module.__name__,)))
 
 # The package logs (the compile notice of fricenv.compile_notice) through the "fricenv"
 # logger; as a library it adds only a NullHandler: the application decides what is shown.

@@ -104,3 +104,11 @@ def test_horizons_are_the_scenes() -> None:
 
     assert set(HORIZONS) == set(SCENES) == set(ENV_IDS.values())
     assert all(SCENES[s].max_episode_steps == n for s, n in HORIZONS.items())
+
+
+def test_the_package_pickles_by_name() -> None:
+    """Dask and multiprocessing pickle functions that name the package (the package module
+    is a ModuleType subclass, which pickle would not know how to reduce otherwise)."""
+    import pickle
+
+    assert pickle.loads(pickle.dumps(fricenv)) is fricenv
