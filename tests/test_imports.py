@@ -74,6 +74,18 @@ def test_make_loads_the_kernels_registration_does_not() -> None:
     assert got == {"before": False, "after": True, "steps": 200}
 
 
+def test_make_is_quick() -> None:
+    """``gymnasium.make`` checks the episode's cost in numpy and calls no kernel, so a warm
+    make is about 0.3 s on 2 cores (the first kernel call, about 0.35 s of numba's setup,
+    comes with the first reset). The bound proves only that make loads or compiles no
+    kernel. The first process fills numba's cache, the second one is timed."""
+    code = ("import time, gymnasium as gym, fricenv\n"
+            "t = time.perf_counter(); gym.make('fricenv/StickSlip-v0')\n"
+            "import json; print(json.dumps({'s': time.perf_counter() - t}))")
+    _fresh(code)
+    assert _fresh(code)["s"] < 3.0
+
+
 def test_public_names_resolve_and_are_listed() -> None:
     """``from fricenv import X`` for every name of ``__all__``; ``dir()`` lists them."""
     for name in fricenv.__all__:
