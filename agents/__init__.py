@@ -6,5 +6,7 @@ reach :mod:`.train` and :mod:`.evaluate` through the ``fricenv.commands`` entry 
 Modules by concern: ``layout`` (names, seed layout), ``config`` (hyperparameter files),
 ``envs`` (the training environment), ``rollouts`` (controllers, scoring), ``runs`` (run
 folders, loading models), ``callbacks`` (training callbacks), ``cli`` (shared command-line
-pieces), and ``baselines``, ``mpc``, ``benchmark``.
+pieces), ``scoring`` (the evaluation's tables and plots), and ``baselines``, ``mpc``,
+``benchmark``. ``train`` and ``evaluate`` import numba, torch and stable-baselines3 only
+after parsing their command line, so that their ``--help`` stays quick.
 """

@@ -35,10 +35,9 @@ from fricenv.envs.scenes import Scene
 from fricenv.envs.setup import EnvSetup
 from fricenv.sweep import ALGORITHM as SWEEP_ALGORITHM
 
-from .layout import SEARCH_SEED_BASE
+from .layout import BASELINES, SEARCH_SEED_BASE
 from .rollouts import rollout
 
-BASELINES = ("zero", "random", "best_constant", "feedback")
 #: Bump when the search changes, so stale caches are recomputed.
 SEARCH_VERSION = 1
 

@@ -38,19 +38,18 @@ import numpy as np
 from fricenv.checks import check_output_dir
 from fricenv.envs.scenes import SCENES, Scene
 
-from .baselines import BASELINES
 from .cli import HelpFormatter
-from .evaluate import (
+from .layout import BASELINES, check_disjoint
+from .mpc import MPPIController
+from .rollouts import fmt_pm, summarize
+from .scoring import (
     Entry,
     _summary,
     baseline_entries,
-    check_disjoint,
     load_models,
     run_entry,
     trained_entries,
 )
-from .mpc import MPPIController
-from .rollouts import fmt_pm, summarize
 
 BENCH_SCENES = ("paper", "self_excited", "stribeck", "viscous")
 ROW_ORDER = (*BASELINES, "mpc", "ppo", "sac")

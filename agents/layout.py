@@ -9,8 +9,7 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 import fricenv  # noqa: F401  (registers the environments)
-from fricenv.envs import ENV_IDS
-from fricenv.envs.scenes import SCENES
+from fricenv.envs import ENV_IDS, HORIZONS
 
 if TYPE_CHECKING:
     from stable_baselines3.common.base_class import BaseAlgorithm
@@ -18,6 +17,8 @@ if TYPE_CHECKING:
 #: Scene name -> registered Gymnasium id (the key of the hyperparameter files).
 SCENE_ENV_IDS: dict[str, str] = {scene: env_id for env_id, scene in ENV_IDS.items()}
 ALGOS = ("ppo", "sac")
+#: The baseline controllers, by name (built by ``baselines.make_baseline``).
+BASELINES = ("zero", "random", "best_constant", "feedback")
 
 
 # -- seed layout ----------------------------------------------------------------------------
@@ -52,12 +53,29 @@ def check_seed(seed: int) -> int:
     return int(seed)
 
 
+def eval_seeds(n_seeds: int, episodes: int) -> list[int]:
+    """All plant seeds of the final evaluation."""
+    return [eval_env_seed(k) + j for k in range(n_seeds) for j in range(episodes)]
+
+
+def check_disjoint(config: dict, n_seeds: int, episodes: int, where: str) -> None:
+    """Refuse to evaluate on any episode the run trained or was monitored on."""
+    used: list[tuple[int, int]] = []
+    for key in ("train_env_seeds", "eval_callback_seeds"):
+        if key in config:
+            lo, hi = config[key]
+            used.append((int(lo), int(hi)))
+    for s in eval_seeds(n_seeds, episodes):
+        for lo, hi in used:
+            if lo <= s <= hi:
+                raise ValueError(f"{where}: evaluation seed {s} was used in training ({lo}-{hi})")
+
 
 # -- names ----------------------------------------------------------------------------------
 def check_scene(scene: str) -> str:
     """``scene`` if it names a scene, else a ``ValueError`` listing them."""
-    if scene not in SCENES:
-        raise ValueError(f"unknown scene {scene!r}; expected one of {sorted(SCENES)}")
+    if scene not in HORIZONS:  # (the scenes' names, without loading the scenes' kernels)
+        raise ValueError(f"unknown scene {scene!r}; expected one of {sorted(HORIZONS)}")
     return scene
 
 

@@ -55,7 +55,6 @@ from .layout import (
     check_seed,
     train_env_seed,
 )
-from .runs import portable_path
 
 
 def build_parser(prog: str | None = None) -> argparse.ArgumentParser:
@@ -223,6 +222,8 @@ def train(args: argparse.Namespace, prepared: tuple | None = None,
     if args.tensorboard:
         outputs.append(make_output_format("tensorboard", str(run_dir / "tb")))
     model.set_logger(Logger(str(run_dir), outputs))
+
+    from .runs import portable_path
 
     config = {
         "algo": args.algo, "scene": args.scene, "env_id": SCENE_ENV_IDS[args.scene],

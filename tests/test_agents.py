@@ -18,6 +18,8 @@ pytest.importorskip("stable_baselines3", reason="the agents need the rl extra")
 
 from fricenv_agents import baselines as B  # noqa: E402
 from fricenv_agents import evaluate as E  # noqa: E402
+from fricenv_agents import layout as L  # noqa: E402
+from fricenv_agents import scoring as S  # noqa: E402
 from fricenv_agents import train as T  # noqa: E402
 from fricenv_agents.config import (  # noqa: E402
     apply_overrides,
@@ -358,7 +360,7 @@ def test_evaluate_checks_models_and_out_before_writing(capsys, tmp_path):
 # -- baselines ----------------------------------------------------------------------------------
 @pytest.mark.parametrize("scene", SCENES)
 @pytest.mark.parametrize("incremental", [False, True])
-@pytest.mark.parametrize("name", B.BASELINES)
+@pytest.mark.parametrize("name", L.BASELINES)
 def test_baseline_predict_shape_dtype_and_range(name, scene, incremental, tmp_path):
     kw = {"incremental": incremental}
     search = {"n_u0": 3, "n_nu": 3, "episodes": 2, "cache_dir": tmp_path}
@@ -429,11 +431,11 @@ def test_reports_and_baselines_follow_the_runs_env_kwargs():
         1.0, (1.0, 0.0, 0.0), 0.5, 50)
     assert B.ConstantExcitation(2.0, 0.5, "paper", kw).predict(np.zeros((1, 9)))[0].shape == (
         1, 1)
-    md = E.markdown("paper", [], 1, 2, [], kw)
+    md = S.markdown("paper", [], 1, 2, [], kw)
     for text in ("episodes of 50 control steps (dt = 1.0000)", "which is V = 0.5 ",
                  "effort = 1, 0, 0)", "Environment settings changed"):
         assert text in md
-    assert "Environment settings changed" not in E.markdown("paper", [], 1, 2, [])
+    assert "Environment settings changed" not in S.markdown("paper", [], 1, 2, [])
 
 
 def test_random_baseline_is_seeded():
@@ -478,13 +480,13 @@ def test_feedback_rule_fires_only_near_stick():
 
 # -- seeds and evaluation -----------------------------------------------------------------------
 def test_evaluation_seeds_are_never_training_seeds():
-    ev = set(E.eval_seeds(20, 100))
+    ev = set(L.eval_seeds(20, 100))
     for seed in (0, 1, 9_999):
         for first in (train_env_seed(seed), callback_env_seed(seed)):
             assert not ev & set(range(first, first + 500))
     assert eval_env_seed(0) >= train_env_seed(MAX_TRAIN_SEED - 1) + SEED_STRIDE
     with pytest.raises(ValueError, match="used in training"):
-        E.check_disjoint({"train_env_seeds": [eval_env_seed(1), eval_env_seed(1) + 3]}, 2, 2,
+        L.check_disjoint({"train_env_seeds": [eval_env_seed(1), eval_env_seed(1) + 3]}, 2, 2,
                          "run")
 
 
@@ -520,7 +522,7 @@ def test_evaluate_a_trained_run_with_learning_curves(ppo_run, tmp_path):
     ([152.2, 151.8], ".0f", "152"), ([35.0, 55.4], ".0f", "35–55"), ([256], "", "256"),
     ([300, 301], "", "300–301")])
 def test_span_gives_one_value_when_all_agree(values, spec, text):
-    assert E._span(values, spec) == text
+    assert S._span(values, spec) == text
 
 
 def test_results_pages_state_measurements_only():

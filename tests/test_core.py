@@ -957,3 +957,29 @@ def test_core_exports_its_public_kernels_only():
     stray = {n for n, v in vars(core).items()
              if not n.startswith("_") and not isinstance(v, types.ModuleType)}
     assert stray <= set(core.__all__), sorted(stray - set(core.__all__))
+
+
+def test_most_scan_steps_is_the_kernels_scan_cap() -> None:
+    """``core.most_scan_steps`` (numpy) gives the bits and the row of a loop over the
+    kernels' own ``_scan_cap``, on every scene's plant at random excitations, dampings and
+    frequencies (as reset options set them), silent tones, lam = 2 and over-damped plants."""
+    from fricenv.envs.scenes import SCENES
+    from fricenv.params import P_LAM, P_U1, P_U2, P_W1, P_W2
+
+    rng = np.random.default_rng(7)
+    for scene in SCENES.values():
+        n = 400
+        P = np.repeat(scene.params.to_array()[None], n, axis=0)
+        u0 = rng.uniform(*scene.u0_range, n) * (rng.random(n) > 0.2)  # some silent
+        P[:, P_U1] = scene.tone_gains[0] * u0
+        P[:, P_U2] = scene.tone_gains[1] * u0 * (rng.random(n) > 0.2)
+        P[:, P_W1] = 10.0 ** rng.uniform(-2.0, 4.0, n)
+        P[:, P_W2] = rng.uniform(*scene.nu_range, n) * P[:, P_W1]
+        P[:, P_LAM] = np.where(rng.random(n) < 0.1, 2.0, 10.0 ** rng.uniform(-2.0, 3.0, n))
+        spans = np.where(rng.random(n) < 0.5, scene.control_dt, rng.uniform(0.0, 50.0, n))
+        want = [spans[i] / _scan_cap(P[i], False) for i in range(n)]
+        row = int(np.argmax(want))
+        assert core.most_scan_steps(P, spans) == (want[row], row)
+        for i in range(0, n, 37):  # one row at a time, as an environment checks it
+            assert core.most_scan_steps(P[i:i + 1], spans[i:i + 1]) == (want[i], 0)
+    assert core.most_scan_steps(np.zeros((0, P.shape[1])), np.zeros(0)) == (0.0, 0)

@@ -154,15 +154,26 @@ def _scan_cap(P, wide):
             cap = base / rate
     return cap
 
-@kernel
-def most_scan_steps(P_rows, spans):
-    """The most scan steps any row needs to cover its span, and that row: the floor of a
-    run's cost, known before it starts."""
-    most = 0.0
-    row = 0
-    for i in range(P_rows.shape[0]):
-        n = spans[i] / _scan_cap(P_rows[i], False)
-        if n > most:
-            most = n
-            row = i
-    return most, row
+def most_scan_steps(P_rows: np.ndarray, spans: np.ndarray) -> tuple[float, int]:
+    """The most scan steps any row needs to cover its span, and that row (the first if
+    several tie): the floor of a run's cost, known before it starts.
+
+    ``_scan_cap(P, False)`` in numpy, operation for operation (no fast-math, so the same
+    bits), not a kernel: environments check their cost when they are built, and the first
+    call of a kernel there cost more (loading it from numba's cache, about 0.4 s) than all
+    the rest of ``gymnasium.make``. ``tests/test_core.py`` checks it against the kernel.
+    """
+    P = np.asarray(P_rows, dtype=np.float64)
+    if P.shape[0] == 0:
+        return 0.0, 0
+    w = np.where(P[:, [P_U1, P_U1 + 1]] != 0.0, np.abs(P[:, [P_W1, P_W1 + 1]]), 0.0)
+    w_max = np.maximum(w[:, 0], w[:, 1])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        cap = np.where(w_max * DELTA_MAX > PHASE_PER_STEP, PHASE_PER_STEP / w_max, DELTA_MAX)
+        lam = P[:, P_LAM]
+        rate = 0.5 * lam + np.sqrt(0.25 * lam * lam - 1.0)
+        cap = np.where((lam > 2.0) & (rate * cap > DELTA_MAX), DELTA_MAX / rate, cap)
+    n = np.asarray(spans, dtype=np.float64) / cap
+    n = np.where(n > 0.0, n, 0.0)  # (the kernel's loop passed over NaN and n <= 0)
+    row = int(np.argmax(n))
+    return float(n[row]), row
