@@ -114,14 +114,18 @@ class _Package(types.ModuleType):
         super().__setattr__(name, value)
 
 
-def _import_package(name: str) -> types.ModuleType:
+def _import_package(name: str) -> Any:
     return importlib.import_module(name)
+
+
+def _reduce_package(module: types.ModuleType) -> tuple[Any, tuple[str]]:
+    return _import_package, (module.__name__,)
 
 
 sys.modules[__name__].__class__ = _Package
 # pickle (and cloudpickle, as Dask sends a function that names the package) reduces a
 # plain module by its name; the subclass needs saying so
-_copyreg.pickle(_Package, lambda module: (_import_package, (module.__name__,)))
+_copyreg.pickle(_Package, _reduce_package)
 
 # The package logs (the compile notice of fricenv.compile_notice) through the "fricenv"
 # logger; as a library it adds only a NullHandler: the application decides what is shown.
