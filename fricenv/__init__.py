@@ -17,6 +17,7 @@ import sys
 import types
 from typing import TYPE_CHECKING, Any
 
+from ._tbb import preload as _preload_tbb
 from ._version import __version__ as __version__
 
 if TYPE_CHECKING:
@@ -129,6 +130,10 @@ _copyreg.pickle(_Package, _reduce_package)
 
 # The package logs (the compile notice of fricenv.compile_notice) through the "fricenv"
 # logger; as a library it adds only a NullHandler: the application decides what is shown.
+# Intel TBB where numba will look for it, before any parallel kernel chooses the threading
+# layer (fricenv._tbb): the user's own kernels get the thread-safe layer too
+_preload_tbb()
+
 _logging.getLogger(__name__).addHandler(_logging.NullHandler())
 
 from .envs import register_envs as _register_envs  # noqa: E402

@@ -47,13 +47,9 @@ This module therefore asks numba for the ``"safe"`` layer, Intel TBB (a dependen
 its wheels exist): safe after ``fork`` and safe to call from several Python threads at once
 (Dask workers with several threads, a thread per environment).
 
-The ``tbb`` wheel installs ``libtbb`` into ``<prefix>/lib``, where the dynamic loader does
-not look (a virtual environment, a pyenv or python.org Python), and numba's extension asks
-the loader for it by its soname only. So, before numba looks, this module loads the
-library by its absolute path from where the wheel's file list says it is, or else from
-the ``lib`` directories of ``sys.prefix``, ``sys.base_prefix`` and the site-packages; the
-soname then resolves to the library already loaded. ``RTLD_LOCAL`` (ctypes' default) is
-enough for that and exports no TBB symbols to libraries loaded later.
+The ``tbb`` wheel installs ``libtbb`` where the dynamic loader does not look, so
+:mod:`fricenv._tbb` loads it by its absolute path before numba looks for it (``import
+fricenv`` does so too, without importing numba).
 
 Where TBB still cannot be loaded (no wheel for the platform) it asks for ``"forksafe"``,
 which on GNU OpenMP systems is numba's ``workqueue`` layer: fork-safe too, but it aborts
@@ -69,11 +65,9 @@ serialised.
 from __future__ import annotations
 
 import contextlib
-import ctypes
 import importlib
 import importlib.metadata
 import os
-import site
 import sys
 import threading
 from collections.abc import Callable
@@ -81,43 +75,12 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-#: The file name numba's TBB extension asks the loader for (its soname), per platform.
-TBB_LIBRARY = {"win32": "tbb12.dll", "darwin": "libtbb.12.dylib"}.get(sys.platform,
-                                                                     "libtbb.so.12")
+from ._tbb import TBB_LIBRARY as TBB_LIBRARY
+from ._tbb import preload as preload_tbb
+
 #: The layers on which parallel kernels may run from several Python threads at once
 #: (numba's threading-layer documentation); on any other, calls are serialised.
 THREAD_SAFE_LAYERS = ("tbb", "omp")
-
-
-def _tbb_candidates() -> list[Path]:
-    """Where the ``tbb`` wheel may have put ``TBB_LIBRARY``, most specific first: the
-    wheel's own file list, then the ``lib`` directories of the prefixes and beside the
-    site-packages (``<prefix>/lib/pythonX.Y/site-packages`` -> ``<prefix>/lib``)."""
-    found: list[Path] = []
-    try:
-        dist = importlib.metadata.distribution("tbb")
-        found += [Path(str(dist.locate_file(f))) for f in dist.files or ()
-                  if f.name == TBB_LIBRARY]
-    except importlib.metadata.PackageNotFoundError:
-        pass
-    dirs = [Path(sys.prefix) / "lib", Path(sys.base_prefix) / "lib"]
-    packages = [*site.getsitepackages(), site.getusersitepackages()]
-    dirs += [Path(p).parent.parent for p in packages]
-    found += [d / TBB_LIBRARY for d in dirs]
-    unique = dict.fromkeys(p.resolve() for p in found if p.is_file())
-    return list(unique)
-
-
-def _preload_tbb() -> str | None:
-    """Load ``TBB_LIBRARY`` by its absolute path (see the module docstring); the path that
-    loaded, or None if none did (then numba asks the loader, which may still find it)."""
-    for path in _tbb_candidates():
-        try:
-            ctypes.CDLL(str(path))
-        except OSError:  # another platform's or a broken file: try the next
-            continue
-        return str(path)
-    return None
 
 
 def _tbb_loads() -> bool:
@@ -141,7 +104,7 @@ def _tbb_loads() -> bool:
 # below), and the threading layer is chosen before any parallel kernel can run. Every
 # fricenv module that imports numba imports this module at its top as well
 # (tests/test_import_graph.py); ``import fricenv`` imports neither.
-TBB_PATH = _preload_tbb()
+TBB_PATH = preload_tbb()
 
 import numba  # noqa: E402
 from numba import njit  # noqa: E402

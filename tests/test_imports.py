@@ -35,8 +35,8 @@ _REPORT = ("import json, sys; print(json.dumps({'heavy': [m for m in HEAVY if m 
 def test_import_fricenv_loads_no_numba() -> None:
     """The package and the environments' ids, nothing of the kernels."""
     got = _fresh("import fricenv; " + _REPORT)
-    assert got == {"heavy": [], "fricenv": ["fricenv", "fricenv._version", "fricenv.envs",
-                                            "fricenv.envs.ids"]}
+    assert got == {"heavy": [], "fricenv": ["fricenv", "fricenv._tbb", "fricenv._version",
+                                            "fricenv.envs", "fricenv.envs.ids"]}
 
 
 def test_import_fricenv_is_quick() -> None:
@@ -119,3 +119,15 @@ def test_the_package_pickles_by_name() -> None:
     import pickle
 
     assert pickle.loads(pickle.dumps(fricenv)) is fricenv
+
+
+def test_a_users_own_parallel_kernel_gets_tbb_after_import_fricenv() -> None:
+    """``import fricenv`` loads TBB (not numba) where numba's default layer order finds it
+    first, so a parallel kernel of the user's, run before any of fricenv's, is thread-safe
+    and fork-safe too (the README install puts libtbb where the loader does not look)."""
+    got = _fresh("import numba, numpy as np, fricenv, json\n"
+                 "@numba.njit(parallel=True)\n"
+                 "def f(a):\n"
+                 "    for i in numba.prange(a.size): a[i] = i\n"
+                 "f(np.zeros(4)); print(json.dumps({'layer': numba.threading_layer()}))")
+    assert got["layer"] == "tbb"
