@@ -24,17 +24,16 @@ import argparse
 import itertools
 import json
 import statistics
-import time
 from collections.abc import Callable
 
 import gymnasium as gym
 import numpy as np
 from fricenv_agents.mpc import DEFAULT_ITERATIONS, MPPIController
 
+from fricenv.bench.env import alternating_rounds
 from fricenv.envs import register_envs
 from fricenv.envs.vector import StickSlipVectorEnv
 
-IDLE_S = 0.02
 MPC_SAMPLES = 256
 MPC_HORIZON = 12
 DECISION_LIMIT_MS = 10.0
@@ -45,13 +44,6 @@ SCENE_IDS = {"stribeck": "fricenv/StickSlipStribeck-v0",
 #: Scenes held to bound 1 (the others are shown for comparison).
 EVENT_SCENES = ("stribeck", "viscous")
 VECTOR_PLANTS = 256
-
-
-def _per_call(fn: Callable[[], None], n: int) -> float:
-    t = time.perf_counter()
-    for _ in range(n):
-        fn()
-    return (time.perf_counter() - t) / n
 
 
 def _stepper(env, seed: int = 0, n_actions: int = 512) -> Callable[[], None]:
@@ -86,19 +78,6 @@ def _decider(scene: str, parallel: bool, iterations: int = 1) -> Callable[[], No
     return decide
 
 
-def _rounds(contenders: dict[str, tuple[Callable[[], None], int]],
-            rounds: int) -> dict[str, float]:
-    """Median seconds per call of each contender, alternating them ``rounds`` times."""
-    samples: dict[str, list[float]] = {k: [] for k in contenders}
-    for fn, n in contenders.values():
-        _per_call(fn, max(1, n // 10))  # warm-up: compilation, cache loading
-    for _ in range(rounds):
-        for name, (fn, n) in contenders.items():
-            time.sleep(IDLE_S)
-            samples[name].append(_per_call(fn, n))
-    return {k: statistics.median(v) for k, v in samples.items()}
-
-
 def bench(quick: bool) -> dict:
     rounds = 5 if quick else 15
     n_single = 2_000 if quick else 5_000
@@ -112,7 +91,8 @@ def bench(quick: bool) -> dict:
         contenders[f"mpc:{scene}"] = (_decider(scene, True), n_mpc)
         contenders[f"mpc1:{scene}"] = (_decider(scene, False), n_mpc)
         contenders[f"mpcdef:{scene}"] = (_decider(scene, True, DEFAULT_ITERATIONS), n_mpc)
-    t = _rounds(contenders, rounds)
+    samples = alternating_rounds(contenders, rounds)
+    t = {k: statistics.median(v) for k, v in samples.items()}
     intervals = MPC_SAMPLES * MPC_HORIZON
     out = {"pendulum_step_us": t["pendulum"] * 1e6, "scenes": {}}
     for scene in SCENE_IDS:

@@ -47,7 +47,7 @@ from fricenv.bench import stage
 from fricenv.checks import check_output_file
 from fricenv.envs import ENV_IDS, register_envs
 
-#: Idle time before each contender's round (see ``_rounds``): the 20 ms after which
+#: Idle time before each contender's round (see ``alternating_rounds``): the 20 ms after which
 #: ``_first_step_after_idle`` finds numba's workers asleep.
 IDLE_S = 0.02
 
@@ -88,7 +88,7 @@ def _stepper(env, n_actions: int = 512, seed: int = 0) -> Callable[[], None]:
     return step
 
 
-def _rounds(
+def alternating_rounds(
     contenders: dict[str, tuple[Callable[[], None], int]], rounds: int
 ) -> dict[str, list[float]]:
     """Seconds per call of each contender in each round, alternating them ``rounds`` times
@@ -201,7 +201,7 @@ def thread_ceiling(rounds: int) -> tuple[float, int]:
             out[i] = item(float(i))
 
     out = np.zeros(256)
-    samples = _rounds({"serial": (lambda: serial(out), 200),
+    samples = alternating_rounds({"serial": (lambda: serial(out), 200),
                        "parallel": (lambda: parallel(out), 200)}, rounds)
     t = {k: statistics.median(v) for k, v in samples.items()}
     return t["serial"] / t["parallel"], jit.num_threads()
@@ -232,7 +232,7 @@ def bench_steps(quick: bool) -> dict:
         made = gym.make(env_id)
         vec = gym.make_vec(env_id, num_envs=256)
         vector_step = _stepper(vec)
-        samples = _rounds(
+        samples = alternating_rounds(
             {
                 "pendulum": (_stepper(pendulum), n_single),
                 "single": (_stepper(single), n_single),
