@@ -275,6 +275,8 @@ class RunSpec:
     env_kwargs: dict[str, Any]
     policy: str
     algo_kwargs: dict[str, Any]
+    #: DAgger from the MPC before training (``fricenv_agents.imitation``); None: none.
+    warm_start: dict[str, Any] | None = None
 
 
 def split_hyperparams(algo: str, hp: dict[str, Any]) -> RunSpec:
@@ -299,6 +301,13 @@ def split_hyperparams(algo: str, hp: dict[str, Any]) -> RunSpec:
         raise ValueError(f"env_kwargs must be a mapping, got {env_kwargs!r}")
     env_kwargs = dict(env_kwargs)
     policy = str(hp.pop("policy", "MlpPolicy"))
+    warm_start = hp.pop("warm_start", None)
+    if warm_start is not None:
+        if algo != "ppo":
+            raise ValueError(f"warm_start needs an on-policy actor-critic (ppo), not {algo!r}")
+        from .imitation import WarmStart
+
+        warm_start = WarmStart.from_mapping(warm_start).as_dict()
     for key in ("learning_rate", "clip_range", "clip_range_vf"):
         if key in hp:
             hp[key] = _schedule(hp[key])
@@ -311,4 +320,4 @@ def split_hyperparams(algo: str, hp: dict[str, Any]) -> RunSpec:
     unknown = sorted(set(hp) - allowed)
     if unknown:
         raise ValueError(f"unknown {algo} hyperparameter(s) {unknown}")
-    return RunSpec(n_timesteps, n_envs, norm, env_kwargs, policy, hp)
+    return RunSpec(n_timesteps, n_envs, norm, env_kwargs, policy, hp, warm_start)

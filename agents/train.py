@@ -242,6 +242,10 @@ def train(args: argparse.Namespace, prepared: tuple | None = None,
     cfg_path = run_dir / "config.yml"
     cfg_path.write_text(yaml.safe_dump(config, sort_keys=False))
 
+    if spec.warm_start is not None:
+        config["warm_start"] = _warm_start(model, env, args, spec, stage)
+        cfg_path.write_text(yaml.safe_dump(config, sort_keys=False))
+
     from .callbacks import PeriodicEval, ProgressBar
 
     status: dict[str, Any] = {}
@@ -296,6 +300,21 @@ def train(args: argparse.Namespace, prepared: tuple | None = None,
         raise KeyboardInterrupt(f"training interrupted after {model.num_timesteps} steps; "
                                 f"the model trained so far is saved in {run_dir}")
     return run_dir
+
+
+def _warm_start(model: Any, env: Any, args: argparse.Namespace, spec: RunSpec,
+                stage: Callable[[str], None]) -> dict[str, Any]:
+    """DAgger from the MPC (``fricenv_agents.imitation``) before PPO; its summary, with the
+    wall time, for config.yml. Its plants are the run's own training plants."""
+    from .imitation import WarmStart, dagger
+
+    settings = WarmStart.from_mapping(spec.warm_start)
+    stage(f"warm-starting from the MPC: {settings.rounds} DAgger rounds")
+    t0 = time.perf_counter()
+    summary = dagger(model, env, args.scene, spec.env_kwargs, settings, args.seed,
+                     log=None if getattr(args, "quiet", False) else print)
+    env.seed(train_env_seed(args.seed))  # PPO starts on the run's own plants, as without it
+    return {**summary, "seconds": round(time.perf_counter() - t0, 2)}
 
 
 def main(argv: Sequence[str] | None = None, prog: str | None = None) -> Path:
