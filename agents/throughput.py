@@ -284,14 +284,16 @@ def build_parser(prog: str | None = None) -> argparse.ArgumentParser:
         prog=prog or "python -m fricenv_agents.throughput",
         description=__doc__.split("\n\n")[0], formatter_class=HelpFormatter)
     p.add_argument("--scenes", nargs="+", choices=sorted(SCENE_ENV_IDS),
-                   default=list(SCENE_ENV_IDS), help="scenes")
-    p.add_argument("--plants", nargs="+", type=int, default=list(PLANTS),
+                   default=list(SCENE_ENV_IDS), metavar="SCENE",
+                   help=f"scenes, of {', '.join(sorted(SCENE_ENV_IDS))}")
+    p.add_argument("--plants", nargs="+", type=int, default=list(PLANTS), metavar="N",
                    help="plant counts of the vector env")
-    p.add_argument("--ppo-steps", type=int, default=None,
+    p.add_argument("--ppo-steps", type=int, default=None, metavar="N",
                    help=f"PPO steps per scene, rounded up to whole rollouts (default: "
                         f"{PPO_ROLLOUTS} rollouts; 0: no PPO)")
-    p.add_argument("--rounds", type=int, default=ROUNDS, help="timed rounds per plant count")
-    p.add_argument("--out", type=Path, default=None,
+    p.add_argument("--rounds", type=int, default=ROUNDS, metavar="N",
+                   help="timed rounds per plant count")
+    p.add_argument("--out", type=Path, default=None, metavar="DIR",
                    help="write throughput.json and throughput.md into this folder")
     p.add_argument("--quiet", action="store_true", help="no stage lines on stderr")
     return p
