@@ -32,6 +32,7 @@ more often than a full run does).
 from __future__ import annotations
 
 import argparse
+import functools
 import itertools
 import json
 import math
@@ -61,7 +62,8 @@ def _shown(ratio: float, ok: bool, at_least: bool) -> str:
     return f"{cut(ratio * 100) / 100:6.2f}"
 
 
-def _per_call(fn: Callable[[], None], n: int) -> float:
+def per_call(fn: Callable[[], None], n: int) -> float:
+    """Mean seconds of ``fn()`` over ``n`` calls in a row."""
     t = time.perf_counter()
     for _ in range(n):
         fn()
@@ -76,7 +78,7 @@ def _actions(env, n_actions: int, seed: int) -> itertools.cycle:
     return itertools.cycle(acts)
 
 
-def _stepper(env, n_actions: int = 512, seed: int = 0) -> Callable[[], None]:
+def stepper(env, n_actions: int = 512, seed: int = 0) -> Callable[[], None]:
     """A closure stepping ``env`` through pre-drawn actions (resetting when an episode ends)."""
     actions = _actions(env, n_actions, seed)
 
@@ -101,11 +103,11 @@ def alternating_rounds(
     """
     samples: dict[str, list[float]] = {k: [] for k in contenders}
     for fn, n in contenders.values():
-        _per_call(fn, max(1, n // 10))  # warm-up: compilation, cache loading
+        per_call(fn, max(1, n // 10))  # warm-up: compilation, cache loading
     for _ in range(rounds):
         for name, (fn, n) in contenders.items():
             time.sleep(IDLE_S)
-            samples[name].append(_per_call(fn, n))
+            samples[name].append(per_call(fn, n))
     return samples
 
 
@@ -133,7 +135,7 @@ def physics_floor(env_id: str, snapshots: int) -> float:
                        10_000, work[i])
 
     vec: Any = gym.make_vec(env_id, num_envs=256)  # (its private buffers are read)
-    step = _stepper(vec, seed=1)
+    step = stepper(vec, seed=1)
     total = 0.0
     P, S, stats, work = (a.copy() for a in (vec._P, vec._S, vec._stats, vec._work))
     for k in range(snapshots + 1):
@@ -231,12 +233,12 @@ def bench_steps(quick: bool) -> dict:
         single = gym.make(env_id).unwrapped
         made = gym.make(env_id)
         vec = gym.make_vec(env_id, num_envs=256)
-        vector_step = _stepper(vec)
+        vector_step = stepper(vec)
         samples = alternating_rounds(
             {
-                "pendulum": (_stepper(pendulum), n_single),
-                "single": (_stepper(single), n_single),
-                "made": (_stepper(made), n_single),
+                "pendulum": (stepper(pendulum), n_single),
+                "single": (stepper(single), n_single),
+                "made": (stepper(made), n_single),
                 "vector": (vector_step, n_vec),
                 "kernel": (_kernel_stepper(gym.make_vec(env_id, num_envs=256)), n_vec),
                 "kernel_serial": (
@@ -272,29 +274,47 @@ def bench_steps(quick: bool) -> dict:
     return results
 
 
-def bench_ppo(quick: bool) -> dict:
-    """Share of PPO's wall time spent inside the VecEnv (env + adapter), after warm-up."""
-    from stable_baselines3 import PPO
-    from stable_baselines3.common.vec_env import DummyVecEnv, VecEnvWrapper, VecMonitor
+@functools.cache
+def _timed_class() -> type:
+    """``TimedVecEnv``, built on first use: stable-baselines3 is imported only then."""
+    from stable_baselines3.common.vec_env import VecEnvWrapper
 
-    from fricenv.envs.sb3 import StickSlipSB3VecEnv
+    class TimedVecEnv(VecEnvWrapper):
+        """Adds up, in ``seconds``, the wall time spent in the wrapped VecEnv's ``reset``
+        and ``step_wait`` (the environment's whole share of a rollout)."""
 
-    class Timed(VecEnvWrapper):
-        def __init__(self, venv):
+        def __init__(self, venv: Any) -> None:
             super().__init__(venv)
             self.seconds = 0.0
 
-        def reset(self):
+        def reset(self) -> Any:
             t = time.perf_counter()
             obs = self.venv.reset()
             self.seconds += time.perf_counter() - t
             return obs
 
-        def step_wait(self):
+        def step_wait(self) -> Any:
             t = time.perf_counter()
             out = self.venv.step_wait()
             self.seconds += time.perf_counter() - t
             return out
+
+    return TimedVecEnv
+
+
+def timed_vec_env(venv: Any) -> Any:
+    """``venv`` (an SB3 ``VecEnv``) in a thin wrapper whose ``seconds`` attribute adds up
+    the time spent inside its ``reset`` and ``step_wait``: what a training spends in the
+    environment, the rest being the agent's (needs stable-baselines3)."""
+    return _timed_class()(venv)
+
+
+def bench_ppo(quick: bool) -> dict:
+    """Share of PPO's wall time spent inside the VecEnv (env + adapter), after warm-up."""
+    from stable_baselines3 import PPO
+    from stable_baselines3.common.vec_env import DummyVecEnv, VecMonitor
+
+    from fricenv.envs.sb3 import StickSlipSB3VecEnv
 
     env_id = "fricenv/StickSlip-v0"
     cases: dict[str, tuple[Callable[[], Any], dict[str, Any], int]] = {
@@ -317,7 +337,7 @@ def bench_ppo(quick: bool) -> dict:
         venv = make()
         venv.reset()  # warm-up outside the timed run
         venv.step(np.zeros((venv.num_envs, *venv.action_space.shape), np.float32))
-        timed = Timed(VecMonitor(venv))
+        timed = timed_vec_env(VecMonitor(venv))
         model = PPO("MlpPolicy", timed, seed=0, device="cpu", verbose=0, **kwargs)
         t = time.perf_counter()
         model.learn(steps)
