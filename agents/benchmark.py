@@ -49,6 +49,7 @@ from . import statistics as S
 from .cli import HelpFormatter
 from .layout import check_disjoint
 from .mpc import MPPIController
+from .rollouts import Controller
 from .scoring import Entry, baseline_entries, load_models, run_entry, trained_entries
 
 BENCH_SCENES = ("paper", "self_excited", "stribeck", "viscous")
@@ -125,16 +126,30 @@ def baseline(name: str) -> Callable[[Setting], Entry]:
     return build
 
 
-def mpc(s: Setting) -> Entry:
+def per_seed(make: Callable[[Setting, int], Controller]) -> Callable[[Setting], Entry]:
+    """Builder of a controller without training seeds: ``make(setting, k)`` is the
+    controller of evaluation seed ``k`` (a randomised one seeds itself from ``k``; others
+    may ignore it). The tables name it by its ``label`` attribute (else its class name);
+    the JSON records its ``describe()`` if it has one."""
+    def build(s: Setting) -> Entry:
+        first = make(s, 0)
+        describe = getattr(first, "describe", None)
+        info = describe() if callable(describe) else {"class": type(first).__name__}
+        label = str(getattr(first, "label", type(first).__name__))
+
+        def factory(k: int) -> Controller:
+            return first if k == 0 else make(s, k)
+
+        return Entry("", label, "baseline", [factory], info)
+
+    return build
+
+
+def exact_mpc(s: Setting, k: int) -> MPPIController:
     """The exact-model MPC: bound to the plants' exact states, except under sensor noise,
     where it plans from the noisy, delayed observation."""
-    bound = s.condition != "noise + delay"
-
-    def factory(k: int) -> MPPIController:
-        return MPPIController(s.plant, s.env_kwargs, seed=k, exact_state=bound)
-
-    ctrl = factory(0)
-    return Entry("mpc", ctrl.label, "baseline", [factory], ctrl.describe())
+    return MPPIController(s.plant, s.env_kwargs, seed=k,
+                          exact_state=s.condition != "noise + delay")
 
 
 def run_group(root: Path, group: str, scene: str) -> list[Path]:
@@ -180,7 +195,7 @@ ROWS: tuple[Row, ...] = (
     Row("random", "random", baseline("random")),
     Row("best_constant", "best constant", baseline("best_constant"), label="best constant"),
     Row("feedback", "feedback rule", baseline("feedback")),
-    Row("mpc", "MPC", mpc, ALL_CONDITIONS),
+    Row("mpc", "MPC", per_seed(exact_mpc), ALL_CONDITIONS),
     Row("ppo", "PPO", trained("ppo", "PPO"), ALL_CONDITIONS, train=("ppo", {})),
     Row("ppo_robust", "PPO, robust training",
         trained("ppo_robust", "PPO, robust training (randomised plants and sensors)"),
@@ -337,7 +352,8 @@ def main_tables(rows: Sequence[Row], results: Results, n_seeds: int,
     best = "; ".join(f"`{s}` u0 = {r['best_constant'].info['u0']:.2f}, nu = "
                      f"{r['best_constant'].info['nu']:.2f}" for s, r in results.items()
                      if "best_constant" in r)
-    lines += [f"Episodes: {n_seeds} evaluation seeds × {episodes} episodes (n = "
+    lines += [f"Episodes: {n_seeds} evaluation seed{'s' if n_seeds > 1 else ''} × "
+              f"{episodes} episodes (n = "
               f"{n_seeds * episodes} for a controller without training seeds), every trained "
               f"model on each of them (n = models × {n_seeds * episodes}). IQM: the mean of "
               "the middle half of all those episodes' values; 95 % CI: stratified bootstrap "
@@ -348,41 +364,40 @@ def main_tables(rows: Sequence[Row], results: Results, n_seeds: int,
 
 
 def gap_lines(rows: Sequence[Row], results: Results) -> list[str]:
+    """The learned rows' gap to the MPC per scene (nothing without an MPC or a learned row)."""
     learned = [r.key for r in rows if r.train is not None]
-    lines = ["### Learned controllers against the MPC", "",
-             "| scene | controller | return, IQM [95 % CI] | gap to the MPC [95 % CI] | "
-             f"within {100 * GAP_BAR:.0f} % | IQM of each training seed | training time "
-             "per run |", "|---|---|---:|---:|---|---:|---:|"]
+    body: list[str] = []
     behind: list[str] = []
-    shown = False
     for scene, r in results.items():
         ref = r.get("mpc")
-        if ref is None:
+        present = [k for k in learned if k in r]
+        if ref is None or not present:
             continue
-        lines.append(f"| `{scene}` | {ref.label} | {ref.interval('ret').format()} | — | — | "
-                     "— | — |")
-        for key in learned:
-            e = r.get(key)
-            if e is None:
-                continue
-            gap, shown = _gap(e, ref), True
+        body.append(f"| `{scene}` | {ref.label} | {ref.interval('ret').format()} | — | — | "
+                    "— | — |")
+        for key in present:
+            e, gap = r[key], _gap(r[key], ref)
             ok = gap.estimate <= GAP_BAR
             if not ok:
                 behind.append(f"{_short(rows, key)} on `{scene}` "
                               f"({100 * gap.estimate:.0f} %)")
-            lines.append(f"| `{scene}` | {e.label} | {e.interval('ret').format()} | "
-                         f"{gap.format(1, 100, ' %')} | {'yes' if ok else 'no'} | "
-                         f"{_over_models(e)} | {_seconds(e)} |")
-    lines += ["", "Gap = (IQM return of the MPC − IQM return of the controller) / |IQM return "
-              "of the MPC|: negative when the controller does better; its interval is a paired "
-              "bootstrap over the shared episodes. IQM of each training seed: the lowest and "
-              "highest of the models' IQM returns. Training times: wall time of one run on "
-              "the shared 2-core machine, one torch thread.", ""]
-    if shown:
-        lines += [(f"More than {100 * GAP_BAR:.0f} % behind the MPC: " + ", ".join(behind)
-                   + "." if behind else f"Every learned controller is within "
-                   f"{100 * GAP_BAR:.0f} % of the MPC's return on every scene."), ""]
-    return lines
+            body.append(f"| `{scene}` | {e.label} | {e.interval('ret').format()} | "
+                        f"{gap.format(1, 100, ' %')} | {'yes' if ok else 'no'} | "
+                        f"{_over_models(e)} | {_seconds(e)} |")
+    if not body:
+        return []
+    return ["### Learned controllers against the MPC", "",
+            "| scene | controller | return, IQM [95 % CI] | gap to the MPC [95 % CI] | "
+            f"within {100 * GAP_BAR:.0f} % | IQM of each training seed | training time "
+            "per run |", "|---|---|---:|---:|---|---:|---:|", *body, "",
+            "Gap = (IQM return of the MPC − IQM return of the controller) / |IQM return "
+            "of the MPC|: negative when the controller does better; its interval is a paired "
+            "bootstrap over the shared episodes. IQM of each training seed: the lowest and "
+            "highest of the models' IQM returns. Training times: wall time of one run on "
+            "the shared 2-core machine, one torch thread.", "",
+            (f"More than {100 * GAP_BAR:.0f} % behind the MPC: " + ", ".join(behind) + "."
+             if behind else f"Every learned controller is within {100 * GAP_BAR:.0f} % of "
+             "the MPC's return on every scene."), ""]
 
 
 def _short(rows: Sequence[Row], key: str) -> str:

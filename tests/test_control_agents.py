@@ -199,7 +199,7 @@ def test_benchmark_rows_are_a_registry():
     with pytest.raises(ValueError, match="distinct keys"):
         BM.check_rows([zero, zero])
     with pytest.raises(ValueError, match="unknown conditions"):
-        BM.check_rows([zero, BM.Row("x", "x", BM.mpc, ("windy",))])
+        BM.check_rows([zero, BM.Row("x", "x", BM.per_seed(BM.exact_mpc), ("windy",))])
     assert BM.build_parser().get_default("seeds") == 10
     assert BM.build_parser().get_default("runs") == BM.PRETRAINED_RUNS
 
