@@ -50,7 +50,7 @@ from .cli import HelpFormatter
 from .layout import check_disjoint
 from .mpc import MPPIController
 from .rollouts import Controller
-from .scoring import Entry, baseline_entries, load_models, run_entry, trained_entries
+from .scoring import Entry, _summary, baseline_entries, load_models, run_entry, trained_entries
 
 BENCH_SCENES = ("paper", "self_excited", "stribeck", "viscous")
 #: Folder of the shipped benchmark runs (``<group>_<scene>_s<seed>/``), the default ``--runs``.
@@ -66,6 +66,10 @@ DELAY = 1
 NOMINAL = "nominal"  #: the main table's condition: the scenes' own plants and sensors
 CONDITIONS = ("in range", "held out below", "held out above", "noise + delay")
 ALL_CONDITIONS = (NOMINAL, *CONDITIONS)
+#: The retentions of the generalisation table: name -> the conditions whose worst cut is
+#: compared with the in-range one.
+RETENTIONS = {"retention, held out": ("held out below", "held out above"),
+              "retention, noise + delay": ("noise + delay",)}
 #: Training env kwargs of the robust PPO: randomised plants, and per episode a noise scale
 #: in [0, 1] of ``NOISE`` and a delay in {0, 1} (``randomize_sensors``).
 ROBUST_ENV_KWARGS: dict[str, Any] = {"randomize": True, "obs_noise": NOISE, "obs_delay": DELAY,
@@ -105,8 +109,9 @@ class Row:
     ``build(setting)`` returns its entry for that scene and condition, or ``None`` to
     leave the row out there (a group without runs). ``conditions``: where it runs
     (``NOMINAL`` is the main table). ``label``: the tables' name (default: the entry's
-    own). ``train``: ``(algorithm, env kwargs)`` of a trained group, which
-    ``scripts/train_control_benchmark.py`` trains into ``<runs>/<key>_<scene>_s<seed>``.
+    own; a trained group's gets its number of training seeds). ``train``: ``(algorithm,
+    env kwargs)`` of a trained group, which ``scripts/train_control_benchmark.py`` trains
+    into ``<runs>/<key>_<scene>_s<seed>``.
     """
 
     key: str
@@ -157,7 +162,7 @@ def run_group(root: Path, group: str, scene: str) -> list[Path]:
     return sorted(p for p in root.glob(f"{group}_{scene}_s*") if (p / "model.zip").exists())
 
 
-def trained(group: str, label: str | None = None) -> Callable[[Setting], Entry | None]:
+def trained(group: str) -> Callable[[Setting], Entry | None]:
     """Builder of a trained group's row: every model of ``<runs>/<group>_<scene>_s*``
     (loaded once per scene), or ``None`` without runs."""
     def build(s: Setting) -> Entry | None:
@@ -166,13 +171,15 @@ def trained(group: str, label: str | None = None) -> Callable[[Setting], Entry |
         e = s.cache[group]
         if e is None:
             return None
-        n = len(e.factories)
-        name = label or e.label.split(" (")[0]
-        seeds = f"{n} training seed{'s' if n > 1 else ''}"
-        name = name[:-1] + f"; {seeds})" if name.endswith(")") else f"{name} ({seeds})"
-        return Entry(group, name, e.kind, e.factories, dict(e.info))
+        return Entry(group, e.label, e.kind, e.factories, dict(e.info))
 
     return build
+
+
+def _with_seeds(label: str, n: int) -> str:
+    """``label`` with a trained group's number of training seeds."""
+    seeds = f"{n} training seed{'s' if n > 1 else ''}"
+    return label[:-1] + f"; {seeds})" if label.endswith(")") else f"{label} ({seeds})"
 
 
 def _load_group(s: Setting, group: str) -> Entry | None:
@@ -196,11 +203,10 @@ ROWS: tuple[Row, ...] = (
     Row("best_constant", "best constant", baseline("best_constant"), label="best constant"),
     Row("feedback", "feedback rule", baseline("feedback")),
     Row("mpc", "MPC", per_seed(exact_mpc), ALL_CONDITIONS),
-    Row("ppo", "PPO", trained("ppo", "PPO"), ALL_CONDITIONS, train=("ppo", {})),
-    Row("ppo_robust", "PPO, robust training",
-        trained("ppo_robust", "PPO, robust training (randomised plants and sensors)"),
-        ALL_CONDITIONS, train=("ppo", ROBUST_ENV_KWARGS)),
-    Row("sac", "SAC", trained("sac", "SAC"), train=("sac", {})),
+    Row("ppo", "PPO", trained("ppo"), ALL_CONDITIONS, "PPO", ("ppo", {})),
+    Row("ppo_robust", "PPO, robust training", trained("ppo_robust"), ALL_CONDITIONS,
+        "PPO, robust training (randomised plants and sensors)", ("ppo", ROBUST_ENV_KWARGS)),
+    Row("sac", "SAC", trained("sac"), label="SAC", train=("sac", {})),
 )
 
 
@@ -210,16 +216,21 @@ def training_groups(rows: Sequence[Row] = ROWS) -> dict[str, tuple[str, dict[str
 
 
 def check_rows(rows: Sequence[Row]) -> None:
-    """``ValueError`` for two rows with one key or a row in an unknown condition."""
+    """``ValueError`` for two rows with one key, a row in an unknown condition, or a
+    condition without the ``zero`` row (the reference of the stick cuts)."""
     keys = [r.key for r in rows]
     if len(set(keys)) != len(keys) or "zero" not in keys:
         raise ValueError(f"rows need distinct keys and a 'zero' row (the stick cuts' "
                          f"reference), got {keys}")
+    zero = next(r for r in rows if r.key == "zero")
     for r in rows:
         bad = set(r.conditions) - set(ALL_CONDITIONS)
         if bad:
             raise ValueError(f"row {r.key!r}: unknown conditions {sorted(bad)}; expected "
                              f"some of {list(ALL_CONDITIONS)}")
+        if set(r.conditions) - set(zero.conditions):
+            raise ValueError(f"row {r.key!r} runs in {list(r.conditions)}, the 'zero' row "
+                             f"only in {list(zero.conditions)}")
 
 
 # -- running ----------------------------------------------------------------------------------
@@ -262,8 +273,9 @@ def evaluate_condition(rows: Sequence[Row], setting: Setting) -> dict[str, Entry
         if e is None:
             continue
         e.key = row.key
-        if row.label and e.kind != "trained":
-            e.label = row.label
+        if row.label:
+            e.label = (_with_seeds(row.label, len(e.factories)) if e.kind == "trained"
+                       else row.label)
         t = time.perf_counter()
         run_entry(e, setting.plant, setting.env_kwargs, setting.n_seeds, setting.episodes)
         e.info["eval_seconds"] = round(time.perf_counter() - t, 2)
@@ -425,15 +437,16 @@ def generalisation_summary(gen: Generalisation) -> dict[str, dict[str, dict[str,
     out: dict[str, dict[str, dict[str, S.Interval]]] = {}
     for scene, conds in gen.items():
         out[scene] = {}
-        keys = [k for k in conds[CONDITIONS[0]] if k != "zero"
-                and all(k in conds[c] for c in CONDITIONS)]
+        keys = dict.fromkeys(k for c in CONDITIONS for k in conds[c] if k != "zero")
         for key in keys:
-            cell = {c: _cut(conds[c][key], conds[c]["zero"]) for c in CONDITIONS}
-            cell["retention, held out"] = _retention(conds, key, ("held out below",
-                                                                  "held out above"))
-            cell["retention, noise + delay"] = _retention(conds, key, ("noise + delay",))
+            cell = {c: _cut(conds[c][key], conds[c]["zero"]) for c in CONDITIONS
+                    if key in conds[c]}
+            for name, which in RETENTIONS.items():
+                if all(c in cell for c in ("in range", *which)):
+                    cell[name] = _retention(conds, key, which)
             out[scene][key] = cell
     return out
+
 
 
 def generalisation_lines(rows: Sequence[Row], gen: Generalisation,
@@ -453,15 +466,15 @@ def generalisation_lines(rows: Sequence[Row], gen: Generalisation,
     low = []
     for scene, per_key in summary.items():
         for key, cell in per_key.items():
-            label = gen[scene][CONDITIONS[0]][key].label
+            label = next(es[key].label for es in gen[scene].values() if key in es)
             lines.append(f"| `{scene}` | {label} | " + " | ".join(
-                cell[c].format(1, 100) for c in CONDITIONS) + " |")
-            held, noisy = cell["retention, held out"], cell["retention, noise + delay"]
-            ret.append(f"| `{scene}` | {label} | {held.format(0, 100)} | "
-                       f"{noisy.format(0, 100)} |")
-            low += [f"{_short(rows, key)} on `{scene}` {what} ({100 * v.estimate:.0f} %)"
-                    for what, v in (("held out", held), ("noise + delay", noisy))
-                    if v.estimate < RETENTION_BAR]
+                cell[c].format(1, 100) if c in cell else "—" for c in CONDITIONS) + " |")
+            kept = {name: cell.get(name) for name in RETENTIONS}
+            ret.append(f"| `{scene}` | {label} | " + " | ".join(
+                v.format(0, 100) if v else "—" for v in kept.values()) + " |")
+            low += [f"{_short(rows, key)} on `{scene}` {name.split(', ')[1]} "
+                    f"({100 * v.estimate:.0f} %)" for name, v in kept.items()
+                    if v and v.estimate < RETENTION_BAR]
     return lines + ret + ["", (f"Less than {100 * RETENTION_BAR:.0f} % of the in-range cut "
                                "kept: " + "; ".join(low) + "." if low else
                                f"Every controller keeps at least {100 * RETENTION_BAR:.0f} % "
@@ -556,12 +569,13 @@ def plot_generalisation(rows: Sequence[Row], summary: dict[str, dict[str, dict[s
         keys = list(summary[scene])
         width = 0.8 / max(1, len(keys))
         for j, key in enumerate(keys):
-            ivs = [summary[scene][key][c] for c in CONDITIONS]
+            nan = S.Interval(float("nan"), float("nan"), float("nan"))
+            ivs = [summary[scene][key].get(c, nan) for c in CONDITIONS]
             est = np.array([100 * iv.estimate for iv in ivs])
             err = np.array([[max(0.0, e - 100 * iv.lo), max(0.0, 100 * iv.hi - e)]
                             for e, iv in zip(est, ivs, strict=True)]).T
-            ax.bar(x + j * width, est, width, yerr=err, capsize=2, error_kw={"lw": 0.8},
-                   label=_short(rows, key))
+            ax.bar(x + j * width, est, width, yerr=np.nan_to_num(err), capsize=2,
+                   error_kw={"lw": 0.8}, label=_short(rows, key))
         ax.set_xticks(x + 0.4 - width / 2, [c.replace(" ", "\n", 1) for c in CONDITIONS],
                       fontsize=7)
         ax.set_ylim(min(0.0, ax.get_ylim()[0]), 105)
@@ -641,8 +655,6 @@ def to_json(results: Results, gen: Generalisation, summary: dict, meta: dict) ->
         return {"estimate": i.estimate, "lo": i.lo, "hi": i.hi}
 
     def pack(e: Entry) -> dict:
-        from .scoring import _summary
-
         return {**_summary(e), "iqm_ci": {f: iv(e.interval(f)) for f in ("ret",
                                                                           "stick_fraction")},
                 "info": e.info, "per_episode": e.scores.as_dict()}
@@ -703,7 +715,7 @@ def main(argv: Sequence[str] | None = None, rows: Sequence[Row] = ROWS) -> Path:
                           args.seeds, args.episodes)
         results[scene] = evaluate_condition(rows, nominal)
         if not args.no_generalisation and any(c in r.conditions for r in rows
-                                              for c in CONDITIONS):
+                                              if r.key != "zero" for c in CONDITIONS):
             gen[scene] = {c: evaluate_condition(rows, condition_setting(nominal, c))
                           for c in CONDITIONS}
     summary = generalisation_summary(gen)

@@ -198,6 +198,8 @@ def test_benchmark_rows_are_a_registry():
     zero = BM.ROWS[0]
     with pytest.raises(ValueError, match="distinct keys"):
         BM.check_rows([zero, zero])
+    with pytest.raises(ValueError, match="the 'zero' row only in"):
+        BM.check_rows([BM.Row("zero", "zero", BM.baseline("zero")), BM.ROWS[4]])
     with pytest.raises(ValueError, match="unknown conditions"):
         BM.check_rows([zero, BM.Row("x", "x", BM.per_seed(BM.exact_mpc), ("windy",))])
     assert BM.build_parser().get_default("seeds") == 10
