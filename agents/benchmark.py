@@ -34,6 +34,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -706,6 +707,9 @@ def main(argv: Sequence[str] | None = None, rows: Sequence[Row] = ROWS) -> Path:
     except ValueError as e:
         parser.error(str(e))
     args.out.mkdir(parents=True, exist_ok=True)
+    if not args.runs.is_dir():
+        print(f"fricenv_agents.benchmark: no run folders in {args.runs}: the trained rows "
+              "are left out", file=sys.stderr)
     t0 = time.perf_counter()
     search = {"n_u0": args.grid, "n_nu": args.grid, "episodes": args.search_episodes}
     results: Results = {}

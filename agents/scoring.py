@@ -78,7 +78,12 @@ class Entry:
         """Metric ``name`` as a ``(models, evaluation seeds x episodes)`` matrix: one row
         per trained model (one for a baseline), columns in ``run_entry``'s order (seed by
         seed, episode by episode), the cell :mod:`.statistics` resamples."""
-        return np.asarray(getattr(self.scores, name)).reshape(len(self.factories), -1)
+        values = np.asarray(getattr(self.scores, name))
+        shape = (len(self.factories), self.n_seeds * self.episodes)
+        if values.size != shape[0] * shape[1]:
+            raise ValueError(f"{self.key!r}: {values.size} episodes of {name!r}, expected "
+                             f"{shape[0]} models x {self.n_seeds} seeds x {self.episodes}")
+        return values.reshape(shape)
 
     def interval(self, name: str) -> Interval:
         """The IQM of metric ``name`` over all models and episodes, with its stratified
