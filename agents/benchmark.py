@@ -395,7 +395,7 @@ def gap_lines(rows: Sequence[Row], results: Results) -> list[str]:
                 behind.append(f"{_short(rows, key)} on `{scene}` "
                               f"({100 * gap.estimate:.0f} %)")
             body.append(f"| `{scene}` | {e.label} | {e.interval('ret').format()} | "
-                        f"{gap.format(1, 100, ' %')} | {'yes' if ok else 'no'} | "
+                        f"{gap.format(1, 100, ' %', signed=True)} | {'yes' if ok else 'no'} | "
                         f"{_over_models(e)} | {_seconds(e)} |")
     if not body:
         return []
@@ -534,9 +534,10 @@ def plot_profiles(rows: Sequence[Row], results: Results, path: Path) -> None:
     bootstrap band. A curve above and left of another is better at every threshold."""
     plt = _pyplot()
     scenes = list(results)
-    fig, axes = plt.subplots(1, len(scenes), figsize=(3.6 * len(scenes), 3.4), squeeze=False,
+    fig, axes = plt.subplots(1, len(scenes), figsize=(3.6 * len(scenes), 3.9), squeeze=False,
                              sharey=True)
     keys = _keys(rows, results)
+    handles: dict[str, Any] = {}
     for ax, scene in zip(axes[0], scenes, strict=True):
         present = [k for k in keys if k in results[scene]]
         taus = S.tau_grid([-results[scene][k].matrix("ret") for k in present])
@@ -545,16 +546,21 @@ def plot_profiles(rows: Sequence[Row], results: Results, path: Path) -> None:
             prof = S.performance_profile(-e.matrix("ret"), taus, strata=e.n_seeds,
                                          seed=BOOT_SEED)
             color = f"C{keys.index(key)}"
-            ax.plot(taus, prof.fraction, color=color, lw=1.2, label=_short(rows, key))
-            ax.fill_between(taus, prof.lo, prof.hi, color=color, alpha=0.2, lw=0)
+            # (an empirical distribution: each value holds up to the next threshold)
+            handles[key], = ax.plot(taus, prof.fraction, color=color, lw=1.2,
+                                    drawstyle="steps-post")
+            ax.fill_between(taus, prof.lo, prof.hi, color=color, alpha=0.2, lw=0,
+                            step="post")
         ax.set_xscale("log")
         ax.set_ylim(-0.02, 1.02)
         ax.grid(alpha=0.3)
         ax.set_title(scene, fontsize=10)
         ax.set_xlabel("episode cost τ = -return", fontsize=8)
     axes[0][0].set_ylabel("fraction of episodes with cost ≤ τ", fontsize=8)
-    axes[0][-1].legend(fontsize=6, loc="lower right")
-    fig.tight_layout()
+    fig.legend([handles[k] for k in keys if k in handles],
+               [_short(rows, k) for k in keys if k in handles], loc="lower center",
+               ncol=min(len(handles), 8), fontsize=7, frameon=False)
+    fig.tight_layout(rect=(0.0, 0.08, 1.0, 1.0))
     fig.savefig(path, dpi=90)
     plt.close(fig)
 

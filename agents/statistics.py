@@ -55,11 +55,14 @@ class Interval:
     lo: float
     hi: float
 
-    def format(self, digits: int = 2, scale: float = 1.0, suffix: str = "") -> str:
-        """``estimate [lo, hi]`` for a table cell (each value times ``scale``)."""
+    def format(self, digits: int = 2, scale: float = 1.0, suffix: str = "",
+               signed: bool = False) -> str:
+        """``estimate [lo, hi]`` for a table cell (each value times ``scale``; ``signed``:
+        the estimate with its sign, e.g. a gap)."""
         if not np.isfinite(self.estimate):
             return "n/a"
-        e, lo, hi = (f"{scale * v:.{digits}f}" for v in (self.estimate, self.lo, self.hi))
+        e = f"{scale * self.estimate:{'+' if signed else ''}.{digits}f}"
+        lo, hi = (f"{scale * v:.{digits}f}" for v in (self.lo, self.hi))
         return f"{e}{suffix} [{lo}, {hi}]"
 
 

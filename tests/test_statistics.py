@@ -155,4 +155,5 @@ def test_a_benchmark_cell_takes_well_under_a_second():
 def test_interval_format():
     assert S.Interval(0.5, 0.25, 0.75).format(1, 100, " %") == "50.0 % [25.0, 75.0]"
     assert S.Interval(-1.234, -2.0, -1.0).format() == "-1.23 [-2.00, -1.00]"
+    assert S.Interval(0.05, -0.01, 0.1).format(1, 100, " %", signed=True) == "+5.0 % [-1.0, 10.0]"
     assert S.Interval(float("nan"), 0, 1).format() == "n/a"
