@@ -1,35 +1,43 @@
 """The control benchmark: every controller on every scene, and how policies generalise.
 
-    python -m fricenv_agents.benchmark --runs runs/control --out docs/results [--seeds 5]
-        [--episodes 10] [--scenes paper self_excited stribeck viscous]
+    python -m fricenv_agents.benchmark [--runs agents/pretrained/benchmark] [--out docs/results]
+        [--seeds 10] [--episodes 10] [--scenes paper self_excited stribeck viscous]
 
-Rows are controllers (zero excitation, random actions, best constant, the feedback rule,
-the exact-model MPC, PPO, SAC), columns scenes. Every controller faces the same held-out
-episodes (``fricenv_agents.evaluate``'s seed layout: evaluation seed k < ``--seeds``, episodes
-j < ``--episodes``); a group of trained runs (``<runs>/ppo_<scene>_s<seed>``,
-``<runs>/sac_<scene>_s<seed>``, one per training seed, made by
-``scripts/train_control_benchmark.py``) runs every model on every episode.
+Rows are controllers, columns scenes. The rows are data: ``ROWS`` lists each controller
+once (key, label, how to build its entry, the conditions it runs in), so adding one is one
+``Row`` (docs/adding_a_controller.md). Today: zero excitation, random actions, the best
+constant, the feedback rule, the exact-model MPC, PPO, PPO with robust training, SAC.
+Every controller faces the same held-out episodes (``fricenv_agents.evaluate``'s seed
+layout: evaluation seed k < ``--seeds``, episodes j < ``--episodes``); a trained row runs
+every model of its group (``<runs>/<key>_<scene>_s<seed>``, one per training seed, made by
+``scripts/train_control_benchmark.py``) on every episode. A group without runs leaves its
+rows out.
 
-Generalisation: the PPO policies trained with ``randomize=True``
-(``<runs>/ppo_rand_<scene>_s<seed>``) are evaluated on plants drawn from the training
-ranges (``in range``), from boxes of ``lambda`` and ``x_fs`` beyond both ends of them
-(``held out below``, ``held out above``; the other parameters in their ranges), and with
-observation noise plus a one-step delay (``noise + delay``, plants in range). Each
-condition's stick cut is ``1 - stick(policy) / stick(zero excitation)`` on the same
-episodes; retention is a condition's cut over the in-range one. The nominally trained
-PPO and the MPC (bound to the exact state, or under noise planning from the noisy,
-delayed observation) are shown beside it.
+Generalisation: the rows that run in the study's conditions (zero excitation as the
+reference, the MPC, PPO and the robustly trained PPO) are evaluated on plants drawn from
+the training ranges (``in range``), from boxes of ``lambda`` and ``x_fs`` beyond both ends
+of them (``held out below``, ``held out above``; the other parameters in their ranges), and
+with observation noise plus a one-interval delay (``noise + delay``, plants in range).
+Each condition's stick cut is ``1 - stick(controller) / stick(zero excitation)`` on the
+same episodes; retention is a condition's cut over the in-range one. The MPC is bound to
+the exact state, except under noise, where it plans from the noisy, delayed observation.
 
-Writes ``control_benchmark.md``, ``control_benchmark.json`` and two figures to ``--out``
-(and the best-constant searches' caches, as ``fricenv_agents.evaluate`` does).
+Statistics (``fricenv_agents.statistics``): each cell is the interquartile mean over all
+models and episodes with a 95 % stratified bootstrap interval; gaps, cuts and retentions
+are paired over the shared episodes. Writes ``control_benchmark.md``,
+``control_benchmark.json``, ``control_benchmark_episodes.csv`` (one row per episode, with
+the versions of the software that ran it) and three figures to ``--out`` (and the
+best-constant searches' caches, as ``fricenv_agents.evaluate`` does).
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import sys
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -38,35 +46,195 @@ import numpy as np
 from fricenv.checks import check_output_dir
 from fricenv.envs.scenes import SCENES, Scene
 
+from . import statistics as S
 from .cli import HelpFormatter
-from .layout import BASELINES, check_disjoint
+from .layout import check_disjoint
 from .mpc import MPPIController
-from .rollouts import fmt_pm, summarize
-from .scoring import (
-    Entry,
-    _summary,
-    baseline_entries,
-    load_models,
-    run_entry,
-    trained_entries,
-)
+from .rollouts import Controller
+from .scoring import Entry, _summary, baseline_entries, load_models, run_entry, trained_entries
 
 BENCH_SCENES = ("paper", "self_excited", "stribeck", "viscous")
-ROW_ORDER = (*BASELINES, "mpc", "ppo", "sac")
+#: Folder of the shipped benchmark runs (``<group>_<scene>_s<seed>/``), the default ``--runs``.
+PRETRAINED_RUNS = Path(__file__).resolve().parent / "pretrained" / "benchmark"
 #: Parameters whose ranges the held-out plants leave, and by how much: a box from
 #: ``GAP`` to ``GAP + WIDTH`` range widths beyond each end (lambda floored at 0).
 HELD_OUT = ("lam", "xfs")
 GAP, WIDTH = 0.1, 0.5
-#: Sensor noise of the ``noise + delay`` condition (standard deviation per channel).
+#: Sensor noise of the ``noise + delay`` condition (standard deviation per channel), also
+#: what the robust PPO is trained with (its scale drawn per episode).
 NOISE = {"x": 0.05, "v_rel": 0.05, "cos1": 0.02, "sin1": 0.02, "cos2": 0.02, "sin2": 0.02}
 DELAY = 1
+NOMINAL = "nominal"  #: the main table's condition: the scenes' own plants and sensors
 CONDITIONS = ("in range", "held out below", "held out above", "noise + delay")
-#: The tables flag PPO more than this fraction of |MPC return| behind the MPC, and a
-#: randomised policy keeping less than ``RETENTION_BAR`` of its in-range stick cut.
+ALL_CONDITIONS = (NOMINAL, *CONDITIONS)
+#: The retentions of the generalisation table: name -> the conditions whose worst cut is
+#: compared with the in-range one.
+RETENTIONS = {"retention, held out": ("held out below", "held out above"),
+              "retention, noise + delay": ("noise + delay",)}
+#: Training env kwargs of the robust PPO: randomised plants, and per episode a noise scale
+#: in [0, 1] of ``NOISE`` and a delay in {0, 1} (``randomize_sensors``).
+ROBUST_ENV_KWARGS: dict[str, Any] = {"randomize": True, "obs_noise": NOISE, "obs_delay": DELAY,
+                                     "randomize_sensors": True}
+#: The tables flag a learned controller more than this fraction of |MPC return| behind the
+#: MPC, and one keeping less than ``RETENTION_BAR`` of its in-range stick cut.
 GAP_BAR = 0.05
 RETENTION_BAR = 0.8
+#: Cuts and retentions compare mean stick fractions, i.e. shares of the total stuck time,
+#: so that a rare episode that sticks much counts fully; the main tables' cells are IQMs.
+CUT_AGGREGATE = S.mean
+BOOT_SEED = 0  #: seed of every bootstrap of the page (its intervals are reproducible)
 
 
+# -- the rows ---------------------------------------------------------------------------------
+@dataclass
+class Setting:
+    """What a row's builder gets: the scene (``plant``: as run, a held-out variant in those
+    conditions), the condition, its env kwargs and the benchmark's options."""
+
+    scene: str
+    plant: str | Scene
+    condition: str
+    env_kwargs: dict[str, Any]
+    runs: Path
+    out: Path
+    search: dict[str, Any]
+    n_seeds: int
+    episodes: int
+    cache: dict[str, Any] = field(default_factory=dict)  #: loaded models, shared per scene
+
+
+@dataclass(frozen=True)
+class Row:
+    """One controller of the benchmark.
+
+    ``build(setting)`` returns its entry for that scene and condition, or ``None`` to
+    leave the row out there (a group without runs). ``conditions``: where it runs
+    (``NOMINAL`` is the main table). ``label``: the tables' name (default: the entry's
+    own; a trained group's gets its number of training seeds). ``train``: ``(algorithm,
+    env kwargs)`` of a trained group, which ``scripts/train_control_benchmark.py`` trains
+    into ``<runs>/<key>_<scene>_s<seed>``.
+    """
+
+    key: str
+    short: str  #: name in the figures
+    build: Callable[[Setting], Entry | None]
+    conditions: tuple[str, ...] = (NOMINAL,)
+    label: str | None = None
+    train: tuple[str, dict[str, Any]] | None = None
+
+
+def baseline(name: str) -> Callable[[Setting], Entry]:
+    """Builder of a baseline of ``fricenv_agents.baselines`` (its settings fit the scene
+    by name; a held-out variant has the same actions)."""
+    def build(s: Setting) -> Entry:
+        return baseline_entries([name], s.scene, s.env_kwargs, s.out, s.search)[0]
+
+    return build
+
+
+def per_seed(make: Callable[[Setting, int], Controller]) -> Callable[[Setting], Entry]:
+    """Builder of a controller without training seeds: ``make(setting, k)`` is the
+    controller of evaluation seed ``k`` (a randomised one seeds itself from ``k``; others
+    may ignore it). The tables name it by its ``label`` attribute (else its class name);
+    the JSON records its ``describe()`` if it has one."""
+    def build(s: Setting) -> Entry:
+        first = make(s, 0)
+        describe = getattr(first, "describe", None)
+        info = describe() if callable(describe) else {"class": type(first).__name__}
+        label = str(getattr(first, "label", type(first).__name__))
+
+        def factory(k: int) -> Controller:
+            return first if k == 0 else make(s, k)
+
+        return Entry("", label, "baseline", [factory], info)
+
+    return build
+
+
+def exact_mpc(s: Setting, k: int) -> MPPIController:
+    """The exact-model MPC: bound to the plants' exact states, except under sensor noise,
+    where it plans from the noisy, delayed observation."""
+    return MPPIController(s.plant, s.env_kwargs, seed=k,
+                          exact_state=s.condition != "noise + delay")
+
+
+def run_group(root: Path, group: str, scene: str) -> list[Path]:
+    """Finished run folders of ``group`` (``ppo``, ``sac``, ``ppo_robust``) for ``scene``."""
+    return sorted(p for p in root.glob(f"{group}_{scene}_s*") if (p / "model.zip").exists())
+
+
+def trained(group: str) -> Callable[[Setting], Entry | None]:
+    """Builder of a trained group's row: every model of ``<runs>/<group>_<scene>_s*``
+    (loaded once per scene), or ``None`` without runs."""
+    def build(s: Setting) -> Entry | None:
+        if group not in s.cache:
+            s.cache[group] = _load_group(s, group)
+        e = s.cache[group]
+        if e is None:
+            return None
+        return Entry(group, e.label, e.kind, e.factories, dict(e.info))
+
+    return build
+
+
+def _with_seeds(label: str, n: int) -> str:
+    """``label`` with a trained group's number of training seeds."""
+    seeds = f"{n} training seed{'s' if n > 1 else ''}"
+    return label[:-1] + f"; {seeds})" if label.endswith(")") else f"{label} ({seeds})"
+
+
+def _load_group(s: Setting, group: str) -> Entry | None:
+    paths = run_group(s.runs, group, s.scene)
+    if not paths:
+        return None
+    loaded = load_models(paths)
+    for p, (_, cfg) in loaded.items():
+        check_disjoint(cfg, s.n_seeds, s.episodes, str(p))
+    entries, _ = trained_entries(paths, s.scene, loaded)
+    if len(entries) != 1:
+        raise ValueError(f"{s.runs}: the runs of group {group!r} on {s.scene!r} hold "
+                         f"{len(entries)} algorithms ({[e.key for e in entries]}), expected one")
+    return entries[0]
+
+
+ZERO_LABEL = "zero excitation (paper: no control, u0 = 2 and nu = 0.1 held)"
+ROWS: tuple[Row, ...] = (
+    Row("zero", "zero", baseline("zero"), ALL_CONDITIONS, ZERO_LABEL),
+    Row("random", "random", baseline("random")),
+    Row("best_constant", "best constant", baseline("best_constant"), label="best constant"),
+    Row("feedback", "feedback rule", baseline("feedback")),
+    Row("mpc", "MPC", per_seed(exact_mpc), ALL_CONDITIONS),
+    Row("ppo", "PPO", trained("ppo"), ALL_CONDITIONS, "PPO", ("ppo", {})),
+    Row("ppo_robust", "PPO, robust training", trained("ppo_robust"), ALL_CONDITIONS,
+        "PPO, robust training (randomised plants and sensors)", ("ppo", ROBUST_ENV_KWARGS)),
+    Row("sac", "SAC", trained("sac"), label="SAC", train=("sac", {})),
+)
+
+
+def training_groups(rows: Sequence[Row] = ROWS) -> dict[str, tuple[str, dict[str, Any]]]:
+    """Group (run folder prefix) -> (algorithm, env kwargs) of every trained row."""
+    return {r.key: r.train for r in rows if r.train is not None}
+
+
+def check_rows(rows: Sequence[Row]) -> None:
+    """``ValueError`` for two rows with one key, a row in an unknown condition, or a
+    condition without the ``zero`` row (the reference of the stick cuts)."""
+    keys = [r.key for r in rows]
+    if len(set(keys)) != len(keys) or "zero" not in keys:
+        raise ValueError(f"rows need distinct keys and a 'zero' row (the stick cuts' "
+                         f"reference), got {keys}")
+    zero = next(r for r in rows if r.key == "zero")
+    for r in rows:
+        bad = set(r.conditions) - set(ALL_CONDITIONS)
+        if bad:
+            raise ValueError(f"row {r.key!r}: unknown conditions {sorted(bad)}; expected "
+                             f"some of {list(ALL_CONDITIONS)}")
+        if set(r.conditions) - set(zero.conditions):
+            raise ValueError(f"row {r.key!r} runs in {list(r.conditions)}, the 'zero' row "
+                             f"only in {list(zero.conditions)}")
+
+
+# -- running ----------------------------------------------------------------------------------
 def held_out_scene(scene: str, side: str) -> Scene:
     """``scene`` with its ranges of ``HELD_OUT`` moved beyond their ``side`` ("below" or
     "above") end; the other randomised parameters keep their ranges."""
@@ -82,206 +250,236 @@ def held_out_scene(scene: str, side: str) -> Scene:
     return sc.replace(name=f"{scene}_held_out_{side}", randomization=ranges)
 
 
-def run_group(root: Path, group: str, scene: str) -> list[Path]:
-    """Finished run folders of ``group`` (ppo, sac, ppo_rand) for ``scene``."""
-    return sorted(p for p in root.glob(f"{group}_{scene}_s*") if (p / "model.zip").exists())
+def condition_setting(base: Setting, condition: str) -> Setting:
+    """``base`` (the nominal setting of a scene) moved to ``condition``."""
+    kw = dict(base.env_kwargs)
+    plant: str | Scene = base.scene
+    if condition != NOMINAL:
+        kw["randomize"] = True
+    if condition.startswith("held out"):
+        plant = held_out_scene(base.scene, condition.split()[-1])
+    if condition == "noise + delay":
+        kw.update(obs_noise=NOISE, obs_delay=DELAY)
+    return Setting(base.scene, plant, condition, kw, base.runs, base.out, base.search,
+                   base.n_seeds, base.episodes, base.cache)
 
 
-def _mpc_entry(scene: str | Scene, env_kwargs: dict, bound: bool = True) -> Entry:
-    def factory(k: int) -> MPPIController:
-        return MPPIController(scene, env_kwargs, seed=k, exact_state=bound)
-
-    ctrl = factory(0)
-    return Entry("mpc", ctrl.label, "baseline", [factory], ctrl.describe())
-
-
-def _trained(root: Path, group: str, scene: str, n_seeds: int, episodes: int,
-             key: str) -> list[Entry]:
-    paths = run_group(root, group, scene)
-    if not paths:
-        return []
-    loaded = load_models(paths)
-    for p, (_, cfg) in loaded.items():
-        check_disjoint(cfg, n_seeds, episodes, str(p))
-    entries, _ = trained_entries(paths, scene, loaded)
-    for e in entries:
-        e.key = key
-    return entries
-
-
-def evaluate_scene(scene: str, root: Path, out: Path, n_seeds: int, episodes: int,
-                   search: dict[str, Any], base: dict[str, Any]) -> dict[str, Entry]:
-    """Every controller of the main table on ``scene``'s nominal episodes (``base``: env
-    kwargs of every run, e.g. a shorter ``max_episode_steps``)."""
-    entries = baseline_entries(list(BASELINES), scene, base, out, search)
-    entries.append(_mpc_entry(scene, base))
-    entries += _trained(root, "ppo", scene, n_seeds, episodes, "ppo")
-    entries += _trained(root, "sac", scene, n_seeds, episodes, "sac")
-    for e in entries:
+def evaluate_condition(rows: Sequence[Row], setting: Setting) -> dict[str, Entry]:
+    """Every row of ``setting.condition`` on its episodes: key -> scored entry."""
+    out: dict[str, Entry] = {}
+    for row in rows:
+        if setting.condition not in row.conditions:
+            continue
+        e = row.build(setting)
+        if e is None:
+            continue
+        e.key = row.key
+        if row.label:
+            e.label = (_with_seeds(row.label, len(e.factories)) if e.kind == "trained"
+                       else row.label)
         t = time.perf_counter()
-        run_entry(e, scene, base, n_seeds, episodes)
+        run_entry(e, setting.plant, setting.env_kwargs, setting.n_seeds, setting.episodes)
         e.info["eval_seconds"] = round(time.perf_counter() - t, 2)
-        print(f"  {scene:13s} {e.label[:40]:40s} return {e.scores.ret.mean():9.2f}  "
-              f"stick {e.scores.stick_fraction.mean():.4f}", flush=True)
-    return {e.key: e for e in entries}
+        out[row.key] = e
+    zero = out.get("zero")
+    for e in out.values():
+        what = f"return IQM {e.interval('ret').format()}"
+        if zero is not None and setting.condition != NOMINAL:
+            cut = _cut_stat(e.matrix("stick_fraction"), zero.matrix("stick_fraction"))
+            what += f", stick cut {100 * float(cut):.1f} %"
+        print(f"  {setting.scene:13s} {setting.condition:15s} {e.label[:40]:40s} {what}",
+              flush=True)
+    return out
 
 
-def evaluate_generalisation(scene: str, root: Path, n_seeds: int, episodes: int,
-                            base: dict[str, Any]) -> dict[str, dict[str, Entry]]:
-    """Condition -> controller key -> entry, for the randomised PPO and its references."""
-    rand = _trained(root, "ppo_rand", scene, n_seeds, episodes, "ppo_rand")
-    nominal = _trained(root, "ppo", scene, n_seeds, episodes, "ppo")
-    result: dict[str, dict[str, Entry]] = {}
-    for cond in CONDITIONS:
-        kw: dict[str, Any] = {**base, "randomize": True}
-        sc: str | Scene = scene
-        if cond.startswith("held out"):
-            sc = held_out_scene(scene, cond.split()[-1])
-        if cond == "noise + delay":
-            kw.update(obs_noise=NOISE, obs_delay=DELAY)
-        zero = baseline_entries(["zero"], scene, kw, Path("."), {})[0]
-        entries = [zero, _mpc_entry(sc, kw, bound=cond != "noise + delay")]
-        entries += _fresh(rand) + _fresh(nominal)
-        for e in entries:
-            run_entry(e, sc, kw, n_seeds, episodes)
-        result[cond] = {e.key: e for e in entries}
-        cuts = {k: _cut(e, zero) for k, e in result[cond].items() if k != "zero"}
-        print(f"  {scene:13s} {cond:15s} stick cut " +
-              ", ".join(f"{k} {100 * c:.1f} %" for k, c in cuts.items()), flush=True)
-    return result
+# -- statistics of the tables -----------------------------------------------------------------
+def _cut_stat(ctrl: Any, zero: Any) -> Any:
+    agg = S.cell_stat(CUT_AGGREGATE)
+    return 1.0 - agg(ctrl) / agg(zero)
 
 
-def _fresh(entries: list[Entry]) -> list[Entry]:
-    """Copies of trained entries without their metrics (one per condition)."""
-    return [Entry(e.key, e.label, e.kind, e.factories, dict(e.info)) for e in entries]
+def _cut(entry: Entry, zero: Entry) -> S.Interval:
+    """Stick cut against zero excitation on the same episodes, with its paired interval."""
+    return S.paired_ci(_cut_stat, [entry.matrix("stick_fraction"), zero.matrix("stick_fraction")],
+                       strata=entry.n_seeds, seed=BOOT_SEED)
 
 
-def _cut(entry: Entry, zero: Entry) -> float:
-    z = float(zero.scores.stick_fraction.mean())
-    return 1.0 - float(entry.scores.stick_fraction.mean()) / z if z > 0 else float("nan")
+def _retention(conds: dict[str, dict[str, Entry]], key: str, which: Sequence[str]) -> S.Interval:
+    """The worst of the conditions ``which``'s cuts over the in-range one, paired over
+    every cell (the same models, the same plant seeds)."""
+    cells = []
+    for cond in ("in range", *which):
+        cells += [conds[cond][key].matrix("stick_fraction"),
+                  conds[cond]["zero"].matrix("stick_fraction")]
+
+    def stat(*c: Any) -> Any:
+        base = _cut_stat(c[0], c[1])
+        worst = _cut_stat(c[2], c[3])
+        for i in range(4, len(c), 2):
+            worst = np.minimum(worst, _cut_stat(c[i], c[i + 1]))
+        return worst / base
+
+    return S.paired_ci(stat, cells, strata=conds["in range"][key].n_seeds, seed=BOOT_SEED)
+
+
+def _gap(learned: Entry, ref: Entry) -> S.Interval:
+    """(IQM return of ``ref`` − that of ``learned``) / |IQM return of ``ref``|, paired
+    over the shared episodes (negative: ``learned`` does better)."""
+    agg = S.cell_stat(S.iqm)
+
+    def stat(c: Any, m: Any) -> Any:
+        return (agg(m) - agg(c)) / abs(agg(m))
+
+    return S.paired_ci(stat, [learned.matrix("ret"), ref.matrix("ret")],
+                       strata=learned.n_seeds, seed=BOOT_SEED)
 
 
 # -- writing ----------------------------------------------------------------------------------
-def _cell(e: Entry | None, field: str, digits: int) -> str:
-    if e is None or e.metrics is None:
-        return "—"
-    return fmt_pm(*summarize(getattr(e.metrics, field)), digits=digits)
+Results = dict[str, dict[str, Entry]]  #: scene -> row key -> entry (one condition)
+Generalisation = dict[str, dict[str, dict[str, Entry]]]  #: scene -> condition -> key -> entry
 
 
-def _label(results: dict[str, dict[str, Entry]], key: str) -> str:
-    if key == "zero":  # (the paper scene's actions drive nu only: its u0 stays 2)
-        return "zero excitation (paper: no control, u0 = 2 and nu = 0.1 held)"
-    for entries in results.values():
-        if key in entries:
-            lab = entries[key].label
-            return lab if key != "best_constant" else "best constant"
-    return key
+def _label(results: Results, key: str) -> str:
+    return next(r[key].label for r in results.values() if key in r)
 
 
-def main_tables(results: dict[str, dict[str, Entry]], n_seeds: int, episodes: int) -> list[str]:
+def _keys(rows: Sequence[Row], results: Results) -> list[str]:
+    """Keys of the rows that ran somewhere, in the registry's order."""
+    return [r.key for r in rows if any(r.key in res for res in results.values())]
+
+
+def main_tables(rows: Sequence[Row], results: Results, n_seeds: int,
+                episodes: int) -> list[str]:
     scenes = list(results)
     head = "| controller | " + " | ".join(f"`{s}`" for s in scenes) + " |"
     rule = "|---|" + "---:|" * len(scenes)
     lines = []
-    for field, title, digits in (("ret", "Return", 2), ("stick_fraction", "Stick-time fraction",
-                                                        4)):
-        lines += [f"### {title} (mean ± sd over episodes)", "", head, rule]
-        for key in ROW_ORDER:
-            if not any(key in r for r in results.values()):
-                continue
-            cells = [_cell(results[s].get(key), field, digits) for s in scenes]
+    for name, title, digits in (("ret", "Return", 2), ("stick_fraction", "Stick-time fraction",
+                                                       4)):
+        lines += [f"### {title} (IQM [95 % CI])", "", head, rule]
+        for key in _keys(rows, results):
+            cells = [results[s][key].interval(name).format(digits) if key in results[s]
+                     else "—" for s in scenes]
             lines.append(f"| {_label(results, key)} | " + " | ".join(cells) + " |")
         lines.append("")
-    lines += ["Episodes: " + f"{n_seeds} evaluation seeds × {episodes} episodes per "
-              f"controller (n = {n_seeds * episodes} for a baseline), every trained model on "
-              f"each of them (n = models × {n_seeds * episodes}); sd over all those episodes. "
-              "Best constants: " + "; ".join(
-                  f"`{s}` u0 = {r['best_constant'].info['u0']:.2f}, nu = "
-                  f"{r['best_constant'].info['nu']:.2f}" for s, r in results.items()
-                  if "best_constant" in r) + ".", ""]
+    best = "; ".join(f"`{s}` u0 = {r['best_constant'].info['u0']:.2f}, nu = "
+                     f"{r['best_constant'].info['nu']:.2f}" for s, r in results.items()
+                     if "best_constant" in r)
+    lines += [f"Episodes: {n_seeds} evaluation seed{'s' if n_seeds > 1 else ''} × "
+              f"{episodes} episodes (n = "
+              f"{n_seeds * episodes} for a controller without training seeds), every trained "
+              f"model on each of them (n = models × {n_seeds * episodes}). IQM: the mean of "
+              "the middle half of all those episodes' values; 95 % CI: stratified bootstrap "
+              "(2000 replicates) over training seeds, then episodes within each evaluation "
+              "seed (`fricenv_agents.statistics`)." + (f" Best constants: {best}." if best
+                                                       else ""), ""]
     return lines
 
 
-def gap_lines(results: dict[str, dict[str, Entry]]) -> list[str]:
-    lines = ["### PPO against the MPC", "",
-             "| scene | MPC return | PPO return | PPO over training seeds | PPO / MPC gap | "
-             f"within {100 * GAP_BAR:.0f} % | PPO training time per run | SAC return | "
-             "SAC over training seeds | SAC training time per run |",
-             "|---|---:|---:|---:|---:|---|---:|---:|---:|---:|"]
-    behind = []
+def gap_lines(rows: Sequence[Row], results: Results) -> list[str]:
+    """The learned rows' gap to the MPC per scene (nothing without an MPC or a learned row)."""
+    learned = [r.key for r in rows if r.train is not None]
+    body: list[str] = []
+    behind: list[str] = []
     for scene, r in results.items():
-        mpc, ppo, sac = r.get("mpc"), r.get("ppo"), r.get("sac")
-        if mpc is None or ppo is None:
+        ref = r.get("mpc")
+        present = [k for k in learned if k in r]
+        if ref is None or not present:
             continue
-        m, p = float(mpc.scores.ret.mean()), float(ppo.scores.ret.mean())
-        gap = (m - p) / abs(m)
-        if gap > GAP_BAR:
-            behind.append(f"`{scene}` ({100 * gap:.0f} %)")
-        s_ret = f"{sac.scores.ret.mean():.2f}" if sac else "—"
-        lines.append(f"| `{scene}` | {m:.2f} | {p:.2f} | {_over_models(ppo)} | "
-                     f"{100 * gap:+.1f} % | {'yes' if gap <= GAP_BAR else 'no'} | "
-                     f"{_seconds(ppo)} | {s_ret} | {_over_models(sac)} | {_seconds(sac)} |")
-    lines += ["", "Gap = (MPC return − PPO return) / |MPC return|: negative when PPO does "
-              "better. Over training seeds: mean ± sd of the training seeds' mean returns "
-              "(each over all the held-out episodes). Training times: wall time of one run "
-              "on the shared 2-core machine, one torch thread.", "",
-              (f"PPO is more than {100 * GAP_BAR:.0f} % behind the MPC on "
-               + ", ".join(behind) + "." if behind else
-               f"PPO is within {100 * GAP_BAR:.0f} % of the MPC's return on every scene."),
-              ""]
-    return lines
+        body.append(f"| `{scene}` | {ref.label} | {ref.interval('ret').format()} | — | — | "
+                    "— | — |")
+        for key in present:
+            e, gap = r[key], _gap(r[key], ref)
+            ok = gap.estimate <= GAP_BAR
+            if not ok:
+                behind.append(f"{_short(rows, key)} on `{scene}` "
+                              f"({100 * gap.estimate:.0f} %)")
+            body.append(f"| `{scene}` | {e.label} | {e.interval('ret').format()} | "
+                        f"{gap.format(1, 100, ' %', signed=True)} | {'yes' if ok else 'no'} | "
+                        f"{_over_models(e)} | {_seconds(e)} |")
+    if not body:
+        return []
+    return ["### Learned controllers against the MPC", "",
+            "| scene | controller | return, IQM [95 % CI] | gap to the MPC [95 % CI] | "
+            f"within {100 * GAP_BAR:.0f} % | IQM of each training seed | training time "
+            "per run |", "|---|---|---:|---:|---|---:|---:|", *body, "",
+            "Gap = (IQM return of the MPC − IQM return of the controller) / |IQM return "
+            "of the MPC|: negative when the controller does better; its interval is a paired "
+            "bootstrap over the shared episodes. IQM of each training seed: the lowest and "
+            "highest of the models' IQM returns. Training times: wall time of one run on "
+            "the shared 2-core machine, one torch thread.", "",
+            (f"More than {100 * GAP_BAR:.0f} % behind the MPC: " + ", ".join(behind) + "."
+             if behind else f"Every learned controller is within {100 * GAP_BAR:.0f} % of "
+             "the MPC's return on every scene."), ""]
 
 
-def _over_models(entry: Entry | None) -> str:
-    """Mean ± sd over a trained group's models of each model's mean return."""
-    if entry is None or entry.metrics is None:
-        return "—"
-    per_model = entry.metrics.ret.reshape(len(entry.factories), -1).mean(axis=1)
-    return fmt_pm(*summarize(per_model), digits=2)
+def _short(rows: Sequence[Row], key: str) -> str:
+    return next((r.short for r in rows if r.key == key), key)
 
 
-def _seconds(entry: Entry | None) -> str:
+def _over_models(entry: Entry) -> str:
+    """Range of a trained group's per-model IQM returns."""
+    per_model = S.iqm(entry.matrix("ret"), axis=1)
+    lo, hi = float(np.min(per_model)), float(np.max(per_model))
+    return f"{lo:.2f}" if len(entry.factories) == 1 else f"{lo:.2f} to {hi:.2f}"
+
+
+def _seconds(entry: Entry) -> str:
     """A trained group's range of training wall times per run."""
-    secs = [] if entry is None else entry.info.get("train_seconds") or []
+    secs = entry.info.get("train_seconds") or []
     if not secs:
         return "—"
     lo, hi = min(secs), max(secs)
     return f"{lo:.0f} s" if round(lo) == round(hi) else f"{lo:.0f}–{hi:.0f} s"
 
 
-def generalisation_lines(gen: dict[str, dict[str, dict[str, Entry]]]) -> list[str]:
-    lines = ["### Generalisation of PPO trained with `randomize=True`", "",
-             "Stick cut against zero excitation on the same episodes (retention: over the "
-             "in-range cut). Held-out boxes: "
+def generalisation_summary(gen: Generalisation) -> dict[str, dict[str, dict[str, S.Interval]]]:
+    """scene -> controller key -> cut per condition and the two retentions."""
+    out: dict[str, dict[str, dict[str, S.Interval]]] = {}
+    for scene, conds in gen.items():
+        out[scene] = {}
+        keys = dict.fromkeys(k for c in CONDITIONS for k in conds[c] if k != "zero")
+        for key in keys:
+            cell = {c: _cut(conds[c][key], conds[c]["zero"]) for c in CONDITIONS
+                    if key in conds[c]}
+            for name, which in RETENTIONS.items():
+                if all(c in cell for c in ("in range", *which)):
+                    cell[name] = _retention(conds, key, which)
+            out[scene][key] = cell
+    return out
+
+
+
+def generalisation_lines(rows: Sequence[Row], gen: Generalisation,
+                         summary: dict[str, dict[str, dict[str, S.Interval]]]) -> list[str]:
+    lines = ["### Generalisation and sensors", "",
+             "Stick cut against zero excitation on the same episodes, in %: 1 − mean stick "
+             "fraction of the controller / that of zero excitation (the share of the stuck "
+             "time removed), with a 95 % paired bootstrap CI. Held-out boxes: "
              + ", ".join(f"`{s}` {_boxes(s)}" for s in gen) + f". Noise: {NOISE}, delay "
              f"{DELAY} interval.", "",
-             "| scene | controller | " + " | ".join(CONDITIONS)
-             + " | retention, held out (worst side) | retention, noise + delay |",
-             "|---|---|" + "---:|" * (len(CONDITIONS) + 2)]
+             "| scene | controller | " + " | ".join(CONDITIONS) + " |",
+             "|---|---|" + "---:|" * len(CONDITIONS)]
+    ret = ["", "Retention, in %: a condition's stick cut over the in-range one (held out: "
+           "the worse of the two boxes), with a 95 % paired bootstrap CI.", "",
+           "| scene | controller | retention, held out (worst side) | retention, noise + "
+           "delay |", "|---|---|---:|---:|"]
     low = []
-    for scene, conds in gen.items():
-        keys = [k for k in conds[CONDITIONS[0]] if k != "zero"]
-        for key in keys:
-            cuts = dict(zip(CONDITIONS, (_cut(conds[c][key], conds[c]["zero"])
-                                         for c in CONDITIONS), strict=True))
-            base = cuts["in range"]
-            held = min(cuts["held out below"], cuts["held out above"]) / base
-            noisy = cuts["noise + delay"] / base
-            label = conds[CONDITIONS[0]][key].label
-            if key == "ppo_rand":
-                label = "PPO, randomised training " + label[label.find("("):]
-                low += [f"`{scene}` {what} ({100 * v:.0f} %)" for what, v in
-                        (("held out", held), ("noise + delay", noisy)) if v < RETENTION_BAR]
+    for scene, per_key in summary.items():
+        for key, cell in per_key.items():
+            label = next(es[key].label for es in gen[scene].values() if key in es)
             lines.append(f"| `{scene}` | {label} | " + " | ".join(
-                f"{100 * c:.1f} %" for c in cuts.values())
-                + f" | {100 * held:.0f} % | {100 * noisy:.0f} % |")
-    lines += ["", "Retention: a condition's stick cut over the in-range one (held out: the "
-              "worse of the two boxes).", "",
-              (f"The randomised PPO keeps less than {100 * RETENTION_BAR:.0f} % of its "
-               "in-range cut on " + ", ".join(low) + "." if low else
-               f"The randomised PPO keeps at least {100 * RETENTION_BAR:.0f} % of its "
-               "in-range cut in every condition and scene."), ""]
-    return lines
+                cell[c].format(1, 100) if c in cell else "—" for c in CONDITIONS) + " |")
+            kept = {name: cell.get(name) for name in RETENTIONS}
+            ret.append(f"| `{scene}` | {label} | " + " | ".join(
+                v.format(0, 100) if v else "—" for v in kept.values()) + " |")
+            low += [f"{_short(rows, key)} on `{scene}` {name.split(', ')[1]} "
+                    f"({100 * v.estimate:.0f} %)" for name, v in kept.items()
+                    if v and v.estimate < RETENTION_BAR]
+    return lines + ret + ["", (f"Less than {100 * RETENTION_BAR:.0f} % of the in-range cut "
+                               "kept: " + "; ".join(low) + "." if low else
+                               f"Every controller keeps at least {100 * RETENTION_BAR:.0f} % "
+                               "of its in-range cut in every condition and scene."), ""]
 
 
 def _boxes(scene: str) -> str:
@@ -290,64 +488,103 @@ def _boxes(scene: str) -> str:
                      f"{hi[k][1]:.3g}]" for k in HELD_OUT)
 
 
-SHORT = {"zero": "zero", "random": "random", "best_constant": "best constant",
-         "feedback": "feedback rule", "mpc": "MPC", "ppo": "PPO", "sac": "SAC"}
-
-
-def plot_returns(results: dict[str, dict[str, Entry]], path: Path) -> None:
-    """Each scene's episode cost (-return) per controller, on a log axis: the learned and
-    model-based controllers lie one to two orders of magnitude below the baselines."""
+# -- figures ----------------------------------------------------------------------------------
+def _pyplot() -> Any:
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    return plt
+
+
+def plot_returns(rows: Sequence[Row], results: Results, path: Path) -> None:
+    """Each scene's IQM episode cost (-return) per controller with its 95 % interval, on a
+    log axis: the learned and model-based controllers lie one to two orders of magnitude
+    below the baselines."""
+    plt = _pyplot()
     scenes = list(results)
     fig, axes = plt.subplots(1, len(scenes), figsize=(3.4 * len(scenes), 3.2), squeeze=False,
                              sharey=True)
-    keys = [k for k in ROW_ORDER if any(k in r for r in results.values())]
+    keys = _keys(rows, results)
     for ax, scene in zip(axes[0], scenes, strict=True):
         for y, key in enumerate(keys):
             e = results[scene].get(key)
             if e is None:
                 continue
-            cost = -e.scores.ret
-            mean, sd = float(cost.mean()), float(cost.std(ddof=1))
-            lo = min(sd, 0.9 * mean)  # (a log axis has no room below zero)
-            ax.errorbar(mean, y, xerr=[[lo], [sd]], fmt="o", color=f"C{y}", ms=5, capsize=2)
+            iv = e.interval("ret")
+            cost, lo, hi = -iv.estimate, -iv.hi, -iv.lo
+            floor = max(lo, 0.1 * cost)  # (a log axis has no room below zero)
+            ax.errorbar(cost, y, xerr=[[cost - floor], [hi - cost]], fmt="o", color=f"C{y}",
+                        ms=5, capsize=2)
         ax.set_xscale("log")
-        ax.set_yticks(range(len(keys)), [SHORT.get(k, k) for k in keys], fontsize=8)
+        ax.set_yticks(range(len(keys)), [_short(rows, k) for k in keys], fontsize=8)
         ax.grid(axis="x", alpha=0.3)
         ax.set_title(scene, fontsize=10)
-        ax.set_xlabel("episode cost = -return (lower is better)", fontsize=8)
+        ax.set_xlabel("IQM episode cost = -return (lower is better)", fontsize=8)
     axes[0][0].invert_yaxis()  # (shared: once for all) the table's order, top down
     fig.tight_layout()
     fig.savefig(path, dpi=90)
     plt.close(fig)
 
 
-GEN_SHORT = {"mpc": "MPC", "ppo_rand": "PPO, randomised training",
-             "ppo": "PPO, nominal training"}
-
-
-def plot_generalisation(gen: dict[str, dict[str, dict[str, Entry]]], path: Path) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    scenes = list(gen)
-    fig, axes = plt.subplots(1, len(scenes), figsize=(3.6 * len(scenes), 3.2), squeeze=False)
+def plot_profiles(rows: Sequence[Row], results: Results, path: Path) -> None:
+    """Performance profiles: per scene, the fraction of each controller's episodes (all its
+    models) whose cost (-return) is at most tau, over a log grid of tau, with a 95 %
+    bootstrap band. A curve above and left of another is better at every threshold."""
+    plt = _pyplot()
+    scenes = list(results)
+    fig, axes = plt.subplots(1, len(scenes), figsize=(3.6 * len(scenes), 3.9), squeeze=False,
+                             sharey=True)
+    keys = _keys(rows, results)
+    handles: dict[str, Any] = {}
     for ax, scene in zip(axes[0], scenes, strict=True):
-        conds = gen[scene]
-        keys = [k for k in conds[CONDITIONS[0]] if k != "zero"]
+        present = [k for k in keys if k in results[scene]]
+        taus = S.tau_grid([-results[scene][k].matrix("ret") for k in present])
+        for key in present:
+            e = results[scene][key]
+            prof = S.performance_profile(-e.matrix("ret"), taus, strata=e.n_seeds,
+                                         seed=BOOT_SEED)
+            color = f"C{keys.index(key)}"
+            # (an empirical distribution: each value holds up to the next threshold)
+            handles[key], = ax.plot(taus, prof.fraction, color=color, lw=1.2,
+                                    drawstyle="steps-post")
+            ax.fill_between(taus, prof.lo, prof.hi, color=color, alpha=0.2, lw=0,
+                            step="post")
+        ax.set_xscale("log")
+        ax.set_ylim(-0.02, 1.02)
+        ax.grid(alpha=0.3)
+        ax.set_title(scene, fontsize=10)
+        ax.set_xlabel("episode cost τ = -return", fontsize=8)
+    axes[0][0].set_ylabel("fraction of episodes with cost ≤ τ", fontsize=8)
+    fig.legend([handles[k] for k in keys if k in handles],
+               [_short(rows, k) for k in keys if k in handles], loc="lower center",
+               ncol=min(len(handles), 8), fontsize=7, frameon=False)
+    fig.tight_layout(rect=(0.0, 0.08, 1.0, 1.0))
+    fig.savefig(path, dpi=90)
+    plt.close(fig)
+
+
+def plot_generalisation(rows: Sequence[Row], summary: dict[str, dict[str, dict[str, Any]]],
+                        path: Path) -> None:
+    """Stick cut per condition and controller, with the 95 % intervals as error bars."""
+    plt = _pyplot()
+    scenes = list(summary)
+    fig, axes = plt.subplots(1, len(scenes), figsize=(3.6 * len(scenes), 3.2), squeeze=False)
+    x = np.arange(len(CONDITIONS))
+    for ax, scene in zip(axes[0], scenes, strict=True):
+        keys = list(summary[scene])
         width = 0.8 / max(1, len(keys))
         for j, key in enumerate(keys):
-            cuts = [100 * _cut(conds[c][key], conds[c]["zero"]) for c in CONDITIONS]
-            ax.bar(np.arange(len(CONDITIONS)) + j * width, cuts, width,
-                   label=GEN_SHORT.get(key, key))
-        ax.set_xticks(np.arange(len(CONDITIONS)) + 0.4 - width / 2,
-                      [c.replace(" ", "\n", 1) for c in CONDITIONS], fontsize=7)
+            nan = S.Interval(float("nan"), float("nan"), float("nan"))
+            ivs = [summary[scene][key].get(c, nan) for c in CONDITIONS]
+            est = np.array([100 * iv.estimate for iv in ivs])
+            err = np.array([[max(0.0, e - 100 * iv.lo), max(0.0, 100 * iv.hi - e)]
+                            for e, iv in zip(est, ivs, strict=True)]).T
+            ax.bar(x + j * width, est, width, yerr=np.nan_to_num(err), capsize=2,
+                   error_kw={"lw": 0.8}, label=_short(rows, key))
+        ax.set_xticks(x + 0.4 - width / 2, [c.replace(" ", "\n", 1) for c in CONDITIONS],
+                      fontsize=7)
         ax.set_ylim(min(0.0, ax.get_ylim()[0]), 105)
         ax.set_ylabel("stick cut vs zero excitation (%)", fontsize=8)
         ax.set_title(scene, fontsize=10)
@@ -357,25 +594,100 @@ def plot_generalisation(gen: dict[str, dict[str, dict[str, Entry]]], path: Path)
     plt.close(fig)
 
 
-def to_json(results: dict, gen: dict, meta: dict) -> dict:
-    def pack(e: Entry) -> dict:
-        return {**_summary(e), "info": e.info, "per_episode": e.scores.as_dict()}
+# -- raw results ------------------------------------------------------------------------------
+#: Distributions whose versions every result records (``python``: the interpreter).
+VERSIONED = ("fricenv", "numpy", "numba", "torch", "stable_baselines3")
+METRICS = ("stick_fraction", "rms_vr", "rms_vr_fluct", "effort", "ret", "length")
+CSV_COLUMNS = ("scene", "condition", "controller", "label", "training_run", "training_seed",
+               "eval_seed", "episode", "plant_seed", *METRICS,
+               *(f"{d}_version" for d in (*VERSIONED, "python")))
 
+
+def versions() -> dict[str, str]:
+    """Installed versions of the software that makes the numbers (read when called)."""
+    import platform
+    from importlib.metadata import PackageNotFoundError, version
+
+    out = {}
+    for dist in VERSIONED:
+        try:
+            out[dist] = version(dist.replace("_", "-"))
+        except PackageNotFoundError:
+            out[dist] = "not installed"
+    out["python"] = platform.python_version()
+    return out
+
+
+def episode_rows(scene: str, condition: str, e: Entry) -> list[dict[str, Any]]:
+    """One dict per episode of ``e``: which model, evaluation seed, episode and plant seed,
+    and every metric (the order of ``run_entry``: models, then seeds, then episodes)."""
+    from .layout import eval_env_seed
+
+    runs = [Path(p).name for p in e.info.get("paths", [])] or [""] * len(e.factories)
+    seeds = e.info.get("seeds") or [""] * len(e.factories)
+    values = {m: np.asarray(getattr(e.scores, m)) for m in METRICS}
+    out, i = [], 0
+    for run, seed in zip(runs, seeds, strict=True):
+        for k in range(e.n_seeds):
+            for j in range(e.episodes):
+                out.append({"scene": scene, "condition": condition, "controller": e.key,
+                            "label": e.label, "training_run": run, "training_seed": seed,
+                            "eval_seed": k, "episode": j, "plant_seed": eval_env_seed(k) + j,
+                            **{m: values[m][i].item() for m in METRICS}})
+                i += 1
+    return out
+
+
+def write_episodes(path: Path, results: Results, gen: Generalisation) -> int:
+    """The per-episode CSV of every run of the benchmark; returns its number of rows."""
+    import csv
+
+    tags = {f"{d}_version": v for d, v in versions().items()}
+    n = 0
+    with open(path, "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=CSV_COLUMNS)
+        w.writeheader()
+        runs = [(s, NOMINAL, r) for s, r in results.items()]
+        runs += [(s, c, es) for s, conds in gen.items() for c, es in conds.items()]
+        for scene, cond, entries in runs:
+            for e in entries.values():
+                for row in episode_rows(scene, cond, e):
+                    w.writerow({**row, **tags})
+                    n += 1
+    return n
+
+
+def to_json(results: Results, gen: Generalisation, summary: dict, meta: dict) -> dict:
+    def iv(i: S.Interval) -> dict[str, float]:
+        return {"estimate": i.estimate, "lo": i.lo, "hi": i.hi}
+
+    def pack(e: Entry) -> dict:
+        return {**_summary(e), "iqm_ci": {f: iv(e.interval(f)) for f in ("ret",
+                                                                          "stick_fraction")},
+                "info": e.info, "per_episode": e.scores.as_dict()}
+
+    gaps = {s: {k: iv(_gap(e, r["mpc"])) for k, e in r.items() if e.kind == "trained"}
+            for s, r in results.items() if "mpc" in r}
     return {**meta,
             "scenes": {s: {k: pack(e) for k, e in r.items()} for s, r in results.items()},
+            "gap_to_mpc": gaps,
             "generalisation": {s: {c: {k: pack(e) for k, e in es.items()}
-                                   for c, es in conds.items()} for s, conds in gen.items()}}
+                                   for c, es in conds.items()} for s, conds in gen.items()},
+            "cuts_and_retentions": {s: {k: {c: iv(v) for c, v in cell.items()}
+                                        for k, cell in per.items()}
+                                    for s, per in summary.items()}}
 
 
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="python -m fricenv_agents.benchmark",
                                 description=__doc__.split("\n\n")[0],
                                 formatter_class=HelpFormatter)
-    p.add_argument("--runs", type=Path, default=Path("runs/control"),
-                   help="folder of the run folders (scripts/train_control_benchmark.py)")
+    p.add_argument("--runs", type=Path, default=PRETRAINED_RUNS,
+                   help="folder of the run folders (default: the shipped ones; "
+                   "scripts/train_control_benchmark.py makes them)")
     p.add_argument("--out", type=Path, default=Path("docs/results"), help="output folder")
     p.add_argument("--scenes", nargs="+", choices=BENCH_SCENES, default=list(BENCH_SCENES))
-    p.add_argument("--seeds", type=int, default=5, help="evaluation seeds")
+    p.add_argument("--seeds", type=int, default=10, help="evaluation seeds")
     p.add_argument("--episodes", type=int, default=10, help="episodes per evaluation seed")
     p.add_argument("--grid", type=int, default=21, help="best-constant search grid")
     p.add_argument("--search-episodes", type=int, default=16,
@@ -386,46 +698,71 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
-def main(argv: Sequence[str] | None = None) -> Path:
+def main(argv: Sequence[str] | None = None, rows: Sequence[Row] = ROWS) -> Path:
+    """Run the benchmark; ``rows``: the controllers (default ``ROWS``)."""
     parser = build_parser()
     args = parser.parse_args(argv)
     if args.seeds < 1 or args.episodes < 2 or args.grid < 2:
         parser.error("need --seeds >= 1, --episodes >= 2 and --grid >= 2")
     if args.max_steps is not None and args.max_steps < 1:
         parser.error("--max-steps must be >= 1")
+    check_rows(rows)
     base = {} if args.max_steps is None else {"max_episode_steps": args.max_steps}
     try:
         check_output_dir("--out", args.out)
     except ValueError as e:
         parser.error(str(e))
     args.out.mkdir(parents=True, exist_ok=True)
+    if not args.runs.is_dir():
+        print(f"fricenv_agents.benchmark: no run folders in {args.runs}: the trained rows "
+              "are left out", file=sys.stderr)
     t0 = time.perf_counter()
     search = {"n_u0": args.grid, "n_nu": args.grid, "episodes": args.search_episodes}
-    results = {s: evaluate_scene(s, args.runs, args.out, args.seeds, args.episodes, search,
-                                 base) for s in args.scenes}
-    gen = {} if args.no_generalisation else {
-        s: evaluate_generalisation(s, args.runs, args.seeds, args.episodes, base)
-        for s in args.scenes if run_group(args.runs, "ppo_rand", s)}
-    lines = ["# Control benchmark: controllers × scenes", "",
-             "Made by `python -m fricenv_agents.benchmark` (see its docstring and "
-             "docs/control.md).",
-             "", *main_tables(results, args.seeds, args.episodes), *gap_lines(results)]
-    if gen:
-        lines += generalisation_lines(gen)
-    plot_returns(results, args.out / "control_benchmark.png")
-    lines += ["![control_benchmark.png](control_benchmark.png)", ""]
-    if gen:
-        plot_generalisation(gen, args.out / "control_generalisation.png")
-        lines += ["![control_generalisation.png](control_generalisation.png)", ""]
-    table = args.out / "control_benchmark.md"
-    table.write_text("\n".join(lines))
+    results: Results = {}
+    gen: Generalisation = {}
+    for scene in args.scenes:
+        nominal = Setting(scene, scene, NOMINAL, base, args.runs, args.out, search,
+                          args.seeds, args.episodes)
+        results[scene] = evaluate_condition(rows, nominal)
+        if not args.no_generalisation and any(c in r.conditions for r in rows
+                                              if r.key != "zero" for c in CONDITIONS):
+            gen[scene] = {c: evaluate_condition(rows, condition_setting(nominal, c))
+                          for c in CONDITIONS}
+    summary = generalisation_summary(gen)
+    write_page(args.out, rows, results, gen, summary, args)
     meta = {"n_seeds": args.seeds, "episodes": args.episodes, "env_kwargs": base,
             "seconds": round(time.perf_counter() - t0, 1), "noise": NOISE, "delay": DELAY,
-            "held_out": {s: _boxes(s) for s in gen}}
+            "robust_env_kwargs": ROBUST_ENV_KWARGS, "held_out": {s: _boxes(s) for s in gen},
+            "bootstrap": {"replicates": S.N_BOOT, "confidence": S.CONFIDENCE,
+                          "seed": BOOT_SEED}, "versions": versions()}
     (args.out / "control_benchmark.json").write_text(
-        json.dumps(to_json(results, gen, meta), indent=1, default=str))
+        json.dumps(to_json(results, gen, summary, meta), indent=1, default=str))
+    write_episodes(args.out / "control_benchmark_episodes.csv", results, gen)
+    return args.out / "control_benchmark.md"
+
+
+def write_page(out: Path, rows: Sequence[Row], results: Results, gen: Generalisation,
+               summary: dict, args: argparse.Namespace) -> None:
+    """``control_benchmark.md`` and its figures."""
+    lines = ["# Control benchmark: controllers × scenes", "",
+             "Made by `python -m fricenv_agents.benchmark` (see its docstring and "
+             "docs/control.md). Raw results, one row per episode with the software versions: "
+             "[control_benchmark_episodes.csv](control_benchmark_episodes.csv).", "",
+             *main_tables(rows, results, args.seeds, args.episodes),
+             *gap_lines(rows, results)]
+    if summary:
+        lines += generalisation_lines(rows, gen, summary)
+    plot_returns(rows, results, out / "control_benchmark.png")
+    plot_profiles(rows, results, out / "control_profiles.png")
+    lines += ["![control_benchmark.png](control_benchmark.png)", "",
+              "Performance profiles: the fraction of a controller's episodes (all its models) "
+              "whose cost is at most τ, with 95 % bootstrap bands (Agarwal et al., NeurIPS "
+              "2021).", "", "![control_profiles.png](control_profiles.png)", ""]
+    if summary:
+        plot_generalisation(rows, summary, out / "control_generalisation.png")
+        lines += ["![control_generalisation.png](control_generalisation.png)", ""]
+    (out / "control_benchmark.md").write_text("\n".join(lines))
     print("\n".join(lines))
-    return table
 
 
 if __name__ == "__main__":

@@ -39,6 +39,7 @@ from .rollouts import (
     summarize,
 )
 from .runs import load_controller
+from .statistics import Interval, iqm_ci
 
 LABELS = {"ppo": "PPO", "sac": "SAC"}
 OBS_SHAPE = (K.N_OBS,)  #: every scene's observation
@@ -62,6 +63,9 @@ class Entry:
     info: dict[str, Any] = field(default_factory=dict)
     metrics: EpisodeMetrics | None = None
     seed_means: dict[str, list[float]] = field(default_factory=dict)
+    n_seeds: int = 0  #: evaluation seeds ``run_entry`` ran (0 before)
+    episodes: int = 0  #: episodes per evaluation seed
+    intervals: dict[str, Interval] = field(default_factory=dict)  #: IQM and its 95 % CI
 
     @property
     def scores(self) -> EpisodeMetrics:
@@ -69,6 +73,24 @@ class Entry:
         if self.metrics is None:
             raise RuntimeError(f"{self.key!r} has not been evaluated yet")
         return self.metrics
+
+    def matrix(self, name: str) -> np.ndarray:
+        """Metric ``name`` as a ``(models, evaluation seeds x episodes)`` matrix: one row
+        per trained model (one for a baseline), columns in ``run_entry``'s order (seed by
+        seed, episode by episode), the cell :mod:`.statistics` resamples."""
+        values = np.asarray(getattr(self.scores, name))
+        shape = (len(self.factories), self.n_seeds * self.episodes)
+        if values.size != shape[0] * shape[1]:
+            raise ValueError(f"{self.key!r}: {values.size} episodes of {name!r}, expected "
+                             f"{shape[0]} models x {self.n_seeds} seeds x {self.episodes}")
+        return values.reshape(shape)
+
+    def interval(self, name: str) -> Interval:
+        """The IQM of metric ``name`` over all models and episodes, with its stratified
+        bootstrap 95 % interval (evaluation seeds as strata; computed once)."""
+        if name not in self.intervals:
+            self.intervals[name] = iqm_ci(self.matrix(name), strata=self.n_seeds)
+        return self.intervals[name]
 
 
 def _constant(controller: Controller) -> Callable[[int], Controller]:
@@ -181,8 +203,10 @@ def run_entry(entry: Entry, scene: str | Scene, env_kwargs: dict, n_seeds: int,
                 per_seed[f].append(float(getattr(m, f).mean()))
             if bar is not None:
                 bar.update()
-    entry.metrics = EpisodeMetrics.concat(parts)
+    entry.metrics = EpisodeMetrics.concat(parts)  # models x seeds x episodes, in order
     entry.seed_means = per_seed
+    entry.n_seeds, entry.episodes = n_seeds, episodes
+    entry.intervals = {}
 
 
 def _summary(entry: Entry) -> dict[str, Any]:

@@ -1,43 +1,54 @@
 """Train every policy of the control benchmark (``fricenv_agents.benchmark``), a few at a time.
 
-    python scripts/train_control_benchmark.py [--jobs 2] [--seeds 5] [--rand-seeds 5]
-        [--algos ppo sac ppo_rand] [--scenes paper self_excited stribeck viscous]
+    python scripts/train_control_benchmark.py [--jobs 2] [--seeds 5] [--robust-seeds 5]
+        [--groups ppo ppo_robust sac] [--scenes paper self_excited stribeck viscous]
         [--root runs/control] [--dry-run]
 
 Each run is ``python -m fricenv_agents.train`` with the hyperparameter file's entry for its
-scene, into ``<root>/<group>_<scene>_s<seed>`` (groups: ``ppo``, ``sac``, and
-``ppo_rand``, PPO trained with ``randomize=True`` for the generalisation study). A run
-whose folder holds a model is skipped; a folder without one (a run cut off) is removed
-and the run started again, so the command can simply be repeated until all are done.
-Logs go to ``<root>/logs``. Runs use one torch thread each (``--threads 1``).
+scene, into ``<root>/<group>_<scene>_s<seed>``. The groups are the benchmark's trained
+rows (``fricenv_agents.benchmark.ROWS``, each with its algorithm and env kwargs): ``ppo``,
+``sac``, and ``ppo_robust``, PPO trained on randomised plants with sensor noise and delay
+drawn per episode (``ROBUST_ENV_KWARGS``: the benchmark's ``NOISE``, scaled per episode by
+a draw in [0, 1], and a delay of 0 or 1 interval). A run whose folder holds a model is
+skipped; a folder without one (a run cut off) is removed and the run started again, so the
+command can simply be repeated until all are done. Logs go to ``<root>/logs``. Runs use
+one torch thread each (``--threads 1``). ``python -m fricenv_agents.benchmark --runs
+<root>`` evaluates them.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import shutil
 import subprocess
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
-SCENES = ("paper", "self_excited", "stribeck", "viscous")
-#: Group -> (algorithm, extra training arguments).
-GROUPS = {
-    "ppo": ("ppo", []),
-    "ppo_rand": ("ppo", ["-params", "env_kwargs:{randomize: true}"]),
-    "sac": ("sac", []),
-}
+from fricenv_agents.benchmark import BENCH_SCENES as SCENES
+from fricenv_agents.benchmark import training_groups
+
+#: Group -> (algorithm, env kwargs), from the benchmark's rows.
+GROUPS: dict[str, tuple[str, dict[str, Any]]] = training_groups()
+ROBUST = "ppo_robust"  #: the group ``--robust-seeds`` counts the seeds of
 POLL_S = 5.0
 
 
-def jobs(groups: list[str], scenes: list[str], seeds: int, rand_seeds: int,
+def train_args(env_kwargs: dict[str, Any]) -> list[str]:
+    """The ``-params`` override of a group's env kwargs (JSON is YAML's flow style)."""
+    return ["-params", "env_kwargs:" + json.dumps(env_kwargs)] if env_kwargs else []
+
+
+def jobs(groups: list[str], scenes: list[str], seeds: int, robust_seeds: int,
          root: Path) -> list[tuple[Path, list[str]]]:
     """(run folder, command) of every run, groups in the order given, then seeds."""
     out = []
     for group in groups:
-        algo, extra = GROUPS[group]
-        n = rand_seeds if group == "ppo_rand" else seeds
+        algo, env_kwargs = GROUPS[group]
+        extra = train_args(env_kwargs)
+        n = robust_seeds if group == ROBUST else seeds
         for seed in range(n):
             for scene in scenes:
                 run = root / f"{group}_{scene}_s{seed}"
@@ -51,17 +62,19 @@ def jobs(groups: list[str], scenes: list[str], seeds: int, rand_seeds: int,
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--jobs", type=int, default=2, help="runs at a time")
-    p.add_argument("--seeds", type=int, default=5, help="training seeds of ppo and sac")
-    p.add_argument("--rand-seeds", type=int, default=5, help="training seeds of ppo_rand")
-    p.add_argument("--algos", nargs="+", choices=sorted(GROUPS), default=list(GROUPS))
+    p.add_argument("--seeds", type=int, default=5,
+                   help=f"training seeds of every group but {ROBUST}")
+    p.add_argument("--robust-seeds", type=int, default=5, help=f"training seeds of {ROBUST}")
+    p.add_argument("--groups", "--algos", nargs="+", choices=sorted(GROUPS),
+                   default=list(GROUPS))
     p.add_argument("--scenes", nargs="+", choices=SCENES, default=list(SCENES))
     p.add_argument("--root", type=Path, default=Path("runs/control"))
     p.add_argument("--dry-run", action="store_true", help="print the commands only")
     args = p.parse_args()
-    if args.jobs < 1 or args.seeds < 1 or args.rand_seeds < 1:
-        p.error("--jobs, --seeds and --rand-seeds must be >= 1")
+    if args.jobs < 1 or args.seeds < 1 or args.robust_seeds < 1:
+        p.error("--jobs, --seeds and --robust-seeds must be >= 1")
     todo = []
-    for run, cmd in jobs(args.algos, args.scenes, args.seeds, args.rand_seeds, args.root):
+    for run, cmd in jobs(args.groups, args.scenes, args.seeds, args.robust_seeds, args.root):
         if (run / "model.zip").exists():
             continue
         todo.append((run, cmd))

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 
 import gymnasium as gym
 import numpy as np
@@ -109,35 +110,123 @@ def test_held_out_boxes_lie_beyond_the_training_ranges():
                 assert below[key] == above[key] == (lo, hi)
 
 
-def test_benchmark_writes_its_tables_with_a_tiny_randomised_run(tmp_path):
-    """The whole benchmark on one scene, with a few-step PPO trained with randomize=True
-    standing in for the real runs (the numbers mean nothing; the layout is checked)."""
+def test_benchmark_writes_its_tables_with_a_tiny_robust_run(tmp_path):
+    """The whole benchmark on one scene, with few-step PPOs (one trained with randomised
+    plants, sensor noise and delay) standing in for the real runs (the numbers mean
+    nothing; the layout, the intervals, the per-episode CSV and the figures are checked)."""
+    import csv
+
     from fricenv_agents import benchmark as BM
     from fricenv_agents import train as T
 
     runs = tmp_path / "runs"
-    for group, extra in (("ppo_rand", ["env_kwargs:{randomize: true}"]), ("ppo", [])):
+    robust = "env_kwargs:{randomize: true, obs_noise: 0.02, obs_delay: 1}"
+    for group, extra in (("ppo_robust", [robust]), ("ppo", [])):
         T.main(["--algo", "ppo", "--scene", "self_excited", "-n", "64", "--seed", "1",
                 "--run-dir", str(runs / f"{group}_self_excited_s1"), "--eval-freq", "0",
                 "--eval-episodes", "1", "--no-progress", "-params", "n_envs:2",
                 "n_steps:32", "batch_size:32", "n_epochs:1", *extra])
     out = tmp_path / "out"
     table = BM.main(["--runs", str(runs), "--out", str(out), "--scenes", "self_excited",
-                     "--seeds", "1", "--episodes", "2", "--grid", "2",
+                     "--seeds", "2", "--episodes", "2", "--grid", "2",
                      "--search-episodes", "2", "--max-steps", "30"])
     text = table.read_text()
-    for needle in ("### Return", "### Stick-time fraction", "MPC (MPPI, exact model)",
-                   "held out below", "noise + delay", "PPO, randomised training",
-                   "control_generalisation.png", "PPO / MPC gap", "PPO over training seeds",
-                   "retention, held out (worst side)"):
+    for needle in ("### Return (IQM [95 % CI])", "### Stick-time fraction (IQM [95 % CI])",
+                   "MPC (MPPI, exact model)", "held out below", "noise + delay",
+                   "PPO, robust training (randomised plants and sensors; 1 training seed)",
+                   "control_generalisation.png", "gap to the MPC [95 % CI]",
+                   "IQM of each training seed", "retention, held out (worst side)",
+                   "control_profiles.png", "control_benchmark_episodes.csv"):
         assert needle in text, needle
+    # every cell of the main tables is "IQM [lo, hi]" with lo <= IQM <= hi
+    main = text[:text.index("### Learned controllers")]
+    cells = re.findall(r"\| (-?[\d.]+) \[(-?[\d.]+), (-?[\d.]+)\]", main)
+    assert len(cells) == 2 * 7
+    assert all(float(lo) <= float(est) <= float(hi) for est, lo, hi in cells)
+    assert re.search(r"\| [-+]?[\d.]+ % \[[-\d.]+, [-\d.]+\] \| (yes|no) \|", text)
     res = json.loads((out / "control_benchmark.json").read_text())
     assert set(res["scenes"]["self_excited"]) == {"zero", "random", "best_constant",
-                                                  "feedback", "mpc", "ppo"}
+                                                  "feedback", "mpc", "ppo", "ppo_robust"}
     gen = res["generalisation"]["self_excited"]
     assert set(gen) == {"in range", "held out below", "held out above", "noise + delay"}
+    assert set(gen["in range"]) == {"zero", "mpc", "ppo", "ppo_robust"}
     assert gen["noise + delay"]["mpc"]["label"].endswith("state from the observation)")
-    assert (out / "control_benchmark.png").exists()
+    ci = res["scenes"]["self_excited"]["ppo"]["iqm_ci"]["ret"]
+    assert ci["lo"] <= ci["estimate"] <= ci["hi"]
+    assert set(res["gap_to_mpc"]["self_excited"]) == {"ppo", "ppo_robust"}
+    assert set(res["cuts_and_retentions"]["self_excited"]["ppo_robust"]) == {
+        *BM.CONDITIONS, "retention, held out", "retention, noise + delay"}
+    assert set(res["versions"]) == {"fricenv", "numpy", "numba", "torch",
+                                    "stable_baselines3", "python"}
+    with open(out / "control_benchmark_episodes.csv", newline="") as f:
+        rows = list(csv.DictReader(f))
+    assert tuple(rows[0]) == BM.CSV_COLUMNS
+    # what ran: 7 controllers on the nominal episodes and 4 in each of the 4 conditions,
+    # one model each, 2 evaluation seeds x 2 episodes
+    assert len(rows) == (7 + 4 * 4) * 2 * 2
+    n_json = sum(len(e["per_episode"]["ret"]) for e in res["scenes"]["self_excited"].values())
+    n_json += sum(len(e["per_episode"]["ret"]) for c in gen.values() for e in c.values())
+    assert len(rows) == n_json
+    import numpy
+    import stable_baselines3
+
+    assert {r["numpy_version"] for r in rows} == {numpy.__version__}
+    assert {r["stable_baselines3_version"] for r in rows} == {stable_baselines3.__version__}
+    assert all(r["fricenv_version"] and r["torch_version"] and r["numba_version"]
+               and r["python_version"] for r in rows)
+    ppo = [r for r in rows if r["controller"] == "ppo" and r["condition"] == "nominal"]
+    assert [(r["eval_seed"], r["episode"]) for r in ppo] == [("0", "0"), ("0", "1"),
+                                                              ("1", "0"), ("1", "1")]
+    assert {r["training_run"] for r in ppo} == {"ppo_self_excited_s1"}
+    assert [int(r["plant_seed"]) for r in ppo] == [10_000_000, 10_000_001, 10_001_000,
+                                                   10_001_001]
+    assert [float(r["ret"]) for r in ppo] == res["scenes"]["self_excited"]["ppo"][
+        "per_episode"]["ret"]
+    for fig in ("control_benchmark.png", "control_profiles.png",
+                "control_generalisation.png"):
+        assert (out / fig).stat().st_size > 1000, fig
+
+
+def test_benchmark_rows_are_a_registry():
+    """Adding a controller is one ``Row``; trained rows name what the training script runs."""
+    from fricenv_agents import benchmark as BM
+
+    groups = BM.training_groups()
+    assert groups["ppo_robust"] == ("ppo", {"randomize": True, "obs_noise": BM.NOISE,
+                                            "obs_delay": 1, "randomize_sensors": True})
+    assert set(groups) == {"ppo", "ppo_robust", "sac"}
+    zero = BM.ROWS[0]
+    with pytest.raises(ValueError, match="distinct keys"):
+        BM.check_rows([zero, zero])
+    with pytest.raises(ValueError, match="the 'zero' row only in"):
+        BM.check_rows([BM.Row("zero", "zero", BM.baseline("zero")), BM.ROWS[4]])
+    with pytest.raises(ValueError, match="unknown conditions"):
+        BM.check_rows([zero, BM.Row("x", "x", BM.per_seed(BM.exact_mpc), ("windy",))])
+    assert BM.build_parser().get_default("seeds") == 10
+    assert BM.build_parser().get_default("runs") == BM.PRETRAINED_RUNS
+
+
+def test_training_script_trains_the_rows_groups(tmp_path):
+    """scripts/train_control_benchmark.py trains each trained row with its env kwargs."""
+    import importlib.util
+    from pathlib import Path
+
+    from fricenv_agents import benchmark as BM
+    from fricenv_agents.config import apply_overrides
+
+    path = Path(__file__).resolve().parents[1] / "scripts" / "train_control_benchmark.py"
+    spec = importlib.util.spec_from_file_location("train_control_benchmark", path)
+    assert spec is not None and spec.loader is not None
+    script = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(script)
+    todo = script.jobs(["ppo_robust", "sac"], ["viscous"], 2, 3, tmp_path)
+    assert [run.name for run, _ in todo] == [
+        *(f"ppo_robust_viscous_s{s}" for s in range(3)), "sac_viscous_s0", "sac_viscous_s1"]
+    cmd = todo[0][1]
+    assert cmd[cmd.index("--algo") + 1] == "ppo"
+    params = cmd[cmd.index("-params") + 1:]
+    assert apply_overrides({}, params)["env_kwargs"] == BM.ROBUST_ENV_KWARGS
+    assert "-params" not in todo[-1][1]
 
 
 @pytest.mark.parametrize("scene", ["paper", "self_excited", "stribeck", "viscous"])

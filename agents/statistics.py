@@ -1,0 +1,279 @@
+"""Aggregate scores of few training runs the way deep-RL evaluation recommends: the
+interquartile mean (IQM) with a stratified bootstrap confidence interval, and performance
+profiles with a bootstrap band (Agarwal et al., "Deep reinforcement learning at the edge
+of the statistical precipice", NeurIPS 2021). numpy only.
+
+A benchmark cell is a matrix of scores: one row per training run (a controller without
+training seeds has one row) and one column per evaluation episode, the columns grouped by
+evaluation seed (``strata``). Every row faces the same episodes: the same plants, drawn
+from the same seeds.
+
+The bootstrap has two stages, applied together to every replicate:
+
+1. resample the rows (training runs) with replacement: a training seed is a random draw of
+   the training procedure, the source of variation the interval must cover for a learned
+   controller;
+2. within each evaluation seed's block, resample the columns (episodes) with replacement:
+   plants are random draws too, and each evaluation seed keeps its number of episodes, as
+   in the experiment (a stratified bootstrap, as over the tasks of a suite in rliable).
+
+The resampled columns are the same for every resampled row. Episodes are crossed with the
+training runs, not nested in them (every model faces the same plants), so a plant that is
+hard for one model is hard for all; resampling each row's episodes on its own would treat
+those shared plants as independent and give too narrow an interval (Owen, "The pigeonhole
+bootstrap", Ann. Appl. Stat. 2007). With one row only the second stage acts. Intervals
+are percentile intervals of the replicates; every draw comes from one seeded
+``numpy.random.Generator``, so a table is reproducible.
+
+Comparisons of cells measured on the same episodes (a controller against zero
+excitation, a condition against another) use :func:`paired_ci`: one set of indices per
+replicate, applied to every cell involved, so the episode-to-episode variation they share
+cancels in the ratio instead of widening its interval.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+N_BOOT = 2000  #: bootstrap replicates of every interval and band
+CONFIDENCE = 0.95
+#: The IQM drops this share of the values from each end (scipy.stats.trim_mean's rule:
+#: ``int(0.25 n)`` values each side).
+TRIM = 0.25
+
+Strata = int | Sequence[int] | np.ndarray | None
+
+
+@dataclass(frozen=True)
+class Interval:
+    """A point estimate and its confidence interval ``[lo, hi]``."""
+
+    estimate: float
+    lo: float
+    hi: float
+
+    def format(self, digits: int = 2, scale: float = 1.0, suffix: str = "",
+               signed: bool = False) -> str:
+        """``estimate [lo, hi]`` for a table cell (each value times ``scale``; ``signed``:
+        the estimate with its sign, e.g. a gap)."""
+        if not np.isfinite(self.estimate):
+            return "n/a"
+        e = f"{scale * self.estimate:{'+' if signed else ''}.{digits}f}"
+        lo, hi = (f"{scale * v:.{digits}f}" for v in (self.lo, self.hi))
+        return f"{e}{suffix} [{lo}, {hi}]"
+
+
+@dataclass(frozen=True)
+class Profile:
+    """A performance profile: the fraction of episodes with cost at most ``taus[i]``
+    (``fraction``) and its pointwise bootstrap band ``[lo, hi]``."""
+
+    taus: np.ndarray
+    fraction: np.ndarray
+    lo: np.ndarray
+    hi: np.ndarray
+
+
+# -- the aggregate ----------------------------------------------------------------------------
+def iqm(values: np.ndarray, axis: int | None = None) -> np.ndarray | float:
+    """Interquartile mean: the mean of the values left after dropping ``int(n / 4)`` from
+    each end (``axis=None``: all values; else along ``axis``).
+
+    Robust to a few failed runs or episodes, unlike the mean, and uses half the data,
+    unlike the median, so its interval is narrower for few runs.
+    """
+    a = np.asarray(values, dtype=float)
+    if axis is None:
+        a, axis = a.ravel(), 0
+    n = a.shape[axis]
+    if n == 0:
+        raise ValueError("iqm needs at least one value, got an empty array")
+    k = int(TRIM * n)
+    kept = np.take(np.sort(a, axis=axis), np.arange(k, n - k), axis=axis)
+    out = kept.mean(axis=axis)
+    return float(out) if np.ndim(out) == 0 else out
+
+
+def mean(values: np.ndarray, axis: int | None = None) -> np.ndarray | float:
+    """The plain mean, with :func:`iqm`'s signature (for statistics that want totals, such
+    as the share of stuck time a controller removes)."""
+    out = np.asarray(values, dtype=float).mean(axis=axis)
+    return float(out) if np.ndim(out) == 0 else out
+
+
+# -- resampling -------------------------------------------------------------------------------
+def _matrix(scores: np.ndarray, name: str = "scores") -> np.ndarray:
+    a = np.asarray(scores, dtype=float)
+    if a.ndim == 1:
+        a = a[None, :]
+    if a.ndim != 2 or a.shape[0] < 1 or a.shape[1] < 1:
+        raise ValueError(f"{name} must be a non-empty (runs x episodes) matrix, got shape "
+                         f"{np.shape(scores)}")
+    return a
+
+
+def stratum_labels(strata: Strata, n_cols: int) -> np.ndarray:
+    """One label per column: ``None`` one stratum, an int ``S`` that many equal blocks of
+    consecutive columns (evaluation seeds in the benchmark's order), or the labels."""
+    if strata is None:
+        return np.zeros(n_cols, dtype=np.int64)
+    if isinstance(strata, (int, np.integer)) and not isinstance(strata, bool):
+        s = int(strata)
+        if s < 1 or n_cols % s:
+            raise ValueError(f"strata={s} must be >= 1 and divide the {n_cols} episodes")
+        return np.repeat(np.arange(s), n_cols // s)
+    labels = np.asarray(strata)
+    if labels.shape != (n_cols,):
+        raise ValueError(f"strata must hold one label per episode ({n_cols}), got shape "
+                         f"{labels.shape}")
+    return labels
+
+
+def _check_boot(n_boot: int, confidence: float) -> None:
+    if isinstance(n_boot, bool) or not isinstance(n_boot, (int, np.integer)) or n_boot < 1:
+        raise ValueError(f"n_boot must be an integer >= 1, got {n_boot!r}")
+    if not 0.0 < confidence < 1.0:
+        raise ValueError(f"confidence must lie in (0, 1), got {confidence!r}")
+
+
+def bootstrap_indices(n_rows: int, strata: Strata, n_cols: int, n_boot: int,
+                      rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """Row indices ``(n_boot, n_rows)`` and column indices ``(n_boot, n_cols)`` of the
+    two-stage stratified bootstrap (see the module's docstring). Column ``j`` of a
+    replicate comes from the stratum of original column ``j``, so each stratum keeps its
+    size and place."""
+    labels = stratum_labels(strata, n_cols)
+    rows = rng.integers(0, n_rows, size=(n_boot, n_rows))
+    cols = np.empty((n_boot, n_cols), dtype=np.int64)
+    for label in np.unique(labels):
+        members = np.flatnonzero(labels == label)
+        cols[:, members] = members[rng.integers(0, members.size, size=(n_boot, members.size))]
+    return rows, cols
+
+
+def _counts(idx: np.ndarray, n: int) -> np.ndarray:
+    """How often each of ``n`` originals was drawn in each replicate (a row of ``idx``)."""
+    out = np.zeros((idx.shape[0], n))
+    np.add.at(out, (np.arange(idx.shape[0])[:, None], idx), 1.0)
+    return out
+
+
+def _take(cell: np.ndarray, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
+    """The replicates of ``cell``, ``(n_boot, rows, cols)``; a one-row cell keeps its row."""
+    r = rows if cell.shape[0] > 1 else np.zeros_like(rows[:, :1])
+    return cell[r[:, :, None], cols[:, None, :]]
+
+
+def _percentiles(replicates: np.ndarray, confidence: float) -> tuple[np.ndarray, np.ndarray]:
+    alpha = 100.0 * (1.0 - confidence) / 2.0
+    lo, hi = np.nanpercentile(replicates, [alpha, 100.0 - alpha], axis=0)
+    return lo, hi
+
+
+# -- intervals --------------------------------------------------------------------------------
+Aggregate = Callable[..., "np.ndarray | float"]
+
+
+def iqm_ci(scores: np.ndarray, strata: Strata = None, n_boot: int = N_BOOT,
+           confidence: float = CONFIDENCE, seed: int = 0,
+           aggregate: Aggregate = iqm) -> Interval:
+    """``aggregate`` (the IQM) of all of a cell's scores with its stratified bootstrap
+    interval. ``scores``: a ``(runs, episodes)`` matrix (a 1-D array is one run);
+    ``strata``: the episodes' evaluation seeds (see :func:`stratum_labels`)."""
+    _check_boot(n_boot, confidence)
+    cell = _matrix(scores)
+    rows, cols = bootstrap_indices(cell.shape[0], strata, cell.shape[1], n_boot,
+                                   np.random.default_rng(seed))
+    reps = np.asarray(aggregate(_take(cell, rows, cols).reshape(n_boot, -1), axis=1))
+    lo, hi = _percentiles(reps, confidence)
+    return Interval(float(aggregate(cell)), float(lo), float(hi))
+
+
+def paired_ci(statistic: Callable[..., np.ndarray | float], cells: Sequence[np.ndarray],
+              strata: Strata = None, n_boot: int = N_BOOT, confidence: float = CONFIDENCE,
+              seed: int = 0) -> Interval:
+    """``statistic(*cells)`` of cells measured on the same episodes, with a bootstrap
+    interval drawing the same indices for every cell.
+
+    Each cell is a ``(runs, episodes)`` matrix with the same episodes (columns). Cells with
+    several rows must have the same number (the same training runs, e.g. one policy in two
+    conditions) and share the row indices; a one-row cell (a controller without training
+    seeds) keeps its row. ``statistic`` receives the cells as arrays ``(..., runs,
+    episodes)`` and reduces the last two axes (the original cells first, then all
+    replicates at once, with a leading replicate axis), e.g.
+    ``lambda c, z: 1 - stat(c) / stat(z)`` with ``stat = x.mean(axis=(-2, -1))``.
+    """
+    _check_boot(n_boot, confidence)
+    mats = [_matrix(c, f"cells[{i}]") for i, c in enumerate(cells)]
+    if not mats:
+        raise ValueError("paired_ci needs at least one cell")
+    n_cols = mats[0].shape[1]
+    if any(m.shape[1] != n_cols for m in mats):
+        raise ValueError(f"the cells must share their episodes, got {[m.shape for m in mats]}")
+    n_rows = {m.shape[0] for m in mats} - {1}
+    if len(n_rows) > 1:
+        raise ValueError(f"cells with several runs must have the same number, got "
+                         f"{[m.shape[0] for m in mats]}")
+    rows, cols = bootstrap_indices(max(n_rows, default=1), strata, n_cols, n_boot,
+                                   np.random.default_rng(seed))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        point = float(np.asarray(statistic(*mats)))
+        reps = np.asarray(statistic(*(_take(m, rows, cols) for m in mats)), dtype=float)
+    if reps.shape != (n_boot,):
+        raise ValueError(f"statistic must reduce each replicate to one number, got shape "
+                         f"{reps.shape} for {n_boot} replicates")
+    if not np.isfinite(reps).any():
+        return Interval(point, float("nan"), float("nan"))
+    lo, hi = _percentiles(reps, confidence)
+    return Interval(point, float(lo), float(hi))
+
+
+def cell_stat(aggregate: Aggregate = iqm) -> Callable[[np.ndarray], np.ndarray]:
+    """``aggregate`` over the last two axes (runs, episodes) of a cell or its replicates,
+    the form :func:`paired_ci`'s statistics reduce with."""
+    def stat(cell: np.ndarray) -> np.ndarray:
+        a = np.asarray(cell, dtype=float)
+        return np.asarray(aggregate(a.reshape(*a.shape[:-2], -1), axis=-1))
+
+    return stat
+
+
+# -- performance profiles ---------------------------------------------------------------------
+def tau_grid(costs: Sequence[np.ndarray], n: int = 100) -> np.ndarray:
+    """``n`` log-spaced thresholds spanning all the given costs (from half the smallest
+    positive one to twice the largest), so the profiles of every controller of a scene
+    share one axis."""
+    if n < 2:
+        raise ValueError(f"n must be >= 2, got {n}")
+    flat = np.concatenate([np.asarray(c, dtype=float).ravel() for c in costs])
+    pos = flat[np.isfinite(flat) & (flat > 0)]
+    if pos.size == 0:
+        return np.geomspace(1e-3, 1.0, n)
+    lo, hi = 0.5 * pos.min(), 2.0 * pos.max()
+    return np.geomspace(lo, max(hi, 2.0 * lo), n)
+
+
+def performance_profile(costs: np.ndarray, taus: np.ndarray, strata: Strata = None,
+                        n_boot: int = N_BOOT, confidence: float = CONFIDENCE,
+                        seed: int = 0) -> Profile:
+    """Fraction of all of a cell's episodes (every run) with cost at most each of ``taus``,
+    and its pointwise bootstrap band (the two-stage scheme of :func:`iqm_ci`).
+
+    A replicate weights original episode ``(i, j)`` by how often row ``i`` and column ``j``
+    were drawn, so the band is one matrix product, not a sort per replicate.
+    """
+    _check_boot(n_boot, confidence)
+    cell = _matrix(costs, "costs")
+    taus = np.asarray(taus, dtype=float)
+    if taus.ndim != 1 or taus.size < 1 or np.any(np.diff(taus) < 0):
+        raise ValueError(f"taus must be a non-empty increasing 1-D array, got {taus!r}")
+    r, c = cell.shape
+    below = (cell[:, :, None] <= taus).astype(float)  # (runs, episodes, taus)
+    rows, cols = bootstrap_indices(r, strata, c, n_boot, np.random.default_rng(seed))
+    per_row = np.einsum("bj,ijt->bit", _counts(cols, c), below)  # (n_boot, runs, taus)
+    reps = np.einsum("bi,bit->bt", _counts(rows, r), per_row) / (r * c)
+    lo, hi = _percentiles(reps, confidence)
+    return Profile(taus, below.mean(axis=(0, 1)), lo, hi)
