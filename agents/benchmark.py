@@ -693,6 +693,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--search-episodes", type=int, default=16,
                    help="best-constant search: episodes per candidate")
     p.add_argument("--no-generalisation", action="store_true", help="main table only")
+    p.add_argument("--jobs", type=int, default=1,
+                   help="scenes evaluated at a time, each in its own process")
+    p.add_argument("--no-throughput", action="store_true",
+                   help="leave out the throughput section (fricenv_agents.throughput)")
     p.add_argument("--max-steps", type=int, default=None,
                    help="episode length for a quick look (default: each scene's horizon)")
     return p
@@ -702,8 +706,8 @@ def main(argv: Sequence[str] | None = None, rows: Sequence[Row] = ROWS) -> Path:
     """Run the benchmark; ``rows``: the controllers (default ``ROWS``)."""
     parser = build_parser()
     args = parser.parse_args(argv)
-    if args.seeds < 1 or args.episodes < 2 or args.grid < 2:
-        parser.error("need --seeds >= 1, --episodes >= 2 and --grid >= 2")
+    if args.seeds < 1 or args.episodes < 2 or args.grid < 2 or args.jobs < 1:
+        parser.error("need --seeds >= 1, --episodes >= 2, --grid >= 2 and --jobs >= 1")
     if args.max_steps is not None and args.max_steps < 1:
         parser.error("--max-steps must be >= 1")
     check_rows(rows)
@@ -716,33 +720,96 @@ def main(argv: Sequence[str] | None = None, rows: Sequence[Row] = ROWS) -> Path:
     if not args.runs.is_dir():
         print(f"fricenv_agents.benchmark: no run folders in {args.runs}: the trained rows "
               "are left out", file=sys.stderr)
+    if args.jobs > 1 and rows is not ROWS:
+        parser.error("--jobs > 1 runs the registry's own rows only (ROWS)")
     t0 = time.perf_counter()
-    search = {"n_u0": args.grid, "n_nu": args.grid, "episodes": args.search_episodes}
     results: Results = {}
     gen: Generalisation = {}
-    for scene in args.scenes:
-        nominal = Setting(scene, scene, NOMINAL, base, args.runs, args.out, search,
-                          args.seeds, args.episodes)
-        results[scene] = evaluate_condition(rows, nominal)
-        if not args.no_generalisation and any(c in r.conditions for r in rows
-                                              if r.key != "zero" for c in CONDITIONS):
-            gen[scene] = {c: evaluate_condition(rows, condition_setting(nominal, c))
-                          for c in CONDITIONS}
+    for scene, (res, g) in zip(args.scenes, _map_scenes(args, rows), strict=True):
+        results[scene] = res
+        if g:
+            gen[scene] = g
     summary = generalisation_summary(gen)
-    write_page(args.out, rows, results, gen, summary, args)
+    throughput = None
+    if not args.no_throughput:
+        from . import throughput as TP
+
+        throughput = TP.measure(args.scenes, TP.PLANTS)
+    write_page(args.out, rows, results, gen, summary, args, throughput)
     meta = {"n_seeds": args.seeds, "episodes": args.episodes, "env_kwargs": base,
             "seconds": round(time.perf_counter() - t0, 1), "noise": NOISE, "delay": DELAY,
             "robust_env_kwargs": ROBUST_ENV_KWARGS, "held_out": {s: _boxes(s) for s in gen},
             "bootstrap": {"replicates": S.N_BOOT, "confidence": S.CONFIDENCE,
-                          "seed": BOOT_SEED}, "versions": versions()}
+                          "seed": BOOT_SEED}, "versions": versions(), "jobs": args.jobs,
+            "throughput": throughput}
     (args.out / "control_benchmark.json").write_text(
         json.dumps(to_json(results, gen, summary, meta), indent=1, default=str))
     write_episodes(args.out / "control_benchmark_episodes.csv", results, gen)
     return args.out / "control_benchmark.md"
 
 
+def evaluate_scene(scene: str, args: argparse.Namespace, rows: Sequence[Row] = ROWS,
+                   ) -> tuple[dict[str, Entry], dict[str, dict[str, Entry]]]:
+    """Every row of ``scene``: the main table's entries and the generalisation study's
+    (condition -> entries; empty with ``--no-generalisation``)."""
+    base = {} if args.max_steps is None else {"max_episode_steps": args.max_steps}
+    search = {"n_u0": args.grid, "n_nu": args.grid, "episodes": args.search_episodes}
+    nominal = Setting(scene, scene, NOMINAL, base, args.runs, args.out, search, args.seeds,
+                      args.episodes)
+    results = evaluate_condition(rows, nominal)
+    gen = {}
+    if not args.no_generalisation and any(c in r.conditions for r in rows
+                                          if r.key != "zero" for c in CONDITIONS):
+        gen = {c: evaluate_condition(rows, condition_setting(nominal, c)) for c in CONDITIONS}
+    return results, gen
+
+
+def _evaluated_elsewhere(k: int) -> Controller:
+    raise RuntimeError("this entry was evaluated in a worker process; its scores travel, "
+                       "its controllers do not")
+
+
+def _portable(entries: dict[str, Entry]) -> dict[str, Entry]:
+    """``entries`` with their controllers replaced by a stand-in (models and closures do
+    not pickle; the scores, info and the number of models do)."""
+    for e in entries.values():
+        e.factories = [_evaluated_elsewhere] * len(e.factories)
+    return entries
+
+
+def _scene_in_worker(scene: str, args: argparse.Namespace
+                     ) -> tuple[dict[str, Entry], dict[str, dict[str, Entry]]]:
+    res, gen = evaluate_scene(scene, args)
+    return _portable(res), {c: _portable(es) for c, es in gen.items()}
+
+
+def _map_scenes(args: argparse.Namespace, rows: Sequence[Row]) -> list[tuple[Any, Any]]:
+    """``evaluate_scene`` of every scene, ``--jobs`` of them at a time in fresh worker
+    processes (spawned, not forked: numba's thread pools do not survive a fork), each
+    with an equal share of the numba threads."""
+    if args.jobs == 1 or len(args.scenes) == 1:
+        return [evaluate_scene(scene, args, rows) for scene in args.scenes]
+    import multiprocessing as mp
+    import os
+    from concurrent.futures import ProcessPoolExecutor
+
+    jobs = min(args.jobs, len(args.scenes))
+    threads = str(max(1, (os.cpu_count() or 1) // jobs))
+    old = os.environ.get("NUMBA_NUM_THREADS")
+    os.environ["NUMBA_NUM_THREADS"] = threads  # (read by the workers at their numba import)
+    try:
+        with ProcessPoolExecutor(jobs, mp_context=mp.get_context("spawn")) as pool:
+            return list(pool.map(_scene_in_worker, args.scenes, [args] * len(args.scenes)))
+    finally:
+        if old is None:
+            os.environ.pop("NUMBA_NUM_THREADS", None)
+        else:
+            os.environ["NUMBA_NUM_THREADS"] = old
+
+
 def write_page(out: Path, rows: Sequence[Row], results: Results, gen: Generalisation,
-               summary: dict, args: argparse.Namespace) -> None:
+               summary: dict, args: argparse.Namespace,
+               throughput: dict[str, Any] | None = None) -> None:
     """``control_benchmark.md`` and its figures."""
     lines = ["# Control benchmark: controllers × scenes", "",
              "Made by `python -m fricenv_agents.benchmark` (see its docstring and "
@@ -761,6 +828,10 @@ def write_page(out: Path, rows: Sequence[Row], results: Results, gen: Generalisa
     if summary:
         plot_generalisation(rows, summary, out / "control_generalisation.png")
         lines += ["![control_generalisation.png](control_generalisation.png)", ""]
+    if throughput is not None:
+        from . import throughput as TP
+
+        lines += [*TP.markdown(throughput), ""]
     (out / "control_benchmark.md").write_text("\n".join(lines))
     print("\n".join(lines))
 

@@ -185,6 +185,28 @@ def test_benchmark_writes_its_tables_with_a_tiny_robust_run(tmp_path):
     for fig in ("control_benchmark.png", "control_profiles.png",
                 "control_generalisation.png"):
         assert (out / fig).stat().st_size > 1000, fig
+    # the throughput section, as fricenv_agents.throughput measures it
+    assert "### Throughput" in text
+    tp = res["throughput"]
+    assert tp["vector"] and tp["ppo"]
+
+
+def test_benchmark_scenes_in_worker_processes_score_as_in_one(tmp_path):
+    """``--jobs 2`` evaluates the scenes in two spawned processes: the same episodes, the
+    same seeds, so the same scores as one process."""
+    from fricenv_agents import benchmark as BM
+
+    argv = ["--runs", str(tmp_path / "none"), "--scenes", "paper", "self_excited",
+            "--seeds", "1", "--episodes", "2", "--grid", "2", "--search-episodes", "2",
+            "--max-steps", "8", "--no-generalisation", "--no-throughput"]
+    scores = []
+    for jobs in ("1", "2"):
+        out = tmp_path / f"jobs{jobs}"
+        BM.main([*argv, "--out", str(out), "--jobs", jobs])
+        res = json.loads((out / "control_benchmark.json").read_text())
+        scores.append({(s, k): e["per_episode"]["ret"] for s, r in res["scenes"].items()
+                       for k, e in r.items()})
+    assert scores[0] == scores[1] and len(scores[0]) == 2 * 5
 
 
 def test_benchmark_rows_are_a_registry():
