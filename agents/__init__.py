@@ -6,7 +6,9 @@ reach :mod:`.train` and :mod:`.evaluate` through the ``fricenv.commands`` entry 
 Modules by concern: ``layout`` (names, seed layout), ``config`` (hyperparameter files),
 ``envs`` (the training environment), ``rollouts`` (controllers, scoring), ``runs`` (run
 folders, loading models), ``callbacks`` (training callbacks), ``cli`` (shared command-line
-pieces), ``scoring`` (the evaluation's tables and plots), and ``baselines``, ``mpc``,
+pieces), ``scoring`` (the evaluation's tables and plots), ``statistics`` (interquartile
+means, bootstrap intervals, performance profiles), ``imitation`` (warm starts from the
+MPC), ``throughput`` (plant-steps and PPO samples per second), and ``baselines``, ``mpc``,
 ``benchmark``. ``train`` and ``evaluate`` import numba, torch and stable-baselines3 only
 after parsing their command line, so that their ``--help`` stays quick.
 """
