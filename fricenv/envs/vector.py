@@ -26,6 +26,7 @@ from fricenv.core import new_workspace
 from fricenv.envs import kernels as K
 from fricenv.envs.batch import first_bad_action, start_batch
 from fricenv.envs.scenes import N_INIT, check_episode_cost
+from fricenv.envs.sensors import NO_DELAY, NO_SCALE, split_sensor_options
 from fricenv.envs.settings import EnvKwargs, EnvSettings, settings_signature
 from fricenv.envs.setup import ACTION_DTYPES, EnvSetup, coerce_action, raise_status
 from fricenv.envs.state import (
@@ -345,15 +346,23 @@ class StickSlipVectorEnv(VectorEnv):
 
     def _reset_plants(self, idx: np.ndarray, seeds: list, options: list[dict]) -> None:
         """Start new episodes for plants ``idx``, validating ``options`` per plant; a
-        rejected reset loses nothing (``PlantDraws.start_episodes``)."""
-        mask = self._streams.start_episodes(idx, seeds, options, self._cursor, self.setup,
-                                            self._new_P, self._new_init,
+        rejected reset loses nothing (``PlantDraws.start_episodes``; the sensors' options
+        are all checked before)."""
+        inst = self.setup.instruments
+        scale = np.full(idx.size, NO_SCALE)
+        lag = np.full(idx.size, NO_DELAY, dtype=np.int64)
+        plant_options = []
+        for j, opt in enumerate(options):
+            rest, scale[j], lag[j] = split_sensor_options(opt, inst)
+            plant_options.append(rest or {})
+        mask = self._streams.start_episodes(idx, seeds, plant_options, self._cursor,
+                                            self.setup, self._new_P, self._new_init,
                                             self._check_batch_cost)
         start_batch(self._table, self._cfg, mask, self._obs_pair, self._flags, self._counters)
         # options may have given the plants another law or damping than the draws' bounds
         self._fit_steppers()
         if self._inst is not None:
-            self._inst.start(idx, self._streams.rngs, self._ctrl, self._obs)
+            self._inst.start(idx, self._streams.rngs, self._ctrl, self._obs, scale, lag)
         self._terminated[mask] = False
         self._truncated[mask] = False
         self._needs_reset = False
@@ -543,7 +552,7 @@ class StickSlipVectorEnv(VectorEnv):
         steps = int(self._steps[i])
         if self._inst is None:
             return PlantState(plant, self._ctrl[i].copy(), None, None, steps)
-        return PlantState(plant, *self._inst.state_of(i, self._ctrl), steps)
+        return PlantState(plant, episode_steps=steps, **self._inst.state_of(i, self._ctrl))
 
     def set_state(self, i: int, state: PlantState) -> np.ndarray:
         """Put plant ``i`` in ``state`` (from ``get_state`` of an environment made with the
