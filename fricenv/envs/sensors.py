@@ -316,6 +316,7 @@ class InstrumentBank:
         #: each plant's noise scale and delay (intervals) in its episode
         self.scale = np.ones(n)
         self.lag = np.full(n, inst.delay, dtype=np.int64)
+        self._note_sensors()
         # a plant has a random stream when it draws normals or its sensors' randomisation
         streamed = inst.noise is not None or inst.randomize
         self.rngs: list[np.random.Generator | None] = [None] * n
@@ -357,8 +358,9 @@ class InstrumentBank:
         noise = self.inst.noise
         if noise is None:
             return obs.astype(np.float32)
-        # (a scale of 1 multiplies exactly: the readings of a fixed-noise env are unchanged)
-        noisy = obs.astype(np.float64) + noise * self._normals(idx) * self.scale[idx, None]
+        # (a scale of 1 multiplies exactly: skipping it changes no bit)
+        z = noise * self._normals(idx)
+        noisy = obs.astype(np.float64) + (z if self._unit_scale else z * self.scale[idx, None])
         return np.clip(noisy, self.low, self.high).astype(np.float32)
 
     # -- delay line ------------------------------------------------------------------------
@@ -379,6 +381,14 @@ class InstrumentBank:
             if lag is not None and lag[j] != NO_DELAY:
                 k = int(lag[j])
             self.scale[i], self.lag[i] = s, k
+        self._note_sensors()
+
+    def _note_sensors(self) -> None:
+        """Note whether every plant has scale 1, and the delay line's slot every plant
+        reads if they share one (-1 otherwise): the fast paths of the common case."""
+        self._unit_scale = bool(np.all(self.scale == 1.0))
+        first = self.lag[0]
+        self._one_slot = int(self.inst.delay - first) if np.all(self.lag == first) else -1
 
     def start(self, idx: np.ndarray, obs: np.ndarray, scale: np.ndarray | None = None,
               lag: np.ndarray | None = None) -> None:
@@ -403,8 +413,13 @@ class InstrumentBank:
         """The observations the agent gets for plants ``idx`` (None: all; a copy): the
         reading ``lag[i]`` intervals old, slot ``obs_delay - lag[i]`` of the line."""
         assert self.delay is not None  # (read only from a sensing bank)
-        rows = self._rows if idx is None else idx
-        out = self.delay[rows, self.inst.delay - self.lag[rows]]
+        if self._one_slot >= 0:
+            out = self.delay[slice(None) if idx is None else idx, self._one_slot]
+            if idx is None and self.channels is None:
+                out = out.copy()
+        else:
+            rows = self._rows if idx is None else idx
+            out = self.delay[rows, self.inst.delay - self.lag[rows]]
         return out[..., self.channels] if self.channels is not None else out
 
     # -- state -----------------------------------------------------------------------------
@@ -421,6 +436,7 @@ class InstrumentBank:
         configured delay)."""
         self.scale[i] = scale
         self.lag[i] = self.inst.delay if lag is None else lag
+        self._note_sensors()
 
     def set_noise_state(self, i: int,
                         noise: tuple[Mapping[str, Any] | None, np.ndarray] | None) -> None:
