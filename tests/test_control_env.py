@@ -27,6 +27,8 @@ NEW_IDS = {"stribeck": "fricenv/StickSlipStribeck-v0", "viscous": "fricenv/Stick
 ALL_OPTIONS = {"obs_noise": {"x": 0.05, "v_rel": 0.1, "cos1": 0.02}, "obs_delay": 2,
                "observe": ("x", "phases", "settings"), "actuator_lag": 1.0,
                "actuator_rate": 0.2}
+#: ... with each episode's noise scale and delay drawn too.
+RANDOM_SENSORS = {**ALL_OPTIONS, "randomize_sensors": True}
 
 
 def _actions(env, n, seed=0):
@@ -189,9 +191,10 @@ def test_actuator_rate_limit_and_lag():
     assert v[-1] == pytest.approx(o[K.O_VR], abs=1e-6)
 
 
+@pytest.mark.parametrize("options", [ALL_OPTIONS, RANDOM_SENSORS], ids=["fixed", "drawn"])
 @pytest.mark.parametrize("mode", [AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP])
-def test_vector_env_matches_single_envs_with_every_option_on(mode):
-    kw = {"scene": "self_excited", "randomize": True, **ALL_OPTIONS}
+def test_vector_env_matches_single_envs_with_every_option_on(mode, options):
+    kw = {"scene": "self_excited", "randomize": True, **options}
     env_id = "fricenv/StickSlipSelfExcited-v0"
     native = gym.make_vec(env_id, num_envs=3, max_episode_steps=7, autoreset_mode=mode, **kw)
     singles = gym.make_vec(env_id, num_envs=3, vectorization_mode="sync", max_episode_steps=7,
@@ -206,6 +209,12 @@ def test_vector_env_matches_single_envs_with_every_option_on(mode):
         for x, y in zip(i1.get("final_obs", ()), i2.get("final_obs", ()), strict=True):
             assert (x is None and y is None) or np.array_equal(x, y)
     assert np.array_equal(native.reset()[0], singles.reset()[0])
+    # the sensors' reset options, then autoresets drawing again
+    sensor_options = {"obs_noise_scale": 0.5, "obs_delay": 1}
+    assert np.array_equal(native.reset(options=sensor_options)[0],
+                          singles.reset(options=sensor_options)[0])
+    for a in _actions(native, 12, seed=4):
+        assert np.array_equal(native.step(a)[0], singles.step(a)[0])
 
 
 def test_both_checkers_pass_with_every_option_on():
@@ -257,7 +266,8 @@ def test_bad_sensor_and_actuator_options_are_named():
 
 # -- plant state ----------------------------------------------------------------------------
 @pytest.mark.parametrize("kw", [{"scene": "paper"}, {"scene": "stribeck", "randomize": True},
-                                {"scene": "viscous", **ALL_OPTIONS}])
+                                {"scene": "viscous", **ALL_OPTIONS},
+                                {"scene": "viscous", **RANDOM_SENSORS}])
 def test_state_round_trip_replays_bit_for_bit(kw):
     env = StickSlipEnv(**kw)
     env.reset(seed=11)

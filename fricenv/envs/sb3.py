@@ -9,6 +9,7 @@ PPO trains on N plants stepped by one numba call, without ``DummyVecEnv``'s per-
 from __future__ import annotations
 
 from collections.abc import Sequence
+from copy import deepcopy
 from typing import Any, Unpack
 
 import gymnasium as gym
@@ -40,7 +41,8 @@ class StickSlipSB3VecEnv(VecEnv):
     Arguments are those of ``StickSlipVectorEnv`` (the settings as ``EnvSettings``' fields
     or ``settings=``; ``autoreset_mode`` must be same-step), and it uses only that
     environment's public methods. ``seed()`` and ``set_options()`` act at the next
-    ``reset()``, as in SB3: plant i is seeded ``seed + i``. Attribute access
+    ``reset()``, as in SB3: plant i is seeded ``seed + i``, and an option may be a numpy
+    array of one value per plant (``set_options({"lam": lams})``). Attribute access
     (``get_attr``, ``set_attr``, ``env_method``) reaches the vector environment, which all
     plants share: ``get_attr`` and ``env_method`` return its one answer for each index
     asked, and ``set_attr`` sets a value for all plants, so it refuses ``indices`` that
@@ -91,6 +93,16 @@ class StickSlipSB3VecEnv(VecEnv):
         self._stick_sum[:] = 0.0
         self._episode_steps[:] = 0
         return obs
+
+    def set_options(self, options: list[dict] | dict | None = None) -> None:
+        """Reset options for the next ``reset()``, as SB3's: a list of one dict per plant,
+        or one dict for all. A value of one dict for all may be a numpy array of shape
+        ``(num_envs,)``, plant i taking element i (``StickSlipVectorEnv.reset_plants``);
+        that dict is copied once and shared, not once per plant as SB3 would."""
+        if isinstance(options, dict):
+            self._options = [deepcopy(options)] * self.num_envs
+        else:
+            super().set_options(options)
 
     def step_async(self, actions: np.ndarray) -> None:
         self._actions = actions

@@ -17,6 +17,16 @@ episodes' own draws (parameters, start) are those of a noise-free env, and the v
 can keep buffering them ahead (its per-plant generators spawn children the same way).
 Normals are drawn ``NOISE_ROWS`` observations at a time.
 
+Per episode, each plant has a noise scale (multiplying the configured standard
+deviations; 1 by default) and a delay ``k`` in ``0 .. obs_delay`` (``obs_delay`` by
+default). The delay line always holds ``obs_delay + 1`` readings; a plant delayed ``k``
+reads the one ``k`` intervals old. With ``randomize_sensors`` every episode (the vector
+env's autoresets too) draws them from the plant's noise stream as it starts, before its
+first reading: ``scale = rng.random()`` (uniform in [0, 1)), then
+``k = rng.integers(0, obs_delay + 1)``, both drawn whatever the reset options say, so the
+stream's position depends on the number of episodes only. The reset options
+``obs_noise_scale`` and ``obs_delay`` set them for one episode (over the draw).
+
 Actuator, per control interval: the action commands a setting ``(u0, nu)`` exactly as
 without an actuator (absolute or incremental, ``kernels.apply_action``, on the command);
 the applied setting then moves towards the command, by a first-order lag (time constant
@@ -37,7 +47,7 @@ from typing import Any
 import numpy as np
 from gymnasium import spaces
 
-from fricenv.checks import check_finite_real, check_int, got, items_of
+from fricenv.checks import check_bool, check_dict, check_finite_real, check_int, got, items_of
 from fricenv.envs import kernels as K
 from fricenv.jit import kernel
 
@@ -53,6 +63,11 @@ assert len(CHANNELS) == K.N_OBS
 NOISE_ROWS = 64
 #: Longest observation delay, in control intervals (the delay line is copied every step).
 MAX_DELAY = 1000
+#: The reset options of the sensors (``split_sensor_options``).
+SENSOR_OPTIONS = ("obs_noise_scale", "obs_delay")
+#: "Not given" in the per-plant arrays of sensor options: no scale, no delay.
+NO_SCALE = math.nan
+NO_DELAY = -1
 
 # Layout of the actuator's parameter vector: the lag's fraction of the gap closed per
 # interval (1: no lag), then the largest change per interval of u0 and of nu (inf: none).
@@ -122,7 +137,7 @@ class Instruments:
     ``noise``: nine standard deviations (None: no noise); ``delay``: intervals;
     ``channels``: observed channel indices (None: all nine); ``lag``: the actuator's time
     constant (0: none); ``rate``: its largest change per interval as a fraction of each
-    range (None: none).
+    range (None: none); ``randomize``: each episode draws its noise scale and delay.
     """
 
     noise: np.ndarray | None = None
@@ -130,13 +145,19 @@ class Instruments:
     channels: tuple[int, ...] | None = None
     lag: float = 0.0
     rate: float | None = None
+    randomize: bool = False
 
     @classmethod
     def build(cls, obs_noise: Any = None, obs_delay: Any = 0, observe: Any = None,
-              actuator_lag: Any = 0.0, actuator_rate: Any = None) -> Instruments | None:
+              actuator_lag: Any = 0.0, actuator_rate: Any = None,
+              randomize_sensors: Any = False) -> Instruments | None:
         """The options as given to the environments, checked; None when all are off."""
         noise = _noise_vector(obs_noise)
         delay = check_int("obs_delay", obs_delay, 0, MAX_DELAY)
+        randomize = check_bool("randomize_sensors", randomize_sensors)
+        if randomize and noise is None and delay == 0:
+            raise ValueError("randomize_sensors=True draws each episode's noise scale and "
+                             "delay, so it needs obs_noise or obs_delay > 0 (got neither)")
         channels = _channels(observe)
         lag = check_finite_real("actuator_lag", actuator_lag)
         if lag < 0.0:
@@ -148,7 +169,7 @@ class Instruments:
                 raise ValueError("actuator_rate must be the largest change per control "
                                  "interval as a fraction of each range, in (0, 1], got "
                                  f"{actuator_rate!r}")
-        inst = cls(noise, delay, channels, lag, rate)
+        inst = cls(noise, delay, channels, lag, rate, randomize)
         return inst if (inst.sensing or inst.actuating) else None
 
     @property
@@ -167,6 +188,7 @@ class Instruments:
             "observe": None if self.channels is None else [CHANNELS[c] for c in self.channels],
             "actuator_lag": self.lag,
             "actuator_rate": self.rate,
+            "randomize_sensors": self.randomize,
         }
 
     # -- what the environments derive from it ----------------------------------------------
@@ -195,6 +217,37 @@ class Instruments:
             act[A_RATE_U] = self.rate * (cfg[K.C_U_HI] - cfg[K.C_U_LO])
             act[A_RATE_NU] = self.rate * (cfg[K.C_NU_HI] - cfg[K.C_NU_LO])
         return act
+
+
+def split_sensor_options(options: Mapping[str, Any] | None, inst: Instruments | None
+                         ) -> tuple[dict[str, Any] | None, float, int]:
+    """Reset ``options`` without the sensors' keys, and the episode's noise scale and delay
+    they give (``NO_SCALE``, ``NO_DELAY``: not given), checked against ``inst``.
+
+    ``obs_noise_scale``: a real >= 0 multiplying the configured noise (refused without
+    ``obs_noise``, where it would change nothing); ``obs_delay``: an int from 0 to the
+    configured ``obs_delay`` (the delay line's length). ``TypeError`` / ``ValueError``
+    naming the option and the value otherwise.
+    """
+    check_dict("options", options)
+    if not options or not any(key in options for key in SENSOR_OPTIONS):
+        return (None if options is None else dict(options)), NO_SCALE, NO_DELAY
+    rest = dict(options)
+    scale, delay = NO_SCALE, NO_DELAY
+    if "obs_noise_scale" in rest:
+        value = rest.pop("obs_noise_scale")
+        scale = check_finite_real("reset option 'obs_noise_scale'", value)
+        if scale < 0.0:
+            raise ValueError(f"reset option 'obs_noise_scale' must be >= 0, got {value!r}")
+        if inst is None or inst.noise is None:
+            raise ValueError(f"reset option 'obs_noise_scale' = {value!r} scales the "
+                             "observation noise, but this environment was made without "
+                             "obs_noise")
+    if "obs_delay" in rest:
+        most = 0 if inst is None else inst.delay
+        delay = check_int(f"reset option 'obs_delay' (at most the configured obs_delay = "
+                          f"{most})", rest.pop("obs_delay"), 0, most)
+    return rest, scale, delay
 
 
 def no_actuator() -> np.ndarray:
@@ -246,7 +299,8 @@ def actuate_batch(ctrl, cmd, cfg, A, act, skip) -> None:
 
 # -- per-plant buffers ----------------------------------------------------------------------
 class InstrumentBank:
-    """The instruments' state for ``n`` plants: commands, delay lines, noise streams.
+    """The instruments' state for ``n`` plants: commands, delay lines, noise streams, and
+    each plant's noise scale and delay in its episode.
 
     ``low``, ``high``: the full (nine-channel) observation box, where noisy readings clip.
     """
@@ -259,12 +313,18 @@ class InstrumentBank:
         self.cmd = np.zeros((n, 2))
         self.delay = (np.zeros((n, inst.delay + 1, K.N_OBS), dtype=np.float32)
                       if inst.sensing else None)
-        noisy = inst.noise is not None
+        #: each plant's noise scale and delay (intervals) in its episode
+        self.scale = np.ones(n)
+        self.lag = np.full(n, inst.delay, dtype=np.int64)
+        self._note_sensors()
+        # a plant has a random stream when it draws normals or its sensors' randomisation
+        streamed = inst.noise is not None or inst.randomize
         self.rngs: list[np.random.Generator | None] = [None] * n
         self.parents: list[np.random.Generator | None] = [None] * n
-        self.normals = np.zeros((n, NOISE_ROWS, K.N_OBS)) if noisy else None
+        self.normals = np.zeros((n, NOISE_ROWS, K.N_OBS)) if streamed else None
         self.next_row = np.full(n, NOISE_ROWS, dtype=np.int64)
         self.channels = None if inst.channels is None else np.array(inst.channels)
+        self._rows = np.arange(n)
 
     # -- noise -----------------------------------------------------------------------------
     def seed_noise(self, i: int, parent: np.random.Generator | None) -> None:
@@ -276,15 +336,18 @@ class InstrumentBank:
         self.parents[i] = parent
         self.next_row[i] = NOISE_ROWS  # rows of the old stream are dropped
 
+    def _rng(self, i: int) -> np.random.Generator:
+        rng = self.rngs[i]
+        if rng is None:  # (set_state before any reset: a stream of its own)
+            rng = self.rngs[i] = np.random.default_rng()
+        return rng
+
     def _normals(self, idx: np.ndarray) -> np.ndarray:
         """One observation's normals for each plant of ``idx`` (refilling spent buffers)."""
         normals = self.normals
         assert normals is not None  # (drawn from only by a noisy bank)
         for i in idx[self.next_row[idx] >= NOISE_ROWS].tolist():
-            rng = self.rngs[i]
-            if rng is None:  # (set_state before any reset: a stream of its own)
-                rng = self.rngs[i] = np.random.default_rng()
-            rng.standard_normal(out=normals[i])
+            self._rng(i).standard_normal(out=normals[i])
             self.next_row[i] = 0
         z = normals[idx, self.next_row[idx]]
         self.next_row[idx] += 1
@@ -292,17 +355,48 @@ class InstrumentBank:
 
     def measure(self, idx: np.ndarray, obs: np.ndarray) -> np.ndarray:
         """What the sensors read from the exact observations ``obs`` (len(idx), 9)."""
-        if self.normals is None:
+        noise = self.inst.noise
+        if noise is None:
             return obs.astype(np.float32)
-        noisy = obs.astype(np.float64) + self.inst.noise * self._normals(idx)
+        # (a scale of 1 multiplies exactly: skipping it changes no bit)
+        z = noise * self._normals(idx)
+        noisy = obs.astype(np.float64) + (z if self._unit_scale else z * self.scale[idx, None])
         return np.clip(noisy, self.low, self.high).astype(np.float32)
 
     # -- delay line ------------------------------------------------------------------------
-    def start(self, idx: np.ndarray, obs: np.ndarray) -> None:
-        """Plants ``idx`` begin an episode at the exact observations ``obs``: the delay line
-        holds the first reading throughout (the block was there before), the command is the
-        applied setting."""
+    def begin(self, idx: np.ndarray, scale: np.ndarray | None = None,
+              lag: np.ndarray | None = None) -> None:
+        """Plants ``idx`` begin episodes: each one's noise scale and delay are drawn
+        (``randomize_sensors``) or the defaults (1, the configured delay), then overridden
+        by ``scale[j]``, ``lag[j]`` where given (not ``NO_SCALE``, ``NO_DELAY``)."""
+        inst = self.inst
+        for j, i in enumerate(idx.tolist()):
+            s, k = 1.0, inst.delay
+            if inst.randomize:
+                rng = self._rng(i)
+                s = float(rng.random())
+                k = int(rng.integers(0, inst.delay + 1))
+            if scale is not None and not math.isnan(scale[j]):
+                s = float(scale[j])
+            if lag is not None and lag[j] != NO_DELAY:
+                k = int(lag[j])
+            self.scale[i], self.lag[i] = s, k
+        self._note_sensors()
+
+    def _note_sensors(self) -> None:
+        """Note whether every plant has scale 1, and the delay line's slot every plant
+        reads if they share one (-1 otherwise): the fast paths of the common case."""
+        self._unit_scale = bool(np.all(self.scale == 1.0))
+        first = self.lag[0]
+        self._one_slot = int(self.inst.delay - first) if np.all(self.lag == first) else -1
+
+    def start(self, idx: np.ndarray, obs: np.ndarray, scale: np.ndarray | None = None,
+              lag: np.ndarray | None = None) -> None:
+        """Plants ``idx`` begin an episode at the exact observations ``obs`` (with the noise
+        scales and delays ``begin`` sets from ``scale``, ``lag``): the delay line holds
+        the first reading throughout (the block was there before)."""
         if self.delay is not None:
+            self.begin(idx, scale, lag)
             self.delay[idx] = self.measure(idx, obs)[:, None, :]
 
     def push(self, idx: np.ndarray, obs: np.ndarray) -> None:
@@ -315,11 +409,18 @@ class InstrumentBank:
             d[idx, :-1] = d[idx, 1:]
         d[idx, -1] = reading
 
-    def output(self, idx: np.ndarray | slice = slice(None)) -> np.ndarray:
-        """The observations the agent gets for plants ``idx`` (a copy)."""
+    def output(self, idx: np.ndarray | None = None) -> np.ndarray:
+        """The observations the agent gets for plants ``idx`` (None: all; a copy): the
+        reading ``lag[i]`` intervals old, slot ``obs_delay - lag[i]`` of the line."""
         assert self.delay is not None  # (read only from a sensing bank)
-        out = self.delay[idx, 0]
-        return out[..., self.channels] if self.channels is not None else out.copy()
+        if self._one_slot >= 0:
+            out = self.delay[slice(None) if idx is None else idx, self._one_slot]
+            if idx is None and self.channels is None:
+                out = out.copy()
+        else:
+            rows = self._rows if idx is None else idx
+            out = self.delay[rows, self.inst.delay - self.lag[rows]]
+        return out[..., self.channels] if self.channels is not None else out
 
     # -- state -----------------------------------------------------------------------------
     def noise_state(self, i: int) -> tuple[Mapping[str, Any] | None, np.ndarray] | None:
@@ -329,6 +430,13 @@ class InstrumentBank:
         rng = self.rngs[i]
         rows = self.normals[i, self.next_row[i]:].copy()
         return (None if rng is None else rng.bit_generator.state, rows)
+
+    def restore_sensors(self, i: int, scale: float, lag: int | None) -> None:
+        """Plant ``i``'s noise scale and delay as a ``PlantState`` holds them (None: the
+        configured delay)."""
+        self.scale[i] = scale
+        self.lag[i] = self.inst.delay if lag is None else lag
+        self._note_sensors()
 
     def set_noise_state(self, i: int,
                         noise: tuple[Mapping[str, Any] | None, np.ndarray] | None) -> None:

@@ -63,6 +63,8 @@ class EnvSettings:
       the commanded one (0: none).
     - `actuator_rate`: largest change of the applied setting per control interval, as a
       fraction of each range (None: no limit).
+    - `randomize_sensors`: each episode draws its noise scale (uniform in [0, 1), times
+      `obs_noise`) and its delay (uniform in `0 .. obs_delay`) (a bool).
 
     `StickSlipEnv`'s docstring says more of each.
     """
@@ -80,6 +82,7 @@ class EnvSettings:
     observe: str | Sequence[str] | None = None
     actuator_lag: float = 0.0
     actuator_rate: float | None = None
+    randomize_sensors: bool = False
 
     @classmethod
     def of(cls, settings: EnvSettings | None, kwargs: Mapping[str, Any],
@@ -147,6 +150,7 @@ class EnvKwargs(TypedDict, total=False):
     observe: str | Sequence[str] | None
     actuator_lag: float
     actuator_rate: float | None
+    randomize_sensors: bool
 
 
 _Init = TypeVar("_Init", bound=Callable[..., None])

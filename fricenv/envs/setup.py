@@ -92,7 +92,8 @@ class EnvSetup:
         st = settings
         sc = get_scene(st.scene)
         instruments = Instruments.build(st.obs_noise, st.obs_delay, st.observe,
-                                        st.actuator_lag, st.actuator_rate)
+                                        st.actuator_lag, st.actuator_rate,
+                                        st.randomize_sensors)
         # bools only: a truthy string such as 'no' would switch the mode on
         incremental = check_bool("incremental", st.incremental)
         randomize = check_bool("randomize", st.randomize)

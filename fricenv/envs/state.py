@@ -20,19 +20,20 @@ parameters, so the values are the same bits), the environment keeps its own sett
 the cos/sin of the state's phases to within ``TONE_CACHE_TOL``.
 
 Around the plant (``fricenv.envs.sensors``): the actuator's command, the sensors' delay
-line and the noise stream's position; and the steps taken in the episode (the vector env
-truncates on it).
+line, the noise stream's position and the episode's noise scale and delay; and the steps
+taken in the episode (the vector env truncates on it).
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
-from fricenv.checks import got
+from fricenv.checks import got, is_int, is_real
 from fricenv.core import new_workspace
 from fricenv.core.workspace import (
     W_C1,
@@ -96,7 +97,9 @@ class PlantState:
     command (u0, nu) (the applied setting when there is no actuator); ``delay``: the delay
     line of sensor readings, oldest first, float32 (k + 1, 9), or None without sensor
     options; ``noise``: the noise stream (its generator's state and unread normals) or
-    None; ``episode_steps``: steps taken since the episode began.
+    None; ``episode_steps``: steps taken since the episode began; ``noise_scale``: the
+    factor on the configured noise in this episode; ``obs_delay``: the episode's delay in
+    intervals, at most ``k`` (None: ``k``, the delay line's length less one).
 
     Its arrays are its own (copies both ways), so a state kept stays as it was.
     """
@@ -106,6 +109,8 @@ class PlantState:
     delay: np.ndarray | None = None
     noise: tuple[Mapping[str, Any] | None, np.ndarray] | None = None
     episode_steps: int = 0
+    noise_scale: float = 1.0
+    obs_delay: int | None = None
 
     # -- views of the plant vector ---------------------------------------------------------
     @property
@@ -157,7 +162,9 @@ class PlantState:
 
         if not (same(self.plant, other.plant) and same(self.command, other.command)
                 and same(self.delay, other.delay)
-                and self.episode_steps == other.episode_steps):
+                and self.episode_steps == other.episode_steps
+                and same(np.float64(self.noise_scale), np.float64(other.noise_scale))
+                and self.obs_delay == other.obs_delay):
             return False
         if self.noise is None or other.noise is None:
             return self.noise is other.noise
@@ -220,8 +227,9 @@ def check_state(state: Any, delay_rows: int | None, noisy: bool,
                 dt: float) -> None:
     """``TypeError`` / ``ValueError`` naming what is wrong unless ``state`` can be restored
     into an environment whose delay line has ``delay_rows`` rows (None: no sensors), with
-    noise or not, these setting ranges and control interval ``dt``; the plant and its
-    state are held to ``run_stats``' own check (``fricenv.simulate.check_start``)."""
+    a noise stream or not (``noisy``), these setting ranges and control interval ``dt``;
+    the plant and its state are held to ``run_stats``' own check
+    (``fricenv.simulate.check_start``)."""
     if not isinstance(state, PlantState):
         raise TypeError(f"state must be a PlantState (from get_state()), {got(state)}")
     for name, arr, shape, dtype in (("plant", state.plant, (N_PLANT,), np.float64),
@@ -255,12 +263,27 @@ def check_state(state: Any, delay_rows: int | None, noisy: bool,
     if state.delay is not None and state.delay.dtype != np.float32:
         raise ValueError(f"state.delay must be float32, got {state.delay.dtype}")
     if (state.noise is None) == noisy:
-        raise ValueError("state and environment differ in observation noise: restore a state "
-                         "into an environment made with the same options")
+        raise ValueError("state and environment differ in their noise stream (obs_noise or "
+                         "randomize_sensors): restore a state into an environment made "
+                         "with the same options")
     if state.noise is not None:
         check_noise_state(state.noise, "state.noise")
     if not isinstance(state.episode_steps, int) or state.episode_steps < 0:
         raise ValueError(f"state.episode_steps must be an int >= 0, {got(state.episode_steps)}")
+    _check_sensors(state, delay_rows)
+
+
+def _check_sensors(state: PlantState, delay_rows: int | None) -> None:
+    """``TypeError`` / ``ValueError`` naming the field unless the state's noise scale is a
+    real >= 0 and its delay fits the environment's delay line (``delay_rows`` rows)."""
+    scale = state.noise_scale
+    if not (is_real(scale) and math.isfinite(scale) and scale >= 0.0):
+        raise ValueError(f"state.noise_scale must be a finite real >= 0, {got(scale)}")
+    most = 0 if delay_rows is None else delay_rows - 1
+    lag = state.obs_delay
+    if lag is not None and not (is_int(lag) and 0 <= lag <= most):
+        raise ValueError(f"state.obs_delay must be None or an int from 0 to the "
+                         f"environment's obs_delay = {most}, {got(lag)}")
 
 
 def plants_from_observations(obs: np.ndarray, params: np.ndarray, tone_gains: tuple[float, float]

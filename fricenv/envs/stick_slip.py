@@ -17,7 +17,7 @@ from fricenv.checks import check_int, got, is_int
 from fricenv.core import new_workspace
 from fricenv.envs import kernels as K
 from fricenv.envs.scenes import check_episode_cost, new_episode_arrays
-from fricenv.envs.sensors import InstrumentBank, actuate_one
+from fricenv.envs.sensors import InstrumentBank, actuate_one, split_sensor_options
 from fricenv.envs.settings import EnvKwargs, EnvSettings, settings_signature
 from fricenv.envs.setup import ACTION_DTYPES, EnvSetup, coerce_action, raise_status
 from fricenv.envs.state import PL_CTRL, PL_P, PL_S, PL_WORK, PlantState, check_state, pack, unpack
@@ -248,6 +248,16 @@ class StickSlipEnv(gym.Env):
       each seeding, so seeded runs replay and the episodes' own draws are unchanged.
     - `obs_delay`: the observation is the reading of `k` control intervals earlier (at the
       start of an episode, its first reading).
+    - `randomize_sensors`: every episode (the vector env's autoresets too) draws its own
+      noise scale, uniform in [0, 1) (multiplying `obs_noise`), and its own delay, uniform
+      in `0 .. obs_delay` (`obs_delay` is then the longest). They are drawn from the noise
+      stream, `scale = rng.random()` then `rng.integers(0, obs_delay + 1)` as the episode
+      starts, so the episodes' own draws stay those of the env without sensors and seeded
+      runs replay. Needs `obs_noise` or `obs_delay`; a bool, default False.
+    - Reset options `obs_noise_scale` (a real >= 0 multiplying `obs_noise`; refused
+      without it) and `obs_delay` (an int from 0 to the configured `obs_delay`) set the
+      episode's noise scale and delay, over the draw (without `randomize_sensors`, an
+      episode has scale 1 and the configured delay).
     - `observe`: the observed channels, e.g. `("x", "phases")` (displacement and the tones'
       phases, without velocity, stick flag or settings; `"settings"` names `u0, nu`); the
       observation space shrinks to them.
@@ -259,10 +269,10 @@ class StickSlipEnv(gym.Env):
 
     Plant state: `get_state()` returns the plant's full state (a
     ``fricenv.envs.state.PlantState``: `x, v`, mode, `t`, tone phases, applied and commanded
-    `u0, nu`, the episode's parameters, the sensors' delay line and noise stream);
-    `set_state(state)` restores it and returns its observation, so the same actions then
-    give the same trajectory bit for bit. ``fricenv.envs.rollout`` rolls out many action
-    sequences from one state in one numba call.
+    `u0, nu`, the episode's parameters, the sensors' delay line, noise stream, noise scale
+    and delay); `set_state(state)` restores it and returns its observation, so the same
+    actions then give the same trajectory bit for bit. ``fricenv.envs.rollout`` rolls out
+    many action sequences from one state in one numba call.
 
     `reset` returns `info = {}`; `step` returns the info described under Rewards.
 
@@ -270,7 +280,9 @@ class StickSlipEnv(gym.Env):
 
     * v0: Initial release. Later additions leave every existing result unchanged: the
       `stribeck` and `viscous` scenes, the sensor and actuator options (off by default),
-      `get_state` and `set_state`.
+      `get_state` and `set_state`, the per-episode sensor noise scale and delay
+      (`randomize_sensors`, off by default, and the reset options `obs_noise_scale` and
+      `obs_delay`).
     """
 
     metadata = {"render_modes": RenderModes(["human", "rgb_array"]), "render_fps": 12}
@@ -384,8 +396,9 @@ class StickSlipEnv(gym.Env):
         state = None if rng is None else rng.bit_generator.state
         super().reset(seed=int(seed) if is_int(seed) else seed)  # numpy ints too
         try:
+            plant_options, scale, lag = split_sensor_options(options, self.setup.instruments)
             values = self.setup.draw(self.np_random)
-            self.setup.episode(values, options, self._P_new, self._init)
+            self.setup.episode(values, plant_options, self._P_new, self._init)
         except BaseException:
             self._np_random, self._np_random_seed = rng, rng_seed
             if rng is not None and state is not None:  # (both or neither)
@@ -400,7 +413,7 @@ class StickSlipEnv(gym.Env):
         if self._bank is not None:
             self._bank.seed_noise(0, self.np_random)
             self._bank.cmd[0] = self._ctrl
-            self._bank.start(_PLANT, self._obs[None])
+            self._bank.start(_PLANT, self._obs[None], np.array([scale]), np.array([lag]))
         if self._renderer is not None:
             self._renderer.clear(self._S[S_T], self._S[S_V], self._S[S_MODE] == 0.0)
             if self.render_mode == "human":
@@ -435,12 +448,15 @@ class StickSlipEnv(gym.Env):
         # (a bank has a delay line exactly when it senses, a command apart from the applied
         # setting exactly when it actuates)
         command = self._ctrl if bank is None or self._act is None else bank.cmd[0]
+        sensing = bank is not None and bank.delay is not None
         return PlantState(
             pack(self._P, self._S, self._ctrl, self._work),
             command.copy(),
             None if bank is None or bank.delay is None else bank.delay[0].copy(),
             None if bank is None else bank.noise_state(0),
             self._steps,
+            float(bank.scale[0]) if bank is not None and sensing else 1.0,
+            int(bank.lag[0]) if bank is not None and sensing else None,
         )
 
     def set_state(self, state: PlantState) -> np.ndarray:
@@ -463,6 +479,7 @@ class StickSlipEnv(gym.Env):
             bank.cmd[0] = state.command
             if bank.delay is not None:
                 bank.delay[0] = state.delay
+                bank.restore_sensors(0, state.noise_scale, state.obs_delay)
             bank.set_noise_state(0, state.noise)
         self._needs_reset = False
         if self._renderer is not None:

@@ -26,6 +26,7 @@ from fricenv.core import new_workspace
 from fricenv.envs import kernels as K
 from fricenv.envs.batch import first_bad_action, start_batch
 from fricenv.envs.scenes import N_INIT, check_episode_cost
+from fricenv.envs.sensors import NO_DELAY, NO_SCALE, split_sensor_options
 from fricenv.envs.settings import EnvKwargs, EnvSettings, settings_signature
 from fricenv.envs.setup import ACTION_DTYPES, EnvSetup, coerce_action, raise_status
 from fricenv.envs.state import (
@@ -41,7 +42,13 @@ from fricenv.envs.state import (
 )
 from fricenv.envs.steppers import Steppers, steppers_for_plants
 from fricenv.envs.stick_slip import RenderModes, check_render_mode
-from fricenv.envs.vector_draws import DRAW_ROWS, PlantDraws, plant_seeds
+from fricenv.envs.vector_draws import (
+    DRAW_ROWS,
+    PlantDraws,
+    named_plant,
+    plant_options,
+    plant_seeds,
+)
 from fricenv.envs.vector_instruments import PlantInstruments
 from fricenv.envs.vector_render import PlantFrames, plant_snapshot
 from fricenv.jit import parallel_section
@@ -286,7 +293,9 @@ class StickSlipVectorEnv(VectorEnv):
         options: dict[str, Any] | None = None,
     ) -> tuple[np.ndarray, dict[str, Any]]:
         """Reset all plants (or those in ``options["reset_mask"]``), seeding plant i with
-        ``seed + i`` (or ``seed[i]``); other options apply to every reset plant."""
+        ``seed + i`` (or ``seed[i]``). Another option applies to every reset plant, or, as
+        a numpy array of shape ``(num_envs,)``, gives plant i its element i (checked as a
+        scalar would be; with ``reset_mask``, the masked plants' elements are used)."""
         n = self.num_envs
         seeds = plant_seeds(seed, n)
         check_dict("options", options)
@@ -314,7 +323,10 @@ class StickSlipVectorEnv(VectorEnv):
                     )
                 raise ValueError("the first reset must reset every plant")
         idx = np.flatnonzero(mask)
-        self._reset_plants(idx, [seeds[i] for i in idx.tolist()], [options] * idx.size)
+        per_plant = plant_options(options, n)
+        self._reset_plants(idx, [seeds[i] for i in idx.tolist()],
+                           [options] * idx.size if per_plant is None
+                           else [per_plant[i] for i in idx.tolist()], per_plant is not None)
         if is_int(seed):  # (after every check: a rejected reset reseeds nothing)
             super().reset(seed=int(seed))
         return self._observation(), {}
@@ -325,7 +337,9 @@ class StickSlipVectorEnv(VectorEnv):
         """Reset every plant, plant ``i`` seeded ``seeds[i]`` (None: its generator goes on)
         and with the reset options ``options[i]`` (a dict as ``reset``'s, without
         ``reset_mask``, or None), as SB3's ``VecEnv.seed`` and ``set_options`` ask; returns
-        what ``reset`` does. A refused option leaves every plant as it was."""
+        what ``reset`` does. A value of ``options[i]`` that is a numpy array of shape
+        ``(num_envs,)`` gives plant i its element i (so ``set_options`` of one dict of
+        arrays sweeps the plants). A refused option leaves every plant as it was."""
         n = self.num_envs
         each_seed = plant_seeds(seeds, n)
         opts = items_of(options)
@@ -340,20 +354,36 @@ class StickSlipVectorEnv(VectorEnv):
             if opt and "reset_mask" in opt:
                 raise ValueError(f"options[{i}] holds 'reset_mask': reset_plants resets every "
                                  "plant (reset(options={'reset_mask': m}) resets some)")
-        self._reset_plants(np.arange(n), each_seed, [dict(o) if o else {} for o in opts])
+        each_options = []
+        for i, opt in enumerate(opts):
+            with named_plant(i):
+                per_plant = plant_options(opt, n) if opt else None
+            each_options.append(per_plant[i] if per_plant is not None
+                                else dict(opt) if opt else {})
+        self._reset_plants(np.arange(n), each_seed, each_options, True)
         return self._observation(), {}
 
-    def _reset_plants(self, idx: np.ndarray, seeds: list, options: list[dict]) -> None:
-        """Start new episodes for plants ``idx``, validating ``options`` per plant; a
-        rejected reset loses nothing (``PlantDraws.start_episodes``)."""
-        mask = self._streams.start_episodes(idx, seeds, options, self._cursor, self.setup,
+    def _reset_plants(self, idx: np.ndarray, seeds: list, options: list[dict],
+                      name_plants: bool = False) -> None:
+        """Start new episodes for plants ``idx``, validating ``options`` per plant (an error
+        names the plant with ``name_plants``); a rejected reset loses nothing
+        (``PlantDraws.start_episodes``; the sensors' options are all checked before)."""
+        inst = self.setup.instruments
+        scale = np.full(idx.size, NO_SCALE)
+        lag = np.full(idx.size, NO_DELAY, dtype=np.int64)
+        rest = []
+        for j, (i, opt) in enumerate(zip(idx.tolist(), options, strict=True)):
+            with named_plant(i, name_plants):
+                others, scale[j], lag[j] = split_sensor_options(opt, inst)
+            rest.append(others or {})
+        mask = self._streams.start_episodes(idx, seeds, rest, self._cursor, self.setup,
                                             self._new_P, self._new_init,
-                                            self._check_batch_cost)
+                                            self._check_batch_cost, name_plants)
         start_batch(self._table, self._cfg, mask, self._obs_pair, self._flags, self._counters)
         # options may have given the plants another law or damping than the draws' bounds
         self._fit_steppers()
         if self._inst is not None:
-            self._inst.start(idx, self._streams.rngs, self._ctrl, self._obs)
+            self._inst.start(idx, self._streams.rngs, self._ctrl, self._obs, scale, lag)
         self._terminated[mask] = False
         self._truncated[mask] = False
         self._needs_reset = False
@@ -543,7 +573,7 @@ class StickSlipVectorEnv(VectorEnv):
         steps = int(self._steps[i])
         if self._inst is None:
             return PlantState(plant, self._ctrl[i].copy(), None, None, steps)
-        return PlantState(plant, *self._inst.state_of(i, self._ctrl), steps)
+        return PlantState(plant, episode_steps=steps, **self._inst.state_of(i, self._ctrl))
 
     def set_state(self, i: int, state: PlantState) -> np.ndarray:
         """Put plant ``i`` in ``state`` (from ``get_state`` of an environment made with the

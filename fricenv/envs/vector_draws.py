@@ -7,12 +7,14 @@ generator, seeded ``seed + i`` as ``SyncVectorEnv`` seeds its sub-environments, 
 the step kernel autoresets a plant in place with exactly the numbers a single environment
 would draw at its next ``reset()``, and Python refills a plant's buffer only every
 ``DRAW_ROWS`` episodes. The buffers' read positions (``cursor``) live in the kernel's
-counters; the methods are handed them.
+counters; the methods are handed them. ``plant_options`` splits reset options given as
+arrays of one value per plant into each plant's own.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Iterator, Mapping
+from contextlib import contextmanager
 from typing import Any
 
 import numpy as np
@@ -51,6 +53,43 @@ def plant_seeds(seed: Any, n: int) -> list[int | None]:
     return [None if s is None else int(s) for s in seeds]
 
 
+@contextmanager
+def named_plant(i: int, name: bool = True) -> Iterator[None]:
+    """Re-raise a ``TypeError`` or ``ValueError`` with ``options for plant i:`` before its
+    message (when ``name``), for errors of options that differ from plant to plant."""
+    try:
+        yield
+    except (TypeError, ValueError) as e:
+        if not name:
+            raise
+        raise type(e)(f"options for plant {i}: {e}") from e
+
+
+def plant_options(options: Mapping[str, Any], n: int) -> list[dict[str, Any]] | None:
+    """Each of ``n`` plants' reset options when some value of ``options`` is a numpy array
+    of one value per plant (plant ``i`` gets element ``i``, checked later as a scalar
+    option would be); None when every value is one for all plants (a 0-d array is
+    one such value, refused by the checks as the single env refuses it). ``ValueError``
+    naming the option for an array of another shape."""
+    per_plant = [key for key, value in options.items()
+                 if isinstance(value, np.ndarray) and value.ndim > 0]
+    if not per_plant:
+        return None
+    for key in per_plant:
+        shape = options[key].shape
+        if shape != (n,):
+            raise ValueError(f"reset option {key!r}: an array holds one value per plant, "
+                             f"shape ({n},) for num_envs={n}, got shape {shape}")
+    return [{key: _element(value, i) if key in per_plant else value
+             for key, value in options.items()} for i in range(n)]
+
+
+def _element(values: np.ndarray, i: int) -> Any:
+    """Element ``i`` of an option's array as a Python scalar (so an error quotes ``1``, not
+    ``np.int64(1)``); an object array's element as it is."""
+    value = values[i]
+    return value.item() if isinstance(value, np.generic) else value
+
 
 class PlantDraws:
     """The generators, their seeds and the buffered uniforms of ``n`` plants."""
@@ -78,12 +117,14 @@ class PlantDraws:
     def start_episodes(self, idx: np.ndarray, seeds: list[int | None],
                        options: list[dict[str, Any]], cursor: np.ndarray, setup: EnvSetup,
                        P_new: np.ndarray, init: np.ndarray,
-                       check: Callable[[list[int]], None]) -> np.ndarray:
+                       check: Callable[[list[int]], None],
+                       name_plants: bool = False) -> np.ndarray:
         """Write the new episodes of plants ``idx`` (seeded ``seeds``, with reset
         ``options``, each validated against its drawn values) into ``P_new`` and ``init``,
         then ``check`` the plants given options; returns the mask of the plants started.
         If anything is refused, every plant's generator, buffered draws and cursor are put
-        back, so a refused reset loses nothing."""
+        back, so a refused reset loses nothing; with ``name_plants`` (options that differ
+        from plant to plant) its error names the plant."""
         # all new generators first: a bad seed fails before any plant changes
         fresh = {i: seeding.np_random(s) for i, s in zip(idx.tolist(), seeds, strict=True)
                  if s is not None or self.rngs[i] is None}
@@ -104,7 +145,8 @@ class PlantDraws:
                 # the row a single env would draw now
                 values = setup.scale(self.draws[i, cursor[i]])
                 cursor[i] += 1
-                setup.episode(values, opt or None, P_new[i], init[i])
+                with named_plant(i, name_plants):
+                    setup.episode(values, opt or None, P_new[i], init[i])
                 mask[i] = True
             check([i for i, o in zip(idx.tolist(), options, strict=True) if o])
         except BaseException:

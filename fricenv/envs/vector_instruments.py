@@ -9,7 +9,6 @@ writes, and reads nothing else.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
@@ -58,14 +57,16 @@ class PlantInstruments:
         return self._zero_actions
 
     def start(self, idx: np.ndarray, rngs: list[np.random.Generator | None], ctrl: np.ndarray,
-              obs: np.ndarray) -> None:
+              obs: np.ndarray, scale: np.ndarray, lag: np.ndarray) -> None:
         """Plants ``idx`` start episodes: noise streams spawned from their generators
-        ``rngs[i]``, commands at their start settings ``ctrl``, first readings ``obs``."""
+        ``rngs[i]``, commands at their start settings ``ctrl``, noise scales and delays
+        from the reset options ``scale``, ``lag`` (one per plant of ``idx``;
+        ``sensors.NO_SCALE``, ``NO_DELAY``: not given), first readings ``obs``."""
         bank = self.bank
         for i in idx.tolist():
             bank.seed_noise(i, rngs[i])
         bank.cmd[idx] = ctrl[idx]
-        bank.start(idx, obs[idx])
+        bank.start(idx, obs[idx], scale, lag)
 
     def after_step(self, obs: np.ndarray, final_obs: np.ndarray | None, ctrl: np.ndarray,
                    did_reset: np.ndarray | None) -> np.ndarray:
@@ -107,19 +108,23 @@ class PlantInstruments:
 
     @property
     def noisy(self) -> bool:
+        """Whether the plants have noise streams (noise, or the sensors' randomisation)."""
         return self.bank.normals is not None
 
     def commands(self, ctrl: np.ndarray) -> np.ndarray:
         """Every plant's command (the applied settings ``ctrl`` without an actuator)."""
         return self.bank.cmd if self.actuating else ctrl
 
-    def state_of(self, i: int, ctrl: np.ndarray) -> tuple[
-            np.ndarray, np.ndarray | None, tuple[Mapping[str, Any] | None, np.ndarray] | None]:
-        """Plant ``i``'s command, delay line and noise stream (``PlantState``'s fields,
-        copies)."""
+    def state_of(self, i: int, ctrl: np.ndarray) -> dict[str, Any]:
+        """Plant ``i``'s command, delay line, noise stream, noise scale and delay
+        (``PlantState``'s fields by name, copies)."""
         bank = self.bank
-        delay = None if bank.delay is None else bank.delay[i].copy()
-        return self.commands(ctrl)[i].copy(), delay, bank.noise_state(i)
+        sensing = bank.delay is not None
+        return {"command": self.commands(ctrl)[i].copy(),
+                "delay": bank.delay[i].copy() if bank.delay is not None else None,
+                "noise": bank.noise_state(i),
+                "noise_scale": float(bank.scale[i]) if sensing else 1.0,
+                "obs_delay": int(bank.lag[i]) if sensing else None}
 
     def restore(self, i: int, state: PlantState) -> None:
         """Put plant ``i``'s command, delay line and noise stream as in ``state`` (checked
@@ -128,4 +133,5 @@ class PlantInstruments:
         bank.cmd[i] = state.command
         if bank.delay is not None:
             bank.delay[i] = state.delay
+            bank.restore_sensors(i, state.noise_scale, state.obs_delay)
         bank.set_noise_state(i, state.noise)
