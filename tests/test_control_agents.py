@@ -214,8 +214,10 @@ def test_benchmark_rows_are_a_registry():
     from fricenv_agents import benchmark as BM
 
     groups = BM.training_groups()
-    assert groups["ppo_robust"] == ("ppo", {"randomize": True, "obs_noise": BM.NOISE,
+    noise = {k: round(BM.ROBUST_NOISE_FACTOR * v, 9) for k, v in BM.NOISE.items()}
+    assert groups["ppo_robust"] == ("ppo", {"randomize": True, "obs_noise": noise,
                                             "obs_delay": 1, "randomize_sensors": True})
+    assert BM.ROBUST_NOISE_FACTOR > 1  # the benchmark's noise lies inside the training's
     assert set(groups) == {"ppo", "ppo_robust", "sac"}
     zero = BM.ROWS[0]
     with pytest.raises(ValueError, match="distinct keys"):
