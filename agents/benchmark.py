@@ -78,7 +78,8 @@ ROBUST_NOISE_FACTOR = 1.5
 #: uniform in [0, 1) of ``ROBUST_NOISE_FACTOR * NOISE`` and a delay in {0, 1}
 #: (``randomize_sensors``).
 ROBUST_ENV_KWARGS: dict[str, Any] = {
-    "randomize": True, "obs_noise": {k: round(ROBUST_NOISE_FACTOR * v, 9) for k, v in NOISE.items()},
+    "randomize": True,
+    "obs_noise": {k: round(ROBUST_NOISE_FACTOR * v, 9) for k, v in NOISE.items()},
     "obs_delay": DELAY, "randomize_sensors": True}
 #: The tables flag a learned controller more than this fraction of |MPC return| behind the
 #: MPC, and one keeping less than ``RETENTION_BAR`` of its in-range stick cut.
