@@ -2,18 +2,23 @@
 
     python scripts/train_control_benchmark.py [--jobs 2] [--seeds 5] [--robust-seeds 5]
         [--groups ppo ppo_robust sac] [--scenes paper self_excited stribeck viscous]
-        [--root runs/control] [--dry-run]
+        [--root agents/pretrained/benchmark] [--dry-run]
 
 Each run is ``python -m fricenv_agents.train`` with the hyperparameter file's entry for its
 scene, into ``<root>/<group>_<scene>_s<seed>``. The groups are the benchmark's trained
 rows (``fricenv_agents.benchmark.ROWS``, each with its algorithm and env kwargs): ``ppo``,
 ``sac``, and ``ppo_robust``, PPO trained on randomised plants with sensor noise and delay
-drawn per episode (``ROBUST_ENV_KWARGS``: the benchmark's ``NOISE``, scaled per episode by
-a draw in [0, 1], and a delay of 0 or 1 interval). A run whose folder holds a model is
-skipped; a folder without one (a run cut off) is removed and the run started again, so the
-command can simply be repeated until all are done. Logs go to ``<root>/logs``. Runs use
-one torch thread each (``--threads 1``). ``python -m fricenv_agents.benchmark --runs
-<root>`` evaluates them.
+drawn per episode (``ROBUST_ENV_KWARGS``: ``ROBUST_NOISE_FACTOR`` times the benchmark's
+``NOISE``, scaled per episode by a draw in [0, 1), and a delay of 0 or 1 interval). A run
+whose folder holds a model is skipped; a folder without one (a run cut off) is removed and
+the run started again, so the command can simply be repeated until all are done. Logs go
+to ``<root>/logs``. Runs use one torch thread each (``--threads 1``).
+
+The default root is the folder of run folders the package ships and the benchmark reads
+by default, so that from a clean clone this command has nothing to do and ``python -m
+fricenv_agents.benchmark`` evaluates the shipped models; the folder's ``.gitignore`` keeps
+the training logs out of the repository. Train elsewhere (``--root runs/control``) and
+pass ``--runs`` to the benchmark to compare fresh runs.
 """
 
 from __future__ import annotations
@@ -68,7 +73,7 @@ def main() -> None:
     p.add_argument("--groups", "--algos", nargs="+", choices=sorted(GROUPS),
                    default=list(GROUPS))
     p.add_argument("--scenes", nargs="+", choices=SCENES, default=list(SCENES))
-    p.add_argument("--root", type=Path, default=Path("runs/control"))
+    p.add_argument("--root", type=Path, default=Path("agents/pretrained/benchmark"))
     p.add_argument("--dry-run", action="store_true", help="print the commands only")
     args = p.parse_args()
     if args.jobs < 1 or args.seeds < 1 or args.robust_seeds < 1:
