@@ -150,6 +150,7 @@ def test_benchmark_writes_its_tables_with_a_tiny_robust_run(tmp_path):
     gen = res["generalisation"]["self_excited"]
     assert set(gen) == {"in range", "held out below", "held out above", "noise + delay"}
     assert set(gen["in range"]) == {"zero", "mpc", "ppo", "ppo_robust"}
+    assert set(gen["held out below"]) == {"zero", "ppo", "ppo_robust"}  # (MPC: exact plant)
     assert gen["noise + delay"]["mpc"]["label"].endswith("state from the observation)")
     ci = res["scenes"]["self_excited"]["ppo"]["iqm_ci"]["ret"]
     assert ci["lo"] <= ci["estimate"] <= ci["hi"]
@@ -161,9 +162,9 @@ def test_benchmark_writes_its_tables_with_a_tiny_robust_run(tmp_path):
     with open(out / "control_benchmark_episodes.csv", newline="") as f:
         rows = list(csv.DictReader(f))
     assert tuple(rows[0]) == BM.CSV_COLUMNS
-    # what ran: 7 controllers on the nominal episodes and 4 in each of the 4 conditions,
-    # one model each, 2 evaluation seeds x 2 episodes
-    assert len(rows) == (7 + 4 * 4) * 2 * 2
+    # what ran: 7 controllers on the nominal episodes, 4 in range and under noise + delay,
+    # 3 in each held-out box (not the MPC), one model each, 2 evaluation seeds x 2 episodes
+    assert len(rows) == (7 + 2 * 4 + 2 * 3) * 2 * 2
     n_json = sum(len(e["per_episode"]["ret"]) for e in res["scenes"]["self_excited"].values())
     n_json += sum(len(e["per_episode"]["ret"]) for c in gen.values() for e in c.values())
     assert len(rows) == n_json
@@ -270,3 +271,25 @@ def test_pretrained_policy_of_every_scene_loads_and_cuts_the_stick(scene):
     ppo = rollout(ctrl, short, eval_env_seed(0), 2)
     zero = rollout(ZeroExcitation(short), short, eval_env_seed(0), 2)
     assert ppo.stick_fraction.mean() < 0.5 * zero.stick_fraction.mean()
+
+
+def test_a_trained_models_episodes_run_side_by_side_as_seed_by_seed():
+    """``run_entry`` runs all of a trained model's evaluation seeds in one vector env: the
+    same plants, so the same scores as one rollout per seed."""
+    from pathlib import Path
+
+    import fricenv_agents
+    from fricenv_agents.layout import eval_env_seed
+    from fricenv_agents.runs import load_controller
+    from fricenv_agents.scoring import Entry, run_entry
+
+    model = Path(fricenv_agents.__file__).parent / "pretrained" / "ppo_self_excited.zip"
+    ctrl, _ = load_controller(model)
+    entry = Entry("ppo", "PPO", "trained", [lambda k: ctrl])
+    kw = {"max_episode_steps": 12}
+    run_entry(entry, "self_excited", kw, 3, 2)
+    per_seed = [rollout(ctrl, "self_excited", eval_env_seed(k), 2, kw) for k in range(3)]
+    for field in ("ret", "stick_fraction", "effort"):
+        np.testing.assert_allclose(getattr(entry.scores, field),
+                                   np.concatenate([getattr(m, field) for m in per_seed]),
+                                   rtol=1e-6, atol=1e-9)
