@@ -223,12 +223,10 @@ class ParticleFilter:
         todo = plants & ~self._ahead_ok
         if todo.any():
             ends, cmds, failed = self._step(self._lag, self._lag_cmd, self._acts[:, 0])
+            self._blocks(ends, cmds, self._ahead, self._ahead_cmd, todo)
             rows = np.repeat(todo, self.particles)
-            self._ahead[rows], self._ahead_cmd[rows] = ends[rows], cmds[rows]
             self._ahead_dead[rows] = failed[rows]
-        for i in np.flatnonzero(plants):
-            b = self._block(i)
-            self._lag[b], self._lag_cmd[b] = self._ahead[b], self._ahead_cmd[b]
+        self._blocks(self._ahead, self._ahead_cmd, self._lag, self._lag_cmd, plants)
         self._kill(self._ahead_dead & np.repeat(plants, self.particles), self.logw, self._lag)
         self._acts[plants, :-1] = self._acts[plants, 1:]
         self._n_acts[plants] -= 1
@@ -242,7 +240,7 @@ class ParticleFilter:
         bad = failed.reshape(self._n, self.particles)
         logw[bad] = -np.inf
         for i in np.flatnonzero(bad.any(axis=1)):
-            b = self._block(i)
+            b = self._block(int(i))
             best = int(np.argmax(logw[i]))
             table[b][bad[i]] = table[b][best]
 
@@ -312,22 +310,22 @@ class ParticleFilter:
         S = T[:, PL_S:PL_CTRL]
         stuck = S[:, S_MODE] == 0.0
         vr = S[:, S_V] - T[:, PL_P + P_V]
-        coords = [(S[:, S_X], None), (vr, None)]
-        coords += [(T[:, PL_P + slot], (self.setup.draw_lo[k], self.setup.draw_hi[k]))
-                   for k, slot in self._free]
-        scale = self.roughening * m ** (-1.0 / (len(coords) + 2))
-        jit = []
-        for values, _ in coords:
-            jit.append(scale * np.ptp(values) * self.rng.standard_normal(m))
+        scale = self.roughening * m ** (-1.0 / (len(self._free) + 4))
+
+        def jitter(values: np.ndarray) -> np.ndarray:
+            return scale * np.ptp(values) * self.rng.standard_normal(m)
+
+        dx, dvr = jitter(S[:, S_X]), jitter(vr)
+        dp = [jitter(T[:, PL_P + slot]) for _, slot in self._free]
         for slot in (S_PHI1, S_PHI2):  # spread of the phases about the first one
             wrapped = (S[:, slot] - S[0, slot] + math.pi) % TWO_PI
-            S[:, slot] = (S[:, slot] + scale * np.ptp(wrapped) * self.rng.standard_normal(m)
-                          ) % TWO_PI
-        S[:, S_X] += jit[0]
-        for (values, (lo, hi)), d in zip(coords[2:], jit[2:], strict=True):
-            values[:] = np.clip(values + d, lo, hi)
+            S[:, slot] = (S[:, slot] + jitter(wrapped)) % TWO_PI
+        S[:, S_X] += dx
+        for (k, slot), d in zip(self._free, dp, strict=True):
+            T[:, PL_P + slot] = np.clip(T[:, PL_P + slot] + d, self.setup.draw_lo[k],
+                                        self.setup.draw_hi[k])
         V = T[:, PL_P + P_V]
-        S[:, S_V] = np.where(stuck, V, V + vr + np.where(stuck, 0.0, jit[1]))
+        S[:, S_V] = np.where(stuck, V, V + vr + dvr)
         T[:, PL_P + P_W2] = T[:, PL_CTRL + 1] * T[:, PL_P + P_W1]
         S[:, S_MODE] = modes(T[:, PL_P:PL_S], S[:, S_X], S[:, S_V], S[:, S_PHI1],
                              S[:, S_PHI2])
@@ -392,19 +390,30 @@ class ParticleFilter:
     def _predict(self) -> None:
         """The current states: each plant's particles stepped through the actions given
         since its latest reading (the first such step kept for the next reading)."""
-        self._now[:], self._now_cmd[:] = self._lag, self._lag_cmd
         self._now_logw[:] = self.logw
         self._ahead_ok[:] = False
+        self._blocks(self._lag, self._lag_cmd, self._now, self._now_cmd, self._n_acts == 0)
         for j in range(int(self._n_acts.max(initial=0))):
-            ends, cmds, failed = self._step(self._now, self._now_cmd, self._acts[:, j])
+            src = (self._lag, self._lag_cmd) if j == 0 else (self._now, self._now_cmd)
+            ends, cmds, failed = self._step(*src, self._acts[:, j])
             moved = self._n_acts > j
-            rows = np.repeat(moved, self.particles)
-            self._now[rows], self._now_cmd[rows] = ends[rows], cmds[rows]
+            failed &= np.repeat(moved, self.particles)
             if j == 0:
-                self._ahead[rows], self._ahead_cmd[rows] = ends[rows], cmds[rows]
-                self._ahead_dead[:] = failed & rows
+                self._blocks(ends, cmds, self._ahead, self._ahead_cmd, moved)
+                self._ahead_dead[:] = failed
                 self._ahead_ok[:] = moved
-            self._kill(failed & rows, self._now_logw, self._now)
+            self._blocks(ends, cmds, self._now, self._now_cmd, moved)
+            self._kill(failed, self._now_logw, self._now)
+
+    def _blocks(self, plants: np.ndarray, cmds: np.ndarray, out: np.ndarray,
+                out_cmds: np.ndarray, which: np.ndarray) -> None:
+        """Copy the particles of the plants ``which`` (mask) into ``out``, ``out_cmds``."""
+        if which.all():
+            out[:], out_cmds[:] = plants, cmds
+            return
+        for i in np.flatnonzero(which):
+            b = self._block(int(i))
+            out[b], out_cmds[b] = plants[b], cmds[b]
 
     # -- what the controller reads -----------------------------------------------------------
     def now_states(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -615,11 +624,12 @@ def noise_retention(scene: str, n_seeds: int, episodes: int, env_kwargs: dict,
     for k in range(n_seeds):
         probe = TrackingProbe(FilteredMPC(scene, noisy, seed=k, **settings))
         probes.append(probe)
-        runs = {"zero": (ZeroExcitation(scene, env_kwargs), env_kwargs),
-                "zero_sensors": (ZeroExcitation(scene, noisy), noisy),
-                "exact": (MPPIController(scene, env_kwargs, seed=k), env_kwargs),
-                "raw": (MPPIController(scene, noisy, seed=k, exact_state=False), noisy),
-                "filtered": (probe, noisy)}
+        runs: dict[str, tuple[Any, dict]] = {
+            "zero": (ZeroExcitation(scene, env_kwargs), env_kwargs),
+            "zero_sensors": (ZeroExcitation(scene, noisy), noisy),
+            "exact": (MPPIController(scene, env_kwargs, seed=k), env_kwargs),
+            "raw": (MPPIController(scene, noisy, seed=k, exact_state=False), noisy),
+            "filtered": (probe, noisy)}
         for key, (ctrl, kw) in runs.items():
             t = time.perf_counter()
             m = rollout(ctrl, scene, eval_env_seed(k), episodes, kw)

@@ -285,7 +285,10 @@ class BatchRollout:
         sample ended in at the last ``run``: a state estimator steps its particles this way
         (horizon 1), exactly as the environment steps its plants. A sample that failed holds
         the state its failing interval left. These are this object's buffers, overwritten by
-        the next call (copy what you keep)."""
+        the next call (copy what you keep). Without an actuator the command is the applied
+        setting, as in ``StickSlipVectorEnv.state_arrays()``."""
+        if not self.actuated:  # (the kernels moved the setting in the table only)
+            self._cmd[:] = self._table[:, PL_CTRL:PL_WORK]
         return self._table, self._cmd
 
     def _starts(self, start: Any) -> tuple[np.ndarray, np.ndarray]:
