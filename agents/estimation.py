@@ -41,7 +41,7 @@ from typing import Any
 
 import numpy as np
 
-from fricenv.checks import check_finite_real, check_int, got
+from fricenv.checks import check_bool, check_finite_real, check_int, got
 from fricenv.core import new_workspace
 from fricenv.envs import kernels as K
 from fricenv.envs.rollout import MAX_SAMPLES, BatchRollout
@@ -122,7 +122,7 @@ class ParticleFilter:
         self.roughening = check_finite_real("roughening", roughening)
         if self.roughening < 0.0:
             raise ValueError(f"roughening must be >= 0, got {roughening!r}")
-        self.parallel = parallel
+        self.parallel = check_bool("parallel", parallel)
         self.rng = np.random.default_rng(seed)
         inst = setup.instruments
         self.delay = 0 if inst is None else inst.delay

@@ -2,7 +2,7 @@
 
     python scripts/estimator_benchmark.py [--scenes paper self_excited stribeck viscous]
         [--seeds 2] [--episodes 10] [--max-steps N] [--particles 1000]
-        [--plan-from posterior] [--out docs/results]
+        [--plan-from posterior] [--json docs/results/estimator_benchmark.json]
 
 On each scene, plants drawn from the scene's randomisation ranges (``randomize=True``)
 and the control benchmark's evaluation episodes: the stick cut against zero excitation
@@ -10,8 +10,9 @@ of (a) the MPC bound to the exact state without sensors, (b) the MPC planning fr
 raw noisy, delayed reading, (c) ``fricenv_agents.estimation.FilteredMPC``, under the
 benchmark's sensor noise and one-interval delay (``fricenv_agents.benchmark.NOISE`` and
 ``DELAY``); retention is a cut over (a)'s. Also the RMS errors of x and v - V of the
-filter's posterior mean and of the raw reading against the exact current state.
-Writes ``estimator_benchmark.json`` and ``estimator_benchmark.md`` to ``--out``.
+filter's posterior mean and of the raw reading against the exact current state. Prints
+the table (docs/control.md shows it) and writes every number, per-episode stick fractions
+included, to ``--json``.
 """
 
 from __future__ import annotations
@@ -46,7 +47,7 @@ def main() -> None:
                    help="episode length for a quick look (default: each scene's horizon)")
     p.add_argument("--particles", type=int, default=DEFAULT_PARTICLES)
     p.add_argument("--plan-from", choices=PLAN_FROM, default=PLAN_FROM[0])
-    p.add_argument("--out", type=Path, default=None, help="folder for the JSON and table")
+    p.add_argument("--json", type=Path, default=None, help="file for the results")
     args = p.parse_args()
     base: dict = {"randomize": True}
     if args.max_steps is not None:
@@ -63,12 +64,11 @@ def main() -> None:
              f"{NOISE}, delay {DELAY} interval; plants from the scenes' randomisation ranges.",
              "", *table(results), ""]
     print("\n".join(lines))
-    if args.out is not None:
-        args.out.mkdir(parents=True, exist_ok=True)
-        (args.out / "estimator_benchmark.md").write_text("\n".join(lines))
-        meta = {"env_kwargs": base, "noise": NOISE, "delay": DELAY}
-        (args.out / "estimator_benchmark.json").write_text(
-            json.dumps({**meta, "results": results}, indent=1))
+    if args.json is not None:
+        args.json.parent.mkdir(parents=True, exist_ok=True)
+        meta = {"env_kwargs": base, "noise": NOISE, "delay": DELAY, "seeds": args.seeds,
+                "episodes": args.episodes}
+        args.json.write_text(json.dumps({**meta, "results": results}, indent=1))
 
 
 if __name__ == "__main__":
