@@ -28,7 +28,7 @@ latest reading measured, and the actions given since. At every reading:
 4. **predict** the current state: the particles stepped through the d actions given since
    that reading.
 
-The controller (``FilteredMPC``) plans with MPPI from that prediction. A reading no
+The controller (``FilteredMPC``) plans with MPPI from that prediction's mean. A reading no
 particle explains (the best misses by more than ``sqrt(REINIT_CHI2)`` standard deviations
 per channel, as after an episode restarted without ``episode_start``) starts the plant's
 filter again from it.
@@ -477,9 +477,11 @@ class ParticleFilter:
         return out, cmds
 
 
-#: Where the MPC's samples start: each from its own draw of the posterior, or all from the
-#: posterior mean.
-PLAN_FROM = ("posterior", "mean")
+#: Where the MPC's samples start: all from the posterior mean (the default), or each from
+#: its own draw of the posterior. The mean scored better (docs/control.md): MPPI weighs
+#: its samples by their returns' spread, and samples from different starts spread by
+#: where they start as well as by their actions.
+PLAN_FROM = ("mean", "posterior")
 
 
 class FilteredMPC(MPPIController):
@@ -490,9 +492,9 @@ class FilteredMPC(MPPIController):
     (``obs_noise``, ``obs_delay``, ``observe``) and prior (``randomize``), as they make
     the environment it controls. The MPPI settings are ``MPPIController``'s; ``particles``,
     ``resample_below`` and ``roughening`` are the filter's; ``seed`` seeds both.
-    ``plan_from="posterior"`` starts each MPPI sample from its own draw of the posterior
-    (so a plan is scored on the plants the readings leave possible), ``"mean"`` every
-    sample from the posterior mean. It never reads the environment's state: ``bind`` is
+    ``plan_from="mean"`` starts every MPPI sample from the posterior mean,
+    ``"posterior"`` each from its own draw of the posterior (see ``PLAN_FROM``). It never
+    reads the environment's state: ``bind`` is
     ignored, and it works under partial observation too.
     """
 
@@ -504,7 +506,7 @@ class FilteredMPC(MPPIController):
                  temperature: float = DEFAULT_TEMPERATURE, seed: int | None = 0,
                  parallel: bool = True, particles: int = DEFAULT_PARTICLES,
                  resample_below: float = DEFAULT_RESAMPLE_BELOW,
-                 roughening: float = DEFAULT_ROUGHENING, plan_from: str = "posterior"):
+                 roughening: float = DEFAULT_ROUGHENING, plan_from: str = PLAN_FROM[0]):
         super().__init__(scene, env_kwargs, horizon=horizon, samples=samples,
                          iterations=iterations, noise_std=noise_std, temperature=temperature,
                          seed=seed, parallel=parallel, exact_state=False)

@@ -162,6 +162,7 @@ def test_filtered_mpc_controls_from_the_readings_alone():
     assert info["particles"] == 100 and info["obs_delay"] == 1
     assert info["label"] == FilteredMPC.label
     partial = {"observe": ("x", "stick", "phases", "settings"), "obs_delay": 1}
-    mean = FilteredMPC(scene, partial, horizon=6, samples=32, particles=100, plan_from="mean")
-    m = rollout(mean, scene, 100, 2, partial)
+    post = FilteredMPC(scene, partial, horizon=6, samples=32, particles=100,
+                       plan_from="posterior")
+    m = rollout(post, scene, 100, 2, partial)
     assert m.stick_fraction.mean() < 0.25
