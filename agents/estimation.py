@@ -619,6 +619,8 @@ def noise_retention(scene: str, n_seeds: int, episodes: int, env_kwargs: dict,
     from .layout import eval_env_seed
     from .rollouts import rollout
 
+    check_int("n_seeds", n_seeds, 1)
+    check_int("episodes", episodes, 1)
     noisy = {**env_kwargs, **sensors}
     stick: dict[str, list[float]] = {}
     seconds: dict[str, float] = {}

@@ -49,6 +49,10 @@ def main() -> None:
     p.add_argument("--plan-from", choices=PLAN_FROM, default=PLAN_FROM[0])
     p.add_argument("--json", type=Path, default=None, help="file for the results")
     args = p.parse_args()
+    if args.seeds < 1 or args.episodes < 1:
+        p.error(f"need --seeds >= 1 and --episodes >= 1, got {args.seeds} and {args.episodes}")
+    if args.max_steps is not None and args.max_steps < 1:
+        p.error(f"--max-steps must be >= 1, got {args.max_steps}")
     base: dict = {"randomize": True}
     if args.max_steps is not None:
         base["max_episode_steps"] = args.max_steps

@@ -10,6 +10,7 @@ from fricenv_agents.estimation import (
     ParticleFilter,
     TrackingProbe,
     modes,
+    noise_retention,
 )
 from fricenv_agents.rollouts import rollout
 
@@ -166,3 +167,15 @@ def test_filtered_mpc_controls_from_the_readings_alone():
                        plan_from="posterior")
     m = rollout(post, scene, 100, 2, partial)
     assert m.stick_fraction.mean() < 0.25
+
+
+def test_noise_retention_scores_the_three_mpcs_on_the_same_episodes():
+    r = noise_retention("paper", 1, 2, {"randomize": True, "max_episode_steps": 4},
+                        {"obs_noise": 0.01, "obs_delay": 1}, particles=50)
+    assert r["episodes"] == 2 and set(r["cut"]) == {"exact", "raw", "filtered"}
+    assert r["stick"]["zero"] == r["stick"]["zero_sensors"]  # (same plants, no control)
+    assert all(len(v) == 2 for v in r["per_episode_stick"].values())
+    assert np.isfinite(list(r["retention"].values())).all()
+    assert r["rms"]["x"] < r["rms"]["raw_x"] and r["filter"]["particles"] == 50
+    with pytest.raises(ValueError, match="n_seeds"):
+        noise_retention("paper", 0, 2, {}, {})
