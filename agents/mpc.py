@@ -162,10 +162,18 @@ class MPPIController:
         act = self.plan(plants, cmds).astype(np.float32)
         return (act if obs.ndim == 2 else act[0]), state
 
-    def plan(self, plants: np.ndarray, cmds: np.ndarray) -> np.ndarray:
-        """One MPPI decision for every plant (rows of ``plants``, ``cmds``); returns the
-        first actions (n, n_act) and keeps the shifted plans for the next call."""
+    def plan(self, plants: np.ndarray, cmds: np.ndarray,
+             sources: np.ndarray | None = None) -> np.ndarray:
+        """One MPPI decision for every plant; returns the first actions (n, n_act) and keeps
+        the shifted plans for the next call.
+
+        The samples start from rows of ``plants``, ``cmds``: by default row i for every
+        sample of plant i; ``sources`` (n * samples,) names each sample's start row instead
+        (plant i's samples are ``sources[i * samples:(i + 1) * samples]``), so that samples
+        can start from different draws of a state estimate (``fricenv_agents.estimation``).
+        """
         n, k, h, a = self._n, self.samples, self.horizon, self.n_act
+        src = self._sources if sources is None else sources
         sigma = self.noise_std
         roll = self._roll
         if roll is None:
@@ -174,7 +182,7 @@ class MPPIController:
             eps = self.rng.standard_normal((n, k, h, a)) * sigma
             eps[:, 0] = 0.0  # the current plan is a sample
             cand = np.clip(self._plan[:, None] + eps, -1.0, 1.0)
-            res = roll.run((plants, cmds), cand.reshape(n * k, h, a), self._sources)
+            res = roll.run((plants, cmds), cand.reshape(n * k, h, a), src)
             ret = res.rewards.sum(axis=1).reshape(n, k)
             ret = np.where(res.status.reshape(n, k) > 0, -np.inf, ret)
             if not np.all(np.isfinite(ret.max(axis=1))):

@@ -280,6 +280,17 @@ class BatchRollout:
                 self._stick, self._length, self._status)
         return RolloutResult(self._rewards, self._stick, self._length, self._status)
 
+    def end_states(self) -> tuple[np.ndarray, np.ndarray]:
+        """The plant vectors (n_samples, N_PLANT) and actuator commands (n_samples, 2) each
+        sample ended in at the last ``run``: a state estimator steps its particles this way
+        (horizon 1), exactly as the environment steps its plants. A sample that failed holds
+        the state its failing interval left. These are this object's buffers, overwritten by
+        the next call (copy what you keep). Without an actuator the command is the applied
+        setting, as in ``StickSlipVectorEnv.state_arrays()``."""
+        if not self.actuated:  # (the kernels moved the setting in the table only)
+            self._cmd[:] = self._table[:, PL_CTRL:PL_WORK]
+        return self._table, self._cmd
+
     def _starts(self, start: Any) -> tuple[np.ndarray, np.ndarray]:
         if isinstance(start, PlantState):
             return start.plant[None, :], start.command[None, :]
