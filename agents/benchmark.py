@@ -118,7 +118,7 @@ class Row:
     (``NOMINAL`` is the main table). ``label``: the tables' name (default: the entry's
     own; a trained group's gets its number of training seeds). ``train``: ``(algorithm,
     env kwargs)`` of a trained group, which ``scripts/train_control_benchmark.py`` trains
-    into ``<runs>/<key>_<scene>_s<seed>``.
+    into ``<runs>/<key>_<scene>_s<seed>``. ``retention_of``: see the field.
     """
 
     key: str
@@ -127,6 +127,10 @@ class Row:
     conditions: tuple[str, ...] = (NOMINAL,)
     label: str | None = None
     train: tuple[str, dict[str, Any]] | None = None
+    #: The row whose in-range stick cut the retentions divide by (default: this row's own):
+    #: a controller made for noisy sensors only is measured against what its noise-free
+    #: counterpart achieves.
+    retention_of: str | None = None
 
 
 def baseline(name: str) -> Callable[[Setting], Entry]:
@@ -162,6 +166,15 @@ def exact_mpc(s: Setting, k: int) -> MPPIController:
     where it plans from the noisy, delayed observation."""
     return MPPIController(s.plant, s.env_kwargs, seed=k,
                           exact_state=s.condition != "noise + delay")
+
+
+def filtered_mpc(s: Setting, k: int) -> Controller:
+    """The same MPC behind a particle filter on the exact model
+    (``fricenv_agents.estimation``): it plans from the filter's estimate, never from the
+    plants' exact states."""
+    from .estimation import FilteredMPC
+
+    return FilteredMPC(s.plant, s.env_kwargs, seed=k)
 
 
 def run_group(root: Path, group: str, scene: str) -> list[Path]:
@@ -212,6 +225,8 @@ ROWS: tuple[Row, ...] = (
     # (bound to the exact plant, parameters included, the MPC has no training range to
     # leave: the held-out boxes do not apply to it)
     Row("mpc", "MPC", per_seed(exact_mpc), (NOMINAL, "in range", "noise + delay")),
+    Row("mpc_filter", "MPC + filter", per_seed(filtered_mpc), ("noise + delay",),
+        retention_of="mpc"),
     Row("ppo", "PPO", trained("ppo"), ALL_CONDITIONS, "PPO", ("ppo", {})),
     Row("ppo_robust", "PPO, robust training", trained("ppo_robust"), ALL_CONDITIONS,
         "PPO, robust training (randomised plants and sensors)", ("ppo", ROBUST_ENV_KWARGS)),
@@ -225,8 +240,9 @@ def training_groups(rows: Sequence[Row] = ROWS) -> dict[str, tuple[str, dict[str
 
 
 def check_rows(rows: Sequence[Row]) -> None:
-    """``ValueError`` for two rows with one key, a row in an unknown condition, or a
-    condition without the ``zero`` row (the reference of the stick cuts)."""
+    """``ValueError`` for two rows with one key, a row in an unknown condition, a
+    condition without the ``zero`` row (the reference of the stick cuts), or a
+    ``retention_of`` naming no row."""
     keys = [r.key for r in rows]
     if len(set(keys)) != len(keys) or "zero" not in keys:
         raise ValueError(f"rows need distinct keys and a 'zero' row (the stick cuts' "
@@ -240,6 +256,9 @@ def check_rows(rows: Sequence[Row]) -> None:
         if set(r.conditions) - set(zero.conditions):
             raise ValueError(f"row {r.key!r} runs in {list(r.conditions)}, the 'zero' row "
                              f"only in {list(zero.conditions)}")
+        if r.retention_of is not None and r.retention_of not in keys:
+            raise ValueError(f"row {r.key!r}: retention_of names no row: "
+                             f"{r.retention_of!r}")
 
 
 # -- running ----------------------------------------------------------------------------------
@@ -312,12 +331,14 @@ def _cut(entry: Entry, zero: Entry) -> S.Interval:
                        strata=entry.n_seeds, seed=BOOT_SEED)
 
 
-def _retention(conds: dict[str, dict[str, Entry]], key: str, which: Sequence[str]) -> S.Interval:
-    """The worst of the conditions ``which``'s cuts over the in-range one, paired over
-    every cell (the same models, the same plant seeds)."""
+def _retention(conds: dict[str, dict[str, Entry]], key: str, which: Sequence[str],
+               base: str | None = None) -> S.Interval:
+    """The worst of the conditions ``which``'s cuts over the in-range one of ``base``
+    (default: ``key`` itself), paired over every cell (the same plant seeds)."""
     cells = []
     for cond in ("in range", *which):
-        cells += [conds[cond][key].matrix("stick_fraction"),
+        own = base if cond == "in range" and base is not None else key
+        cells += [conds[cond][own].matrix("stick_fraction"),
                   conds[cond]["zero"].matrix("stick_fraction")]
 
     def stat(*c: Any) -> Any:
@@ -327,7 +348,7 @@ def _retention(conds: dict[str, dict[str, Entry]], key: str, which: Sequence[str
             worst = np.minimum(worst, _cut_stat(c[i], c[i + 1]))
         return worst / base
 
-    return S.paired_ci(stat, cells, strata=conds["in range"][key].n_seeds, seed=BOOT_SEED)
+    return S.paired_ci(stat, cells, strata=conds["in range"]["zero"].n_seeds, seed=BOOT_SEED)
 
 
 def _gap(learned: Entry, ref: Entry) -> S.Interval:
@@ -441,8 +462,10 @@ def _seconds(entry: Entry) -> str:
     return f"{lo:.0f} s" if round(lo) == round(hi) else f"{lo:.0f}–{hi:.0f} s"
 
 
-def generalisation_summary(gen: Generalisation) -> dict[str, dict[str, dict[str, S.Interval]]]:
+def generalisation_summary(gen: Generalisation, rows: Sequence[Row] = ROWS,
+                           ) -> dict[str, dict[str, dict[str, S.Interval]]]:
     """scene -> controller key -> cut per condition and the two retentions."""
+    bases = {r.key: r.retention_of for r in rows if r.retention_of is not None}
     out: dict[str, dict[str, dict[str, S.Interval]]] = {}
     for scene, conds in gen.items():
         out[scene] = {}
@@ -450,9 +473,12 @@ def generalisation_summary(gen: Generalisation) -> dict[str, dict[str, dict[str,
         for key in keys:
             cell = {c: _cut(conds[c][key], conds[c]["zero"]) for c in CONDITIONS
                     if key in conds[c]}
+            base = bases.get(key)
             for name, which in RETENTIONS.items():
-                if all(c in cell for c in ("in range", *which)):
-                    cell[name] = _retention(conds, key, which)
+                have = all(c in cell for c in which) and (
+                    "in range" in cell if base is None else base in conds["in range"])
+                if have:
+                    cell[name] = _retention(conds, key, which, base)
             out[scene][key] = cell
     return out
 
@@ -737,7 +763,7 @@ def main(argv: Sequence[str] | None = None, rows: Sequence[Row] = ROWS) -> Path:
         results[scene] = res
         if g:
             gen[scene] = g
-    summary = generalisation_summary(gen)
+    summary = generalisation_summary(gen, rows)
     throughput = None
     if not args.no_throughput:
         from . import throughput as TP

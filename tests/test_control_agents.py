@@ -150,6 +150,10 @@ def test_benchmark_writes_its_tables_with_a_tiny_robust_run(tmp_path):
     gen = res["generalisation"]["self_excited"]
     assert set(gen) == {"in range", "held out below", "held out above", "noise + delay"}
     assert set(gen["in range"]) == {"zero", "mpc", "ppo", "ppo_robust"}
+    assert set(gen["noise + delay"]) == {"zero", "mpc", "mpc_filter", "ppo", "ppo_robust"}
+    # the filtered MPC's retention is against the bound MPC's noise-free cut
+    filt = res["cuts_and_retentions"]["self_excited"]["mpc_filter"]
+    assert set(filt) == {"noise + delay", "retention, noise + delay"}
     assert set(gen["held out below"]) == {"zero", "ppo", "ppo_robust"}  # (MPC: exact plant)
     assert gen["noise + delay"]["mpc"]["label"].endswith("state from the observation)")
     ci = res["scenes"]["self_excited"]["ppo"]["iqm_ci"]["ret"]
@@ -162,9 +166,10 @@ def test_benchmark_writes_its_tables_with_a_tiny_robust_run(tmp_path):
     with open(out / "control_benchmark_episodes.csv", newline="") as f:
         rows = list(csv.DictReader(f))
     assert tuple(rows[0]) == BM.CSV_COLUMNS
-    # what ran: 7 controllers on the nominal episodes, 4 in range and under noise + delay,
-    # 3 in each held-out box (not the MPC), one model each, 2 evaluation seeds x 2 episodes
-    assert len(rows) == (7 + 2 * 4 + 2 * 3) * 2 * 2
+    # what ran: 7 controllers on the nominal episodes, 4 in range, 5 under noise + delay
+    # (the filtered MPC too), 3 in each held-out box (not the MPC), one model each,
+    # 2 evaluation seeds x 2 episodes
+    assert len(rows) == (7 + 4 + 5 + 2 * 3) * 2 * 2
     n_json = sum(len(e["per_episode"]["ret"]) for e in res["scenes"]["self_excited"].values())
     n_json += sum(len(e["per_episode"]["ret"]) for c in gen.values() for e in c.values())
     assert len(rows) == n_json
@@ -227,6 +232,9 @@ def test_benchmark_rows_are_a_registry():
         BM.check_rows([BM.Row("zero", "zero", BM.baseline("zero")), BM.ROWS[4]])
     with pytest.raises(ValueError, match="unknown conditions"):
         BM.check_rows([zero, BM.Row("x", "x", BM.per_seed(BM.exact_mpc), ("windy",))])
+    with pytest.raises(ValueError, match="retention_of names no row: 'nope'"):
+        BM.check_rows([zero, BM.Row("x", "x", BM.per_seed(BM.exact_mpc),
+                                    retention_of="nope")])
     assert BM.build_parser().get_default("seeds") == 10
     assert BM.build_parser().get_default("runs") == BM.PRETRAINED_RUNS
 
