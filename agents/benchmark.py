@@ -725,7 +725,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", type=Path, default=Path("docs/results"), help="output folder")
     p.add_argument("--scenes", nargs="+", choices=BENCH_SCENES, default=list(BENCH_SCENES))
     p.add_argument("--seeds", type=int, default=10, help="evaluation seeds")
-    p.add_argument("--episodes", type=int, default=10, help="episodes per evaluation seed")
+    p.add_argument("--episodes", type=int, default=5, help="episodes per evaluation seed")
     p.add_argument("--grid", type=int, default=21, help="best-constant search grid")
     p.add_argument("--search-episodes", type=int, default=16,
                    help="best-constant search: episodes per candidate")
