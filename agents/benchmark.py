@@ -1,12 +1,13 @@
 """The control benchmark: every controller on every scene, and how policies generalise.
 
     python -m fricenv_agents.benchmark [--runs agents/pretrained/benchmark] [--out docs/results]
-        [--seeds 10] [--episodes 10] [--scenes paper self_excited stribeck viscous]
+        [--seeds 10] [--episodes 5] [--scenes paper self_excited stribeck viscous] [--jobs 2]
 
 Rows are controllers, columns scenes. The rows are data: ``ROWS`` lists each controller
 once (key, label, how to build its entry, the conditions it runs in), so adding one is one
 ``Row`` (docs/adding_a_controller.md). Today: zero excitation, random actions, the best
-constant, the feedback rule, the exact-model MPC, PPO, PPO with robust training, SAC.
+constant, the feedback rule, the exact-model MPC, the MPC behind a particle filter (under
+noise and delay), PPO, PPO with robust training, SAC.
 Every controller faces the same held-out episodes (``fricenv_agents.evaluate``'s seed
 layout: evaluation seed k < ``--seeds``, episodes j < ``--episodes``); a trained row runs
 every model of its group (``<runs>/<key>_<scene>_s<seed>``, one per training seed, made by
@@ -19,15 +20,18 @@ the training ranges (``in range``), from boxes of ``lambda`` and ``x_fs`` beyond
 of them (``held out below``, ``held out above``; the other parameters in their ranges), and
 with observation noise plus a one-interval delay (``noise + delay``, plants in range).
 Each condition's stick cut is ``1 - stick(controller) / stick(zero excitation)`` on the
-same episodes; retention is a condition's cut over the in-range one. The MPC is bound to
-the exact state, except under noise, where it plans from the noisy, delayed observation.
+same episodes; retention is a condition's cut over the in-range one (for the filtered MPC,
+over the bound MPC's). The MPC is bound to the exact state (so the held-out boxes do not
+apply to it), except under noise, where it plans from the noisy, delayed observation; the
+filtered MPC plans from its particle filter's estimate instead.
 
 Statistics (``fricenv_agents.statistics``): each cell is the interquartile mean over all
 models and episodes with a 95 % stratified bootstrap interval; gaps, cuts and retentions
 are paired over the shared episodes. Writes ``control_benchmark.md``,
 ``control_benchmark.json``, ``control_benchmark_episodes.csv`` (one row per episode, with
 the versions of the software that ran it) and three figures to ``--out`` (and the
-best-constant searches' caches, as ``fricenv_agents.evaluate`` does).
+best-constant searches' caches, as ``fricenv_agents.evaluate`` does); the page ends with
+the throughput of the vector env and of PPO training (``fricenv_agents.throughput``).
 """
 
 from __future__ import annotations
