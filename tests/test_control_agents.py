@@ -262,6 +262,36 @@ def test_training_script_trains_the_rows_groups(tmp_path):
     assert "-params" not in todo[-1][1]
 
 
+def test_the_benchmarks_trained_runs_ship_complete():
+    """Every trained row has its 5 training seeds per scene in the shipped folder, each a
+    finished run of its algorithm and env kwargs, with no machine path in its config; the
+    training script, run on the shipped folder, has nothing left to do."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    import yaml
+    from fricenv_agents import benchmark as BM
+    from fricenv_agents.config import load_hyperparams
+
+    for group, (algo, kw) in BM.training_groups().items():
+        for scene in BM.BENCH_SCENES:
+            runs = BM.run_group(BM.PRETRAINED_RUNS, group, scene)
+            assert [r.name for r in runs] == [f"{group}_{scene}_s{s}" for s in range(5)]
+            expected = kw or load_hyperparams(algo, scene).get("env_kwargs") or {}
+            for run in runs:
+                text = (run / "config.yml").read_text()
+                assert not re.search(r"/(work|root|home|tmp)/", text), run
+                cfg = yaml.safe_load(text)
+                assert (cfg["algo"], cfg["scene"]) == (algo, scene), run
+                assert cfg["env_kwargs"] == expected, run
+                assert cfg["timesteps_done"] >= cfg["n_timesteps"], run
+    root = Path(__file__).resolve().parents[1]
+    out = subprocess.run([sys.executable, "scripts/train_control_benchmark.py", "--dry-run"],
+                         cwd=root, capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0 and out.stdout.startswith("0 runs to do"), out.stdout
+
+
 @pytest.mark.parametrize("scene", ["paper", "self_excited", "stribeck", "viscous"])
 def test_pretrained_policy_of_every_scene_loads_and_cuts_the_stick(scene):
     from pathlib import Path
