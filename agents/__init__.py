@@ -9,6 +9,7 @@ folders, loading models), ``callbacks`` (training callbacks), ``cli`` (shared co
 pieces), ``scoring`` (the evaluation's tables and plots), ``statistics`` (interquartile
 means, bootstrap intervals, performance profiles), ``imitation`` (warm starts from the
 MPC), ``throughput`` (plant-steps and PPO samples per second), and ``baselines``, ``mpc``,
-``benchmark``. ``train`` and ``evaluate`` import numba, torch and stable-baselines3 only
+``benchmark`` (with its ``benchmark_figures``, ``benchmark_records`` and
+``benchmark_workers``). ``train`` and ``evaluate`` import numba, torch and stable-baselines3 only
 after parsing their command line, so that their ``--help`` stays quick.
 """

@@ -51,10 +51,12 @@ from fricenv.checks import check_output_dir
 from fricenv.envs.scenes import SCENES, Scene
 
 from . import statistics as S
+from .benchmark_records import versions, write_episodes
 from .cli import HelpFormatter
 from .layout import check_disjoint
 from .mpc import MPPIController
 from .rollouts import Controller
+from .runs import portable_path
 from .scoring import Entry, _summary, baseline_entries, load_models, run_entry, trained_entries
 
 BENCH_SCENES = ("paper", "self_excited", "stribeck", "viscous")
@@ -379,7 +381,7 @@ def _label(results: Results, key: str) -> str:
     return next(r[key].label for r in results.values() if key in r)
 
 
-def _keys(rows: Sequence[Row], results: Results) -> list[str]:
+def row_keys(rows: Sequence[Row], results: Results) -> list[str]:
     """Keys of the rows that ran somewhere, in the registry's order."""
     return [r.key for r in rows if any(r.key in res for res in results.values())]
 
@@ -393,7 +395,7 @@ def main_tables(rows: Sequence[Row], results: Results, n_seeds: int,
     for name, title, digits in (("ret", "Return", 2), ("stick_fraction", "Stick-time fraction",
                                                        4)):
         lines += [f"### {title} (IQM [95 % CI])", "", head, rule]
-        for key in _keys(rows, results):
+        for key in row_keys(rows, results):
             cells = [results[s][key].interval(name).format(digits) if key in results[s]
                      else "—" for s in scenes]
             lines.append(f"| {_label(results, key)} | " + " | ".join(cells) + " |")
@@ -428,7 +430,7 @@ def gap_lines(rows: Sequence[Row], results: Results) -> list[str]:
             e, gap = r[key], _gap(r[key], ref)
             ok = gap.estimate <= GAP_BAR
             if not ok:
-                behind.append(f"{_short(rows, key)} on `{scene}` "
+                behind.append(f"{short_name(rows, key)} on `{scene}` "
                               f"({100 * gap.estimate:.0f} %)")
             body.append(f"| `{scene}` | {e.label} | {e.interval('ret').format()} | "
                         f"{gap.format(1, 100, ' %', signed=True)} | {'yes' if ok else 'no'} | "
@@ -449,7 +451,7 @@ def gap_lines(rows: Sequence[Row], results: Results) -> list[str]:
              "the MPC's return on every scene."), ""]
 
 
-def _short(rows: Sequence[Row], key: str) -> str:
+def short_name(rows: Sequence[Row], key: str) -> str:
     return next((r.short for r in rows if r.key == key), key)
 
 
@@ -514,7 +516,7 @@ def generalisation_lines(rows: Sequence[Row], gen: Generalisation,
             kept = {name: cell.get(name) for name in RETENTIONS}
             ret.append(f"| `{scene}` | {label} | " + " | ".join(
                 v.format(0, 100) if v else "—" for v in kept.values()) + " |")
-            low += [f"{_short(rows, key)} on `{scene}` {name.split(', ')[1]} "
+            low += [f"{short_name(rows, key)} on `{scene}` {name.split(', ')[1]} "
                     f"({100 * v.estimate:.0f} %)" for name, v in kept.items()
                     if v and v.estimate < RETENTION_BAR]
     return lines + ret + ["", (f"Less than {100 * RETENTION_BAR:.0f} % of the in-range cut "
@@ -529,183 +531,17 @@ def _boxes(scene: str) -> str:
                      f"{hi[k][1]:.3g}]" for k in HELD_OUT)
 
 
-# -- figures ----------------------------------------------------------------------------------
-def _pyplot() -> Any:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
-
-
-def plot_returns(rows: Sequence[Row], results: Results, path: Path) -> None:
-    """Each scene's IQM episode cost (-return) per controller with its 95 % interval, on a
-    log axis: the learned and model-based controllers lie one to two orders of magnitude
-    below the baselines."""
-    plt = _pyplot()
-    scenes = list(results)
-    fig, axes = plt.subplots(1, len(scenes), figsize=(3.4 * len(scenes), 3.2), squeeze=False,
-                             sharey=True)
-    keys = _keys(rows, results)
-    for ax, scene in zip(axes[0], scenes, strict=True):
-        for y, key in enumerate(keys):
-            e = results[scene].get(key)
-            if e is None:
-                continue
-            iv = e.interval("ret")
-            cost, lo, hi = -iv.estimate, -iv.hi, -iv.lo
-            floor = max(lo, 0.1 * cost)  # (a log axis has no room below zero)
-            ax.errorbar(cost, y, xerr=[[cost - floor], [hi - cost]], fmt="o", color=f"C{y}",
-                        ms=5, capsize=2)
-        ax.set_xscale("log")
-        ax.set_yticks(range(len(keys)), [_short(rows, k) for k in keys], fontsize=8)
-        ax.grid(axis="x", alpha=0.3)
-        ax.set_title(scene, fontsize=10)
-        ax.set_xlabel("IQM episode cost = -return (lower is better)", fontsize=8)
-    axes[0][0].invert_yaxis()  # (shared: once for all) the table's order, top down
-    fig.tight_layout()
-    fig.savefig(path, dpi=90)
-    plt.close(fig)
-
-
-def plot_profiles(rows: Sequence[Row], results: Results, path: Path) -> None:
-    """Performance profiles: per scene, the fraction of each controller's episodes (all its
-    models) whose cost (-return) is at most tau, over a log grid of tau, with a 95 %
-    bootstrap band. A curve above and left of another is better at every threshold."""
-    plt = _pyplot()
-    scenes = list(results)
-    fig, axes = plt.subplots(1, len(scenes), figsize=(3.6 * len(scenes), 3.9), squeeze=False,
-                             sharey=True)
-    keys = _keys(rows, results)
-    handles: dict[str, Any] = {}
-    for ax, scene in zip(axes[0], scenes, strict=True):
-        present = [k for k in keys if k in results[scene]]
-        taus = S.tau_grid([-results[scene][k].matrix("ret") for k in present])
-        for key in present:
-            e = results[scene][key]
-            prof = S.performance_profile(-e.matrix("ret"), taus, strata=e.n_seeds,
-                                         seed=BOOT_SEED)
-            color = f"C{keys.index(key)}"
-            # (an empirical distribution: each value holds up to the next threshold)
-            handles[key], = ax.plot(taus, prof.fraction, color=color, lw=1.2,
-                                    drawstyle="steps-post")
-            ax.fill_between(taus, prof.lo, prof.hi, color=color, alpha=0.2, lw=0,
-                            step="post")
-        ax.set_xscale("log")
-        ax.set_ylim(-0.02, 1.02)
-        ax.grid(alpha=0.3)
-        ax.set_title(scene, fontsize=10)
-        ax.set_xlabel("episode cost τ = -return", fontsize=8)
-    axes[0][0].set_ylabel("fraction of episodes with cost ≤ τ", fontsize=8)
-    fig.legend([handles[k] for k in keys if k in handles],
-               [_short(rows, k) for k in keys if k in handles], loc="lower center",
-               ncol=min(len(handles), 8), fontsize=7, frameon=False)
-    fig.tight_layout(rect=(0.0, 0.08, 1.0, 1.0))
-    fig.savefig(path, dpi=90)
-    plt.close(fig)
-
-
-def plot_generalisation(rows: Sequence[Row], summary: dict[str, dict[str, dict[str, Any]]],
-                        path: Path) -> None:
-    """Stick cut per condition and controller, with the 95 % intervals as error bars."""
-    plt = _pyplot()
-    scenes = list(summary)
-    fig, axes = plt.subplots(1, len(scenes), figsize=(3.6 * len(scenes), 3.2), squeeze=False)
-    x = np.arange(len(CONDITIONS))
-    for ax, scene in zip(axes[0], scenes, strict=True):
-        keys = list(summary[scene])
-        width = 0.8 / max(1, len(keys))
-        for j, key in enumerate(keys):
-            nan = S.Interval(float("nan"), float("nan"), float("nan"))
-            ivs = [summary[scene][key].get(c, nan) for c in CONDITIONS]
-            est = np.array([100 * iv.estimate for iv in ivs])
-            err = np.array([[max(0.0, e - 100 * iv.lo), max(0.0, 100 * iv.hi - e)]
-                            for e, iv in zip(est, ivs, strict=True)]).T
-            ax.bar(x + j * width, est, width, yerr=np.nan_to_num(err), capsize=2,
-                   error_kw={"lw": 0.8}, label=_short(rows, key))
-        ax.set_xticks(x + 0.4 - width / 2, [c.replace(" ", "\n", 1) for c in CONDITIONS],
-                      fontsize=7)
-        ax.set_ylim(min(0.0, ax.get_ylim()[0]), 105)
-        ax.set_ylabel("stick cut vs zero excitation (%)", fontsize=8)
-        ax.set_title(scene, fontsize=10)
-    axes[0][0].legend(fontsize=6, loc="lower left")
-    fig.tight_layout()
-    fig.savefig(path, dpi=90)
-    plt.close(fig)
-
-
-# -- raw results ------------------------------------------------------------------------------
-#: Distributions whose versions every result records (``python``: the interpreter).
-VERSIONED = ("fricenv", "numpy", "numba", "torch", "stable_baselines3")
-METRICS = ("stick_fraction", "rms_vr", "rms_vr_fluct", "effort", "ret", "length")
-CSV_COLUMNS = ("scene", "condition", "controller", "label", "training_run", "training_seed",
-               "eval_seed", "episode", "plant_seed", *METRICS,
-               *(f"{d}_version" for d in (*VERSIONED, "python")))
-
-
-def versions() -> dict[str, str]:
-    """Installed versions of the software that makes the numbers (read when called)."""
-    import platform
-    from importlib.metadata import PackageNotFoundError, version
-
-    out = {}
-    for dist in VERSIONED:
-        try:
-            out[dist] = version(dist.replace("_", "-"))
-        except PackageNotFoundError:
-            out[dist] = "not installed"
-    out["python"] = platform.python_version()
-    return out
-
-
-def episode_rows(scene: str, condition: str, e: Entry) -> list[dict[str, Any]]:
-    """One dict per episode of ``e``: which model, evaluation seed, episode and plant seed,
-    and every metric (the order of ``run_entry``: models, then seeds, then episodes)."""
-    from .layout import eval_env_seed
-
-    runs = [Path(p).name for p in e.info.get("paths", [])] or [""] * len(e.factories)
-    seeds = e.info.get("seeds") or [""] * len(e.factories)
-    values = {m: np.asarray(getattr(e.scores, m)) for m in METRICS}
-    out, i = [], 0
-    for run, seed in zip(runs, seeds, strict=True):
-        for k in range(e.n_seeds):
-            for j in range(e.episodes):
-                out.append({"scene": scene, "condition": condition, "controller": e.key,
-                            "label": e.label, "training_run": run, "training_seed": seed,
-                            "eval_seed": k, "episode": j, "plant_seed": eval_env_seed(k) + j,
-                            **{m: values[m][i].item() for m in METRICS}})
-                i += 1
-    return out
-
-
-def write_episodes(path: Path, results: Results, gen: Generalisation) -> int:
-    """The per-episode CSV of every run of the benchmark; returns its number of rows."""
-    import csv
-
-    tags = {f"{d}_version": v for d, v in versions().items()}
-    n = 0
-    with open(path, "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=CSV_COLUMNS)
-        w.writeheader()
-        runs = [(s, NOMINAL, r) for s, r in results.items()]
-        runs += [(s, c, es) for s, conds in gen.items() for c, es in conds.items()]
-        for scene, cond, entries in runs:
-            for e in entries.values():
-                for row in episode_rows(scene, cond, e):
-                    w.writerow({**row, **tags})
-                    n += 1
-    return n
-
-
 def to_json(results: Results, gen: Generalisation, summary: dict, meta: dict) -> dict:
     def iv(i: S.Interval) -> dict[str, float]:
         return {"estimate": i.estimate, "lo": i.lo, "hi": i.hi}
 
     def pack(e: Entry) -> dict:
+        info = dict(e.info)
+        if "paths" in info:  # (relative to the repository: no machine's folders)
+            info["paths"] = [portable_path(Path(p)) for p in info["paths"]]
         return {**_summary(e), "iqm_ci": {f: iv(e.interval(f)) for f in ("ret",
                                                                           "stick_fraction")},
-                "info": e.info, "per_episode": e.scores.as_dict()}
+                "info": info, "per_episode": e.scores.as_dict()}
 
     gaps = {s: {k: iv(_gap(e, r["mpc"])) for k, e in r.items() if e.kind == "trained"}
             for s, r in results.items() if "mpc" in r}
@@ -766,7 +602,9 @@ def main(argv: Sequence[str] | None = None, rows: Sequence[Row] = ROWS) -> Path:
     t0 = time.perf_counter()
     results: Results = {}
     gen: Generalisation = {}
-    for scene, (res, g) in zip(args.scenes, _map_scenes(args, rows), strict=True):
+    from .benchmark_workers import map_scenes
+
+    for scene, (res, g) in zip(args.scenes, map_scenes(args, rows), strict=True):
         results[scene] = res
         if g:
             gen[scene] = g
@@ -785,7 +623,9 @@ def main(argv: Sequence[str] | None = None, rows: Sequence[Row] = ROWS) -> Path:
             "throughput": throughput}
     (args.out / "control_benchmark.json").write_text(
         json.dumps(to_json(results, gen, summary, meta), indent=1, default=str))
-    write_episodes(args.out / "control_benchmark_episodes.csv", results, gen)
+    runs = [(sc, NOMINAL, r) for sc, r in results.items()]
+    runs += [(sc, c, es) for sc, conds in gen.items() for c, es in conds.items()]
+    write_episodes(args.out / "control_benchmark_episodes.csv", runs)
     return args.out / "control_benchmark.md"
 
 
@@ -805,52 +645,6 @@ def evaluate_scene(scene: str, args: argparse.Namespace, rows: Sequence[Row] = R
     return results, gen
 
 
-def _evaluated_elsewhere(k: int) -> Controller:
-    raise RuntimeError("this entry was evaluated in a worker process; its scores travel, "
-                       "its controllers do not")
-
-
-def _portable(entries: dict[str, Entry]) -> dict[str, Entry]:
-    """``entries`` with their controllers replaced by a stand-in (models and closures do
-    not pickle; the scores, info and the number of models do)."""
-    for e in entries.values():
-        e.factories = [_evaluated_elsewhere] * len(e.factories)
-    return entries
-
-
-def _scene_in_worker(scene: str, args: argparse.Namespace
-                     ) -> tuple[dict[str, Entry], dict[str, dict[str, Entry]]]:
-    res, gen = evaluate_scene(scene, args)
-    return _portable(res), {c: _portable(es) for c, es in gen.items()}
-
-
-def _map_scenes(args: argparse.Namespace, rows: Sequence[Row]) -> list[tuple[Any, Any]]:
-    """``evaluate_scene`` of every scene, ``--jobs`` of them at a time in fresh worker
-    processes (spawned, not forked: numba's thread pools do not survive a fork), each
-    with an equal share of the numba threads."""
-    if args.jobs == 1 or len(args.scenes) == 1:
-        return [evaluate_scene(scene, args, rows) for scene in args.scenes]
-    import multiprocessing as mp
-    import os
-    from concurrent.futures import ProcessPoolExecutor
-
-    jobs = min(args.jobs, len(args.scenes))
-    threads = str(max(1, (os.cpu_count() or 1) // jobs))
-    old = os.environ.get("NUMBA_NUM_THREADS")
-    os.environ["NUMBA_NUM_THREADS"] = threads  # (read by the workers at their numba import)
-    try:
-        with ProcessPoolExecutor(jobs, mp_context=mp.get_context("spawn")) as pool:
-            # the costliest scenes first, so that no worker is left with one at the end
-            first = sorted(args.scenes, key=lambda sc: -SCENE_COST.get(sc, 1.0))
-            futures = {sc: pool.submit(_scene_in_worker, sc, args) for sc in first}
-            return [futures[sc].result() for sc in args.scenes]
-    finally:
-        if old is None:
-            os.environ.pop("NUMBA_NUM_THREADS", None)
-        else:
-            os.environ["NUMBA_NUM_THREADS"] = old
-
-
 def write_page(out: Path, rows: Sequence[Row], results: Results, gen: Generalisation,
                summary: dict, args: argparse.Namespace,
                throughput: dict[str, Any] | None = None) -> None:
@@ -863,6 +657,8 @@ def write_page(out: Path, rows: Sequence[Row], results: Results, gen: Generalisa
              *gap_lines(rows, results)]
     if summary:
         lines += generalisation_lines(rows, gen, summary)
+    from .benchmark_figures import plot_generalisation, plot_profiles, plot_returns
+
     plot_returns(rows, results, out / "control_benchmark.png")
     plot_profiles(rows, results, out / "control_profiles.png")
     lines += ["![control_benchmark.png](control_benchmark.png)", "",

@@ -58,6 +58,7 @@ from .mpc import (
     DEFAULT_SAMPLES,
     DEFAULT_TEMPERATURE,
     MPPIController,
+    observation_batch,
 )
 
 DEFAULT_PARTICLES = 1000
@@ -531,10 +532,7 @@ class FilteredMPC(MPPIController):
     def predict(self, observation: np.ndarray, state: Any = None,
                 episode_start: np.ndarray | None = None,
                 deterministic: bool = True) -> tuple[np.ndarray, Any]:
-        obs = np.asarray(observation, dtype=np.float32)
-        if obs.ndim not in (1, 2):
-            raise ValueError(f"observation must have shape (m,) or (n, m), got {obs.shape}")
-        batch = obs.reshape(1, -1) if obs.ndim == 1 else obs
+        obs, batch = observation_batch(observation)
         n = batch.shape[0]
         start = None if episode_start is None else np.asarray(episode_start, bool).reshape(-1)
         if start is not None and start.shape != (n,):

@@ -62,6 +62,15 @@ NOISE_DECAY = 0.5
 TUNE_SEED_BASE = SEARCH_SEED_BASE + MAX_PLANTS
 
 
+def observation_batch(observation: Any) -> tuple[np.ndarray, np.ndarray]:
+    """``observation`` as float32 and as a batch ``(n, m)`` (one row for a single
+    observation ``(m,)``); ``ValueError`` for any other shape."""
+    obs = np.asarray(observation, dtype=np.float32)
+    if obs.ndim not in (1, 2):
+        raise ValueError(f"observation must have shape (m,) or (n, m), got {obs.shape}")
+    return obs, obs.reshape(1, -1) if obs.ndim == 1 else obs
+
+
 class MPPIController:
     """MPPI on the exact plant (see the module docstring), with SB3's ``predict``.
 
@@ -151,10 +160,7 @@ class MPPIController:
     def predict(self, observation: np.ndarray, state: Any = None,
                 episode_start: np.ndarray | None = None,
                 deterministic: bool = True) -> tuple[np.ndarray, Any]:
-        obs = np.asarray(observation, dtype=np.float32)
-        if obs.ndim not in (1, 2):
-            raise ValueError(f"observation must have shape (m,) or (n, m), got {obs.shape}")
-        batch = obs.reshape(1, -1) if obs.ndim == 1 else obs
+        obs, batch = observation_batch(observation)
         self._size(batch.shape[0])
         if episode_start is not None:
             self._plan[np.asarray(episode_start, dtype=bool).reshape(-1)] = 0.0

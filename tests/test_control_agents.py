@@ -165,7 +165,9 @@ def test_benchmark_writes_its_tables_with_a_tiny_robust_run(tmp_path):
                                     "stable_baselines3", "python"}
     with open(out / "control_benchmark_episodes.csv", newline="") as f:
         rows = list(csv.DictReader(f))
-    assert tuple(rows[0]) == BM.CSV_COLUMNS
+    from fricenv_agents.benchmark_records import CSV_COLUMNS
+
+    assert tuple(rows[0]) == CSV_COLUMNS
     # what ran: 7 controllers on the nominal episodes, 4 in range, 5 under noise + delay
     # (the filtered MPC too), 3 in each held-out box (not the MPC), one model each,
     # 2 evaluation seeds x 2 episodes
@@ -287,6 +289,8 @@ def test_the_benchmarks_trained_runs_ship_complete():
                 assert cfg["env_kwargs"] == expected, run
                 assert cfg["timesteps_done"] >= cfg["n_timesteps"], run
     root = Path(__file__).resolve().parents[1]
+    page = (root / "docs" / "results" / "control_benchmark.json").read_text()
+    assert not re.search(r"/(work|root|home|tmp)/", page)  # (run paths: repository-relative)
     out = subprocess.run([sys.executable, "scripts/train_control_benchmark.py", "--dry-run"],
                          cwd=root, capture_output=True, text=True, timeout=120)
     assert out.returncode == 0 and out.stdout.startswith("0 runs to do"), out.stdout
