@@ -37,11 +37,13 @@ from fricenv.envs.tables import (  # noqa: F401  (the draws' order and starting 
     N_INIT,
     RANDOMIZABLE,
 )
+from fricenv.friction import polynomial_law
 from fricenv.params import (
     N_PARAMS,
     P_B1,
     P_B3,
     P_LAM,
+    P_LAW,
     P_U1,
     P_U2,
     P_V,
@@ -127,6 +129,10 @@ class Scene:
     def __post_init__(self) -> None:
         if not isinstance(self.params, OscillatorParams):
             raise TypeError(f"params must be an OscillatorParams, {got(self.params)}")
+        if self.params.friction is not None:
+            # (an episode's law follows its drawn b1, b3: the paper's family)
+            raise ValueError(f"a scene's plant must have the Coulomb or cubic law (b1, b3), "
+                             f"got friction={self.params.friction!r}")
         if not isinstance(self.action_mode, str):
             raise TypeError(f"action_mode must be one of {ACTION_MODES}, {got(self.action_mode)}")
         if self.action_mode not in ACTION_MODES:
@@ -316,8 +322,10 @@ def episode_from_draws(
     P_out[P_V] = vals["V"]
     P_out[P_XFK] = vals["xfk"]
     P_out[P_XFS] = vals["xfs"]
+    P_out[P_LAW] = polynomial_law(vals["b1"], vals["b3"]).code
     P_out[P_B1] = vals["b1"]
     P_out[P_B3] = vals["b3"]
+    P_out[P_B3 + 1] = 0.0
     P_out[P_W1] = vals["eta"]
     # The excitation slots are written by the kernels from (u0, nu) and the tone gains.
     P_out[P_U1] = scene.tone_gains[0] * u0

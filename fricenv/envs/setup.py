@@ -31,6 +31,7 @@ from fricenv.envs.scenes import (
 )
 from fricenv.envs.sensors import Instruments
 from fricenv.envs.settings import EnvSettings
+from fricenv.friction import closed_form_rows
 from fricenv.layout import (
     METHOD_EVENT,
     METHOD_EXACT,
@@ -40,7 +41,7 @@ from fricenv.layout import (
     STATUS_STEP_BUDGET,
     STATUS_TOO_STIFF,
 )
-from fricenv.params import P_B1, P_B3
+from fricenv.params import P_LAW
 
 _METHODS = {"auto": K.METHOD_AUTO, "exact": METHOD_EXACT, "event": METHOD_EVENT}
 _WEIGHT_KEYS = ("stick", "velocity", "effort")
@@ -158,7 +159,7 @@ class EnvSetup:
 
     def episode(self, values: np.ndarray, options: dict | None, P_out, init_out) -> None:
         episode_from_draws(self.scene, values, options, P_out, init_out)
-        if self.cfg[K.C_METHOD] == METHOD_EXACT and (P_out[P_B1] != 0.0 or P_out[P_B3] != 0.0):
+        if self.cfg[K.C_METHOD] == METHOD_EXACT and not closed_form_rows(P_out[P_LAW]):
             raise ValueError("method='exact' needs the Coulomb law (b1 = b3 = 0)")
 
 
