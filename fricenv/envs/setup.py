@@ -41,7 +41,7 @@ from fricenv.layout import (
     STATUS_STEP_BUDGET,
     STATUS_TOO_STIFF,
 )
-from fricenv.params import P_LAW
+from fricenv.params import N_LAW_PARAMS, P_LAW
 
 _METHODS = {"auto": K.METHOD_AUTO, "exact": METHOD_EXACT, "event": METHOD_EVENT}
 _WEIGHT_KEYS = ("stick", "velocity", "effort")
@@ -205,6 +205,9 @@ def _kernel_cfg(sc: Scene, incremental: bool, method: str) -> np.ndarray:
     cfg[K.C_METHOD] = _METHODS[method]
     cfg[K.C_RTOL], cfg[K.C_ATOL], cfg[K.C_MAX_EVENTS] = RTOL, ATOL, MAX_EVENTS
     cfg[K.C_U0_START], cfg[K.C_NU_START] = sc.params.u0, sc.params.nu
+    law = sc.params.to_array()[P_LAW:]
+    cfg[K.C_LAW] = -1.0 if sc.params.friction is None else law[0]
+    cfg[K.C_LAW_P:K.C_LAW_P + N_LAW_PARAMS] = law[1:]
     return cfg
 
 

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from fricenv.core.workspace import N_WORK
 from fricenv.layout import N_STATE, N_STATS
-from fricenv.params import N_PARAMS
+from fricenv.params import N_LAW_PARAMS, N_PARAMS
 from fricenv.slots import Layout
 
 # The float64 configuration vector shared by all plants of an environment.
@@ -26,6 +26,10 @@ C_W_STICK, C_W_VEL, C_W_EFFORT, C_EFFORT_NORM, C_X_LIM, C_V_LIM = CONFIG.group(
 C_METHOD, C_RTOL, C_ATOL, C_MAX_EVENTS = CONFIG.group(
     "C_METHOD", "C_RTOL", "C_ATOL", "C_MAX_EVENTS")
 C_U0_START, C_NU_START = CONFIG.group("C_U0_START", "C_NU_START")  # excitation at reset
+# The scene's friction law: -1 for the paper's laws, whose code each episode takes from its
+# drawn b1 and b3; otherwise the law's code and its parameters (params.P_LAW_PARAMS order).
+C_LAW = CONFIG.take("C_LAW")
+C_LAW_P = CONFIG.take("C_LAW_P", N_LAW_PARAMS)
 N_CFG = CONFIG.size
 
 # Per-step results (float64): reward, stick fraction, effort, velocity variance, mean of
