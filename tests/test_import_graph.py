@@ -378,3 +378,16 @@ def test_the_agents_import_no_scripts_or_tests() -> None:
 def test_no_import_cycle_in_the_agents() -> None:
     """No cycle among the agents' modules, function-level imports included."""
     assert _strongly_connected(AGENTS_GRAPH) == []
+
+
+def test_only_programs_import_the_command_line() -> None:
+    """The command line sits on top: no module outside ``fricenv.cli`` imports it, but the
+    ``python -m`` programs (``__main__``), which nothing imports. So ``fricenv.atlas`` and
+    ``fricenv.cli`` never import each other."""
+    def outside(module: str) -> bool:
+        return not (module == "fricenv.cli" or module.startswith("fricenv.cli."))
+
+    found = {(m, t) for m, targets in GRAPH.items() for t in targets
+             if outside(m) and not m.endswith(".__main__") and not outside(t)}
+    assert found == set()
+    assert not any("__main__" in t for targets in GRAPH.values() for t in targets)
