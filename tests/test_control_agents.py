@@ -13,7 +13,8 @@ from fricenv_agents.rollouts import rollout
 
 import fricenv  # noqa: F401  (registers the environments)
 from fricenv.core import new_workspace
-from fricenv.envs.state import PL_CTRL, PL_S, PL_WORK, plants_from_observations
+from fricenv.envs.observation import plants_from_observations
+from fricenv.envs.state import PL_CTRL, PL_S, PL_WORK
 from fricenv.envs.stick_slip import StickSlipEnv
 from fricenv.envs.vector import StickSlipVectorEnv
 from fricenv.layout import S_MODE, S_PHI1, S_PHI2, S_T, S_V, S_X
