@@ -391,3 +391,41 @@ def test_only_programs_import_the_command_line() -> None:
              if outside(m) and not m.endswith(".__main__") and not outside(t)}
     assert found == set()
     assert not any("__main__" in t for targets in GRAPH.values() for t in targets)
+
+
+#: Prefixes of the slot constants that index the library's flat arrays (``P_*`` parameters,
+#: ``S_*`` state, ``ST_*`` statistics, ``PL_*`` plant vectors, ``T_*`` table columns,
+#: ``C_*`` configuration, ``O_*`` observation, ``D_*`` draws, ``W_*`` workspace, ...) and
+#: their sizes (``N_*``).
+SLOT = re.compile(r"(P|S|ST|PL|T|C|O|OB|D|I|IV|R|W|A|F|CT|N)_[A-Z0-9_]+")
+
+
+def slot_uses(path: Path) -> list[str]:
+    """The slot constants a module of the agents takes from the library: imported by name
+    (``from fricenv.params import P_LAM``) or read off an imported module (``K.O_X``)."""
+    tree = ast.parse(path.read_text())
+    modules: set[str] = set()
+    found = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.ImportFrom) and (node.module or "").split(".")[0] == "fricenv":
+            for alias in node.names:
+                if SLOT.fullmatch(alias.name):
+                    found.append(f"{node.module}.{alias.name}")
+                else:
+                    modules.add(alias.asname or alias.name)
+        elif isinstance(node, ast.Import):
+            modules.update(a.asname or a.name.split(".")[0] for a in node.names
+                           if a.name.split(".")[0] == "fricenv")
+    for node in ast.walk(tree):
+        if (isinstance(node, ast.Attribute) and SLOT.fullmatch(node.attr)
+                and _attribute_chain(node) and (_attribute_chain(node) or [""])[0] in modules):
+            found.append(".".join(_attribute_chain(node) or []))
+    return found
+
+
+def test_the_agents_take_no_slot_constant() -> None:
+    """The agents reach plants, observations and actions through named functions and
+    records (``fricenv.envs.observation``), never through the library's array slots."""
+    assert "fricenv.params.P_V" in slot_uses(ROOT / "tests" / "test_estimation.py")  # (seen)
+    found = {module: uses for module, path in AGENTS.items() if (uses := slot_uses(path))}
+    assert found == {}

@@ -230,7 +230,8 @@ def check_observations(obs: Any, setup: EnvSetup) -> np.ndarray:
         what = ("0 or 1 (the stick flag)" if names[j] == "stick" and np.isfinite(a[i, j])
                 and box.low[j] <= a[i, j] <= box.high[j] else
                 f"finite and within [{box.low[j]:g}, {box.high[j]:g}]")
-        raise ValueError(f"observation {i}, channel {names[j]!r} = {a[i, j]!r}: no "
+        given = np.asarray(obs).reshape(a.shape)[i, j]  # (as given: float32 prints short)
+        raise ValueError(f"observation {i}, channel {names[j]!r} = {str(given)}: no "
                          f"environment of this setup gives it (must be {what})")
     return a
 
