@@ -227,8 +227,9 @@ def check_observations(obs: Any, setup: EnvSetup) -> np.ndarray:
         bad[:, s] |= (a[:, s] != 0.0) & (a[:, s] != 1.0)
     if bad.any():
         i, j = (int(k) for k in np.argwhere(bad)[0])
-        what = ("0 or 1 (the stick flag)" if names[j] == "stick" and np.isfinite(a[i, j])
-                and box.low[j] <= a[i, j] <= box.high[j] else
+        stick_only = (names[j] == "stick" and np.isfinite(a[i, j])
+                      and box.low[j] <= a[i, j] <= box.high[j])
+        what = ("0 or 1: a stick flag read without noise" if stick_only else
                 f"finite and within [{box.low[j]:g}, {box.high[j]:g}]")
         given = np.asarray(obs).reshape(a.shape)[i, j]  # (as given: float32 prints short)
         raise ValueError(f"observation {i}, channel {names[j]!r} = {str(given)}: no "
