@@ -46,6 +46,7 @@ from fricenv.envs.observation import (
     CHANNELS,
     RANDOMIZABLE,
     Plants,
+    check_observations,
     draw_ranges,
     fresh_workspace,
     observe,
@@ -177,6 +178,7 @@ class ParticleFilter:
             raise ValueError(f"readings must have shape (n, {self.n_obs}), got {obs.shape}")
         if not np.all(np.isfinite(obs)):
             raise ValueError("readings must be finite (no NaN or inf)")
+        check_observations(obs, self.setup)  # (within the box, a 0/1 stick flag: by name)
         n = obs.shape[0]
         self._size(n)
         starting = ~self._started

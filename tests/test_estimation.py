@@ -109,6 +109,8 @@ def test_filter_checks_its_input():
         filt.observe(np.zeros((2, 5)))
     with pytest.raises(ValueError, match="finite"):
         filt.observe(np.full((2, 9), np.nan))
+    with pytest.raises(ValueError, match=r"observation 0, channel 'stick' = 0.5"):
+        filt.observe(np.full((1, 9), 0.5))
     obs = StickSlipEnv(scene="paper").reset(seed=0)[0][None]
     with pytest.raises(ValueError, match="one flag per plant"):
         filt.observe(obs, np.ones(3, bool))
