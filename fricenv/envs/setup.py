@@ -21,6 +21,7 @@ from gymnasium import spaces
 from fricenv.checks import check_bool, check_dict, check_real, real_array, real_tuple
 from fricenv.core.constants import MAX_STEPS_PER_TAU
 from fricenv.envs import kernels as K
+from fricenv.envs.channels import OBSERVATION, Limits
 from fricenv.envs.scenes import (
     ACTION_MODES,
     N_DRAWS,
@@ -119,12 +120,7 @@ class EnvSetup:
         n_act = 2 if sc.action_mode == "both" else 1
         (ulo, uhi), (nlo, nhi) = sc.u0_range, sc.nu_range
         action_space = spaces.Box(-1.0, 1.0, shape=(n_act,), dtype=np.float32)
-        high = np.array(
-            [sc.x_limit, sc.v_limit, 1.0, 1.0, 1.0, 1.0, 1.0, uhi, nhi], dtype=np.float32
-        )
-        low = np.array(
-            [-sc.x_limit, -sc.v_limit, 0.0, -1.0, -1.0, -1.0, -1.0, ulo, nlo], dtype=np.float32
-        )
+        low, high = OBSERVATION.box(Limits(sc.x_limit, sc.v_limit, (ulo, uhi), (nlo, nhi)))
         full_space = spaces.Box(low, high, dtype=np.float32)
         observation_space: spaces.Box = full_space
         kernel_cfg = cfg

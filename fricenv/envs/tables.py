@@ -7,6 +7,7 @@ environments name slots from here; offsets are computed by :class:`fricenv.slots
 from __future__ import annotations
 
 from fricenv.core.workspace import N_WORK
+from fricenv.envs.channels import OBSERVATION
 from fricenv.layout import N_STATE, N_STATS
 from fricenv.params import N_LAW_PARAMS, N_PARAMS
 from fricenv.slots import Layout
@@ -59,10 +60,11 @@ INITIAL = tuple(name for name, _, _ in DRAWS.slots[D_X0:])
 #: Number of uniform draws one episode consumes, whatever the options or settings.
 N_DRAWS = DRAWS.size
 
-# Observation vector.
-OBS = Layout("observation")
-O_X, O_VR, O_STICK, O_COS1, O_SIN1, O_COS2, O_SIN2, O_U0, O_NU = OBS.group(
-    "O_X", "O_VR", "O_STICK", "O_COS1", "O_SIN1", "O_COS2", "O_SIN2", "O_U0", "O_NU")
+# Observation vector: laid out from its channels' declaration (``channels.OBSERVATION``);
+# the kernels name its slots by these constants.
+OBS = OBSERVATION.layout
+O_X, O_VR, O_STICK, O_COS1, O_SIN1, O_COS2, O_SIN2, O_U0, O_NU = (OBS.offsets()[name] for name in (
+    "O_X", "O_VR", "O_STICK", "O_COS1", "O_SIN1", "O_COS2", "O_SIN2", "O_U0", "O_NU"))
 N_OBS = OBS.size
 
 # Slots of the vector kernel's int64 ``ivars``: two inputs and two counts it writes.
