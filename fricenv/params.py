@@ -247,7 +247,7 @@ class OscillatorParams:
 
     # -- constructors -------------------------------------------------------------------
     @classmethod
-    def preset(cls, law: str, **overrides: float) -> OscillatorParams:
+    def preset(cls, law: str, **overrides: Any) -> OscillatorParams:
         """Paper defaults with the friction law of Fig. 2 named by ``law``.
 
         ``law`` is ``"coulomb"``, ``"viscous"`` (Coulomb + viscosity, b1 = 0.2),
@@ -265,7 +265,7 @@ class OscillatorParams:
         check_known_fields(cls, overrides, "parameter")
         return cls(**{**FRICTION_LAWS[key], **overrides})
 
-    def replace(self, **changes: float) -> OscillatorParams:
+    def replace(self, **changes: Any) -> OscillatorParams:
         """A copy with ``changes`` applied (validated like a new instance)."""
         check_known_fields(self, changes, "parameter")
         return replace(self, **changes)

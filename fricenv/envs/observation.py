@@ -30,9 +30,9 @@ from fricenv.envs.channels import CHANNELS, OBSERVATION
 from fricenv.envs.setup import EnvSetup
 from fricenv.envs.state import N_PLANT, PL_CTRL, PL_P, PL_S, PL_WORK
 from fricenv.envs.tables import DRAWS, RANDOMIZABLE
+from fricenv.friction import LAWS
 from fricenv.jit import kernel
 from fricenv.layout import S_MODE, S_PHI1, S_PHI2, S_T, S_V, S_X
-from fricenv.friction import LAWS
 from fricenv.params import P_B1, P_B3, P_LAM, P_LAW, P_U1, P_U2, P_V, P_W1, P_W2, P_XFK, P_XFS
 
 TWO_PI = 2.0 * np.pi
