@@ -28,6 +28,7 @@ LAW = FrictionLaw(
     force=_force,
     near_belt_slope=lambda values, xfk, xfs: 0.0,
     envelope=lambda values, xfk, xfs: (xfk, 0.0, 0.0),
+    stiffness=lambda values, lam, xfk, xfs: lam,
     presets={"coulomb": {}},
 )
 

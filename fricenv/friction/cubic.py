@@ -35,6 +35,10 @@ LAW = FrictionLaw(
     force=_force,
     near_belt_slope=lambda values, xfk, xfs: float(values["b1"]),
     envelope=lambda values, xfk, xfs: (xfk, values["b1"], values["b3"]),
+    # the damped side, lam - b1 > 0, where slip creeps towards the belt speed at that rate
+    # for as long as it lasts; anti-damped slip (b1 > lam) leaves the belt speed at once,
+    # and 3 b3 vr^2 grows with the speed (stiff cubic slip is brief: the steps take it)
+    stiffness=lambda values, lam, xfk, xfs: np.maximum(lam - values["b1"], 0.0),
     presets={"viscous": {"b1": 0.2}, "stribeck": {"b1": 0.2, "b3": 0.16}},
 )
 

@@ -66,6 +66,10 @@ LAW = FrictionLaw(
     near_belt_slope=_near_belt_slope,
     # |F| <= xfs + cv |vr| with cv >= 0: a Coulomb law at level xfs with damping cv bounds it
     envelope=lambda values, xfk, xfs: (xfs, -values["cv"], 0.0),
+    # the falling part's slope (xfs - xfk) delta u^(delta - 1) e^(-u^delta) / vs peaks at
+    # 1 (delta = 1, u = 0) or sqrt(2 / e) (delta = 2, u = 1 / sqrt(2)) times (xfs - xfk) / vs
+    stiffness=lambda values, lam, xfk, xfs: lam + values["cv"] + (xfs - xfk) / values["vs"] * (
+        (values["delta"] == 1.0) + (values["delta"] != 1.0) * 0.8577638849607068),
     presets={"exponential": {"vs": 0.4, "delta": 2.0, "cv": 0.05}},
 )
 
