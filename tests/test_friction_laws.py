@@ -144,3 +144,14 @@ def test_exponential_scene_keeps_its_law():
     np.testing.assert_array_equal(P[P_LAW_PARAMS:], [0.4, 2.0, 0.05])
     with pytest.raises(ValueError, match="b1 belongs to the cubic law"):
         env.reset(options={"b1": 0.2})
+
+
+def test_exponential_atlas_sweeps_a_law_parameter():
+    """An atlas over the Stribeck speed gives each cell the label cell_statistics gives
+    the same plant."""
+    pytest.importorskip("xarray")
+    base = OscillatorParams.preset(EXP, u0=2.0, nu=1.7)
+    ds = fricenv.atlas(base, {"vs": np.array([0.2, 0.8]), "u0": np.array([0.5, 2.0])},
+                       progress=False)
+    labels, *_ = fricenv.cell_statistics([base.replace(vs=0.8, u0=2.0)])
+    assert int(ds["label"].values[1, 1]) == int(labels[0])

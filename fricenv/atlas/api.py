@@ -61,7 +61,9 @@ def atlas(base: OscillatorParams | str, axes: Mapping[str, object],
 
     ``base`` (an :class:`~fricenv.OscillatorParams` or a friction-law name for the paper's
     defaults) fixes every parameter that ``axes`` does not sweep; ``axes`` maps parameter
-    names (``u0, nu, eta, lam, V, xfk, xfs, b1, b3``) to 1-d grids, in the order of the
+    names (``u0, nu, eta, lam, V, xfk, xfs`` and the base's friction-law parameters:
+    ``b1, b3`` for the paper's laws, ``vs, delta, cv`` for the exponential law) to 1-d
+    grids, in the order of the
     result's dimensions. Each cell is measured exactly as :func:`fricenv.regime_map`
     measures it (same transient, window, periodicity test and label), bit for bit.
 
