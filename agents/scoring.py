@@ -448,7 +448,7 @@ def evaluate_scene(scene: str, args: argparse.Namespace,
     """Evaluate and write ``scene``'s outputs; ``trained``: its entry of ``prepare``'s
     result (else the models are loaded here); ``stage``: called with a line per stage
     (and a progress bar over the episodes shows unless ``args.quiet``)."""
-    from tqdm.auto import tqdm
+    from fricenv.progress import tqdm  # (its rate leaves out compile time)
 
     stage = stage or (lambda message: None)
     t0 = time.perf_counter()

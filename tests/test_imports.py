@@ -33,10 +33,12 @@ _REPORT = ("import json, sys; print(json.dumps({'heavy': [m for m in HEAVY if m 
 
 
 def test_import_fricenv_loads_no_numba() -> None:
-    """The package and the environments' ids, nothing of the kernels."""
+    """The package, the environments' ids and the compile notice (standard library only),
+    nothing of the kernels."""
     got = _fresh("import fricenv; " + _REPORT)
-    assert got == {"heavy": [], "fricenv": ["fricenv", "fricenv._tbb", "fricenv._version",
-                                            "fricenv.envs", "fricenv.envs.ids"]}
+    assert got == {"heavy": [], "fricenv": [
+        "fricenv", "fricenv._compile_listener", "fricenv._numba_cache", "fricenv._tbb",
+        "fricenv._version", "fricenv.compile_notice", "fricenv.envs", "fricenv.envs.ids"]}
 
 
 def test_import_fricenv_is_quick() -> None:
