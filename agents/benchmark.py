@@ -1,7 +1,8 @@
 """The control benchmark: every controller on every scene, and how policies generalise.
 
-    python -m fricenv_agents.benchmark [--runs agents/pretrained/benchmark] [--out docs/results]
-        [--seeds 10] [--episodes 5] [--scenes paper self_excited stribeck viscous] [--jobs 2]
+    python -m fricenv_agents.benchmark [--runs agents/pretrained/benchmark]
+        [--out out/control-benchmark] [--seeds 10] [--episodes 5]
+        [--scenes paper self_excited stribeck viscous] [--jobs 2]
 
 Rows are controllers, columns scenes. The rows are data: ``ROWS`` lists each controller
 once (key, label, how to build its entry, the conditions it runs in), so adding one is one
@@ -562,7 +563,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--runs", type=Path, default=PRETRAINED_RUNS,
                    help="folder of the run folders (default: the shipped ones; "
                    "scripts/train_control_benchmark.py makes them)")
-    p.add_argument("--out", type=Path, default=Path("docs/results"), help="output folder")
+    p.add_argument("--out", type=Path, default=Path("out/control-benchmark"),
+                   help="output folder (the published page: --out docs/results)")
     p.add_argument("--scenes", nargs="+", choices=BENCH_SCENES, default=list(BENCH_SCENES))
     p.add_argument("--seeds", type=int, default=10, help="evaluation seeds")
     p.add_argument("--episodes", type=int, default=5, help="episodes per evaluation seed")
