@@ -133,3 +133,19 @@ def test_a_users_own_parallel_kernel_gets_tbb_after_import_fricenv() -> None:
                  "    for i in numba.prange(a.size): a[i] = i\n"
                  "f(np.zeros(4)); print(json.dumps({'layer': numba.threading_layer()}))")
     assert got["layer"] == "tbb"
+
+
+def test_the_main_job_needs_no_torch(tmp_path: Path) -> None:
+    """README's command 1 installs fricenv without the ``rl`` extra: the reproduction and
+    every module it imports run with torch and stable-baselines3 unimportable."""
+    readme = (ROOT / "README.md").read_text()
+    assert "pip install -e . && fricenv reproduce --quick" in readme
+    code = ("import sys, json\n"
+            "sys.modules['torch'] = None; sys.modules['stable_baselines3'] = None\n"
+            "import importlib, pkgutil, fricenv.reproduce as R\n"
+            "for m in pkgutil.iter_modules(R.__path__):\n"
+            "    importlib.import_module(f'fricenv.reproduce.{m.name}')\n"
+            f"R.main(['--quick', '--only', '2', '--quiet', '--out', {str(tmp_path)!r}])\n"
+            "print(json.dumps(sorted(p.name for p in __import__('pathlib').Path("
+            f"{str(tmp_path)!r}).iterdir())))")
+    assert _fresh(code) == ["fig2_friction_laws.png", "report.md"]
