@@ -167,3 +167,20 @@ def test_shipped_models_are_named_in_help_and_found_by_name(capsys, tmp_path, mo
     assert stop.value.code == 2
     err = capsys.readouterr().err
     assert "no pretrained model 'moon'" in err and "pretrained:self_excited" in err
+
+
+def test_the_shipped_models_are_package_data():
+    """A wheel carries every file ``pretrained:<name>`` needs (the model, its observation
+    statistics and its config), by the package-data globs of pyproject.toml."""
+    import fnmatch
+    import tomllib
+
+    from fricenv_agents.layout import pretrained_names
+
+    globs = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"][
+        "package-data"]["fricenv_agents"]
+    for name in pretrained_names():
+        for suffix in (".zip", "_vecnormalize.pkl", ".yml"):
+            path = f"pretrained/ppo_{name}{suffix}"
+            assert (PRETRAINED.parent / path).is_file(), path
+            assert any(fnmatch.fnmatch(path, g) for g in globs), path
