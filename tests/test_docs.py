@@ -240,3 +240,15 @@ def test_block_parser() -> None:
     assert blocks[3].code == "echo hi\n"
     with pytest.raises(ValueError, match="never closed"):
         fenced_blocks("```python\nprint(1)\n", "t.md")
+
+
+def test_one_documented_command_writes_into_docs_results() -> None:
+    """The shipped results are regenerated on purpose only: of all the shell commands the
+    pages show, one names ``docs/results``, the command that regenerates the published
+    benchmark page."""
+    hits = [(_rel(page), line.strip()) for page in PAGES
+            for b in fenced_blocks(page.read_text(encoding="utf-8"), _rel(page))
+            if b.lang in ("bash", "sh", "shell", "console")
+            for line in b.code.splitlines() if "docs/results" in line]
+    assert hits == [("docs/control.md",
+                     "python -m fricenv_agents.benchmark --out docs/results --jobs 2")]

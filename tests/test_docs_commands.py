@@ -184,3 +184,14 @@ def test_the_shipped_models_are_package_data():
             path = f"pretrained/ppo_{name}{suffix}"
             assert (PRETRAINED.parent / path).is_file(), path
             assert any(fnmatch.fnmatch(path, g) for g in globs), path
+
+
+def test_the_agents_commands_write_under_out_by_default():
+    from fricenv_agents import benchmark as BM
+    from fricenv_agents import evaluate as E
+
+    assert T.build_parser().parse_args(["--algo", "ppo", "--scene", "paper"]).log_folder == (
+        Path("out/runs"))
+    assert E.build_parser().parse_args([]).out == Path("out/eval")
+    assert BM.build_parser().parse_args([]).out == Path("out/control-benchmark")
+    assert "fricenv_agents/hyperparams" in " ".join(T.build_parser().format_help().split())
