@@ -266,7 +266,7 @@ def announce(needs: Iterable[tuple[str, str]]) -> bool:
     message = describe(pairs)
     if message is None:
         return False
-    _announced.update(w for w, _ in pairs)
+    _announced.update(x for w, m in pairs for x in (w, f"{w} ({m})"))
     emit(message)
     return True
 
@@ -280,25 +280,36 @@ _lock = threading.Lock()
 def compile_starting(dispatcher: Any) -> None:
     """Announce the workload that the compile of ``dispatcher`` (a fricenv kernel, its
     outermost compile) belongs to, unless it has been (:mod:`fricenv._compile_listener`
-    calls this)."""
-    workload = entry_workload(dispatcher)
+    calls this). Once per workload and method: a workload's first compile names the
+    workload (its helpers compile first, before its method is known), a later compile of
+    another method's entry kernel (the event method's sweep after the closed form's)
+    names that method."""
+    workload, method = entry_of(dispatcher)
     if workload is None and _in_command:
         return  # (the command announced what it runs; a helper kernel adds nothing)
-    caller = _api_module()
     if workload is None:
+        caller = _api_module()
         workload = next((w for prefix, w in MODULE_WORKLOADS if caller == prefix
                          or caller.startswith(prefix + ".")), None)
-    key = workload or caller or dispatcher.py_func.__module__
+        if workload is None:  # (a kernel of no known workload: named by its module)
+            workload = caller or dispatcher.py_func.__module__
+    pair = f"{workload} ({method})"
     with _lock:
-        if key in _announced:
+        if method is None:
+            if workload in _announced:
+                return
+        elif pair in _announced:
             return
-        _announced.add(key)
-    if workload is not None:
-        what = f"{workload}: about {_duration(COMPILE_SECONDS[workload])} on 2 cores"
-    else:
-        what = f"{key}: up to a minute on 2 cores"
-    emit(f"compiling numba kernels for {what}, once; cached in {cache_location()} "
-         f"({QUIET_ENV}=1 silences this; fricenv warmup compiles ahead)")
+        elif workload in _announced and not any(
+                k.startswith(f"{workload} (") for k in _announced):
+            _announced.add(pair)  # (the workload's first line covered its first method)
+            return
+        _announced.update((workload, pair) if method else (workload,))
+    name = workload if method is None else pair
+    seconds = METHOD_SECONDS.get((workload, method or ""), COMPILE_SECONDS.get(workload))
+    how_long = "up to a minute" if seconds is None else f"about {_duration(seconds)}"
+    emit(f"compiling numba kernels for {name}: {how_long} on 2 cores, once; cached in "
+         f"{cache_location()} ({QUIET_ENV}=1 silences this; fricenv warmup compiles ahead)")
 
 
 _compile_listener.on_compile = compile_starting  # (on import: ``import fricenv`` does)
@@ -334,20 +345,26 @@ def in_command() -> Iterator[None]:
         _in_command = before
 
 
-def entry_workload(dispatcher: Any) -> str | None:
-    """The workload whose entry kernel ``dispatcher`` is (modules not imported yet are not
-    imported for this: none of their kernels is the one compiling)."""
+def entry_of(dispatcher: Any) -> tuple[str | None, str | None]:
+    """``(workload, method)`` of which ``dispatcher`` is an entry kernel; the method is
+    None for a kernel that several methods share, and both for a kernel of no workload.
+    Modules not imported yet are not imported for this: none of their kernels is the one
+    compiling."""
+    owner: str | None = None
+    hits: list[str] = []
     for workload, methods in ENTRY_KERNELS.items():
-        for names in methods.values():
+        for method, names in methods.items():
             for name in names:
                 if name.partition(":")[0] not in sys.modules:
                     continue
                 try:
-                    if resolve(name) is dispatcher:
-                        return workload
+                    hit = resolve(name) is dispatcher
                 except (ImportError, AttributeError, KeyError):
                     continue
-    return None
+                if hit and owner in (None, workload):
+                    owner = workload
+                    hits.append(method)
+    return owner, hits[0] if len(hits) == 1 else None
 
 
 def _api_module() -> str:

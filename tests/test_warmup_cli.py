@@ -249,3 +249,44 @@ def test_configured_logging_decides_where_the_notice_goes(tmp_path):
     lines = out.stderr.splitlines()
     assert len(lines) == 2 and all(NOTICE in line for line in lines), lines
     assert lines[0].startswith("fricenv: ") and lines[1].startswith("fricenv.compile_notice ")
+
+
+def test_each_workload_and_method_is_announced_once(monkeypatch):
+    """A workload's helpers and its first method's entry kernel make one line; a second
+    method's entry kernel one more; a shared kernel or a helper of an announced workload
+    none; inside a command, only entry kernels the command did not name."""
+    said: list[str] = []
+    monkeypatch.setattr(compile_notice, "_announced", set())
+    monkeypatch.setattr(compile_notice, "emit", said.append)
+    monkeypatch.setattr(compile_notice, "cache_location", lambda: "CACHE")
+    entries: dict[str, tuple[str | None, str | None]] = {
+        "helper": (None, None), "record_exact": ("simulate", "exact"),
+        "cell_exact": ("sweep", "exact"), "cell_event": ("sweep", "event"),
+        "start_episode": ("env", None), "step_event": ("env", "event")}
+    monkeypatch.setattr(compile_notice, "entry_of", lambda d: entries[d.name])
+    monkeypatch.setattr(compile_notice, "_api_module", lambda: "fricenv.simulate")
+
+    class Kernel:
+        def __init__(self, name: str) -> None:
+            self.name = name
+            self.py_func = self  # (named by its module when no workload matches)
+            self.__module__ = "fricenv.somewhere"
+
+    for name in ("helper", "record_exact", "helper", "cell_exact", "cell_event",
+                 "cell_event", "start_episode", "step_event"):
+        compile_notice.compile_starting(Kernel(name))
+    assert [line.split(":")[0] for line in said] == [
+        "compiling numba kernels for simulate", "compiling numba kernels for sweep (exact)",
+        "compiling numba kernels for sweep (event)", "compiling numba kernels for env"]
+    assert "about 20 s" in said[0] and "CACHE" in said[0] and "FRICENV_QUIET=1" in said[0]
+    said.clear()
+    # (the command's own notice, ``announce``, marks its pairs as announced)
+    compile_notice._announced.update({"vector_env", "vector_env (event)"})
+    with compile_notice.in_command():
+        compile_notice.compile_starting(Kernel("helper"))
+        entries["step_batch"] = ("vector_env", "event")
+        compile_notice.compile_starting(Kernel("step_batch"))
+        entries["step_exact"] = ("env", "exact")
+        compile_notice.compile_starting(Kernel("step_exact"))
+    assert [line.split(":")[0] for line in said] == [
+        "compiling numba kernels for env (exact)"]
