@@ -30,7 +30,7 @@ from typing import Any
 
 import numpy as np
 
-from fricenv.envs import kernels as K
+from fricenv.envs.observation import CHANNELS, actions_towards, setting_ranges
 from fricenv.envs.scenes import Scene
 from fricenv.envs.setup import EnvSetup
 from fricenv.sweep import ALGORITHM as SWEEP_ALGORITHM
@@ -38,6 +38,8 @@ from fricenv.sweep import ALGORITHM as SWEEP_ALGORITHM
 from .layout import BASELINES, SEARCH_SEED_BASE
 from .rollouts import rollout
 
+#: The channels the baselines read, by position in the full observation.
+_STICK, _VR, _U0, _NU = (CHANNELS.index(c) for c in ("stick", "v_rel", "u0", "nu"))
 #: Bump when the search changes, so stale caches are recomputed.
 SEARCH_VERSION = 1
 
@@ -53,33 +55,18 @@ class ActionMap:
         setup = EnvSetup.build(scene, **kwargs)
         self.scene = (setup.scene if horizon is None
                       else setup.scene.replace(max_episode_steps=horizon))
+        self.setup = setup
         self.action_space = setup.action_space
         self.incremental = setup.incremental
         self.drives_u0 = setup.action_mode != "frequency"
         self.drives_nu = setup.action_mode != "amplitude"
-        cfg = setup.cfg
-        self.u_range = (cfg[K.C_U_LO], cfg[K.C_U_HI])
-        self.nu_range = (cfg[K.C_NU_LO], cfg[K.C_NU_HI])
-        self.du, self.dnu = cfg[K.C_DU], cfg[K.C_DNU]
-
-    @staticmethod
-    def _unit(target, current, rng, delta, incremental):
-        lo, hi = rng
-        if incremental:  # move towards the target as fast as allowed
-            return np.clip((target - current) / delta, -1.0, 1.0)
-        return np.clip(2.0 * (np.clip(target, lo, hi) - lo) / (hi - lo) - 1.0, -1.0, 1.0)
+        ranges = setting_ranges(setup)
+        self.u_range, self.nu_range = ranges["u0"], ranges["nu"]
 
     def action(self, u0: Any, nu: Any, obs: np.ndarray) -> np.ndarray:
-        """Actions (n, n_act) reaching ``(u0, nu)`` from observations ``obs`` (n, 9)."""
-        n = obs.shape[0]
-        cols = []
-        if self.drives_u0:
-            cols.append(self._unit(np.broadcast_to(u0, (n,)), obs[:, K.O_U0], self.u_range,
-                                   self.du, self.incremental))
-        if self.drives_nu:
-            cols.append(self._unit(np.broadcast_to(nu, (n,)), obs[:, K.O_NU], self.nu_range,
-                                   self.dnu, self.incremental))
-        return np.stack(cols, axis=1).astype(np.float32)
+        """Actions (n, n_act) reaching ``(u0, nu)`` from observations ``obs`` (n, 9)
+        (``fricenv.envs.observation.actions_towards`` from the observed setting)."""
+        return actions_towards(self.setup, (u0, nu), (obs[:, _U0], obs[:, _NU]))
 
 
 class Baseline:
@@ -96,10 +83,11 @@ class Baseline:
                 episode_start: np.ndarray | None = None,
                 deterministic: bool = True) -> tuple[np.ndarray, Any]:
         obs = np.asarray(observation, dtype=np.float32)
-        if obs.shape[-1] != K.N_OBS or obs.ndim not in (1, 2):
-            raise ValueError(f"observation must have shape ({K.N_OBS},) or (n, {K.N_OBS}), "
+        m = len(CHANNELS)
+        if obs.shape[-1] != m or obs.ndim not in (1, 2):
+            raise ValueError(f"observation must have shape ({m},) or (n, {m}), "
                              f"got {obs.shape}")
-        act = np.clip(self._act(obs.reshape(-1, K.N_OBS)), -1.0, 1.0).astype(np.float32)
+        act = np.clip(self._act(obs.reshape(-1, m)), -1.0, 1.0).astype(np.float32)
         return (act if obs.ndim == 2 else act[0]), state
 
     def _act(self, obs: np.ndarray) -> np.ndarray:
@@ -180,7 +168,7 @@ class DitherOnStick(Baseline):
         self.off = (self.map.u_range[0], self.scene.params.nu)
 
     def _act(self, obs: np.ndarray) -> np.ndarray:
-        fire = (obs[:, K.O_STICK] > 0.5) | (obs[:, K.O_VR] > -self.threshold)
+        fire = (obs[:, _STICK] > 0.5) | (obs[:, _VR] > -self.threshold)
         u0 = np.where(fire, self.on[0], self.off[0])
         nu = np.where(fire, self.on[1], self.off[1])
         return self.map.action(u0, nu, obs)
@@ -194,6 +182,7 @@ class DitherOnStick(Baseline):
 def _stationary_stick_fraction(scene: Scene, u0: np.ndarray, nu: np.ndarray,
                                n_threads: int | None) -> tuple[np.ndarray, Any]:
     """Steady-state stick fraction on the grid (rows u0, columns nu) for the nominal plant."""
+    from fricenv.maps import stick_fractions
     from fricenv.sweep import cell_statistics, regime_map
 
     if scene.tone_gains == (1.0, 1.0):  # regime_map drives both tones with amplitude u0
@@ -202,9 +191,7 @@ def _stationary_stick_fraction(scene: Scene, u0: np.ndarray, nu: np.ndarray,
     g1, g2 = scene.tone_gains
     cells = [scene.params.replace(u0=1.0, u1=g1 * a, u2=g2 * a, nu=b) for a in u0 for b in nu]
     _, st, _, _ = cell_statistics(cells, n_threads=n_threads)
-    from fricenv.layout import ST_DURATION, ST_STICK_TIME
-
-    sf = (st[:, ST_STICK_TIME] / st[:, ST_DURATION]).reshape(u0.size, nu.size)
+    sf = stick_fractions(st).reshape(u0.size, nu.size)
     return sf, None
 
 

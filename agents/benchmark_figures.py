@@ -1,7 +1,7 @@
 """The control benchmark's figures: returns, performance profiles and generalisation.
 
-Drawn from the entries ``fricenv_agents.benchmark`` scored; imported only when the page is
-written, so that the benchmark's rows and runs load without matplotlib.
+Drawn from the entries that ``fricenv_agents.benchmark_rows`` scored. matplotlib is imported
+only when a figure is drawn, so that the benchmark's rows and runs load without it.
 """
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 
 from . import statistics as S
-from .benchmark import BOOT_SEED, CONDITIONS, Results, Row, row_keys, short_name
+from .benchmark_rows import BOOT_SEED, CONDITIONS, Results, Row, row_keys, short_name
 
 
 def _pyplot() -> Any:

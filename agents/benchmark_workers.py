@@ -8,13 +8,11 @@ from __future__ import annotations
 
 import argparse
 from collections.abc import Sequence
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
+from .benchmark_rows import SCENE_COST, Row, evaluate_scene
 from .rollouts import Controller
 from .scoring import Entry
-
-if TYPE_CHECKING:
-    from .benchmark import Row
 
 
 def _evaluated_elsewhere(k: int) -> Controller:
@@ -32,8 +30,6 @@ def _portable(entries: dict[str, Entry]) -> dict[str, Entry]:
 
 def _scene_in_worker(scene: str, args: argparse.Namespace
                      ) -> tuple[dict[str, Entry], dict[str, dict[str, Entry]]]:
-    from .benchmark import evaluate_scene
-
     res, gen = evaluate_scene(scene, args)
     return _portable(res), {c: _portable(es) for c, es in gen.items()}
 
@@ -42,8 +38,6 @@ def map_scenes(args: argparse.Namespace, rows: Sequence[Row]) -> list[tuple[Any,
     """``evaluate_scene`` of every scene, ``--jobs`` of them at a time in fresh worker
     processes (spawned, not forked: numba's thread pools do not survive a fork), each
     with an equal share of the numba threads."""
-    from .benchmark import SCENE_COST, evaluate_scene
-
     if args.jobs == 1 or len(args.scenes) == 1:
         return [evaluate_scene(scene, args, rows) for scene in args.scenes]
     import multiprocessing as mp

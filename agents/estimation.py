@@ -42,14 +42,19 @@ from typing import Any
 import numpy as np
 
 from fricenv.checks import check_bool, check_finite_real, check_int, got
-from fricenv.core import new_workspace
-from fricenv.envs import kernels as K
+from fricenv.envs.observation import (
+    CHANNELS,
+    RANDOMIZABLE,
+    Plants,
+    check_observations,
+    draw_ranges,
+    fresh_workspace,
+    observe,
+    setting_ranges,
+    setting_start,
+)
 from fricenv.envs.rollout import MAX_SAMPLES, BatchRollout
 from fricenv.envs.setup import EnvSetup
-from fricenv.envs.state import N_PLANT, PL_CTRL, PL_P, PL_S, PL_WORK
-from fricenv.envs.tables import D_PHI1, D_PHI2, D_V0, D_X0, RANDOMIZABLE
-from fricenv.layout import S_MODE, S_PHI1, S_PHI2, S_T, S_V, S_X
-from fricenv.params import P_B1, P_B3, P_LAM, P_U1, P_U2, P_V, P_W1, P_W2, P_XFK, P_XFS
 
 from .mpc import (
     DEFAULT_HORIZON,
@@ -77,22 +82,12 @@ STICK_MISMATCH = 1e-3
 #: Mean squared miss per weighted channel, in standard deviations, of the best particle
 #: above which a reading starts the plant's filter again (10 sigma on every channel).
 REINIT_CHI2 = 100.0
-#: The parameter vector's slot of each randomisable parameter (``tables.RANDOMIZABLE``).
-_PARAM_SLOT = {"lam": P_LAM, "eta": P_W1, "V": P_V, "xfk": P_XFK, "xfs": P_XFS, "b1": P_B1,
-               "b3": P_B3}
+#: Each channel's position in the full observation (``fricenv.envs.channels``).
+_CH = {name: i for i, name in enumerate(CHANNELS)}
 #: Channels of the likelihood: the state's (the settings carry no information).
-_WEIGHED = (K.O_X, K.O_VR, K.O_STICK, K.O_COS1, K.O_SIN1, K.O_COS2, K.O_SIN2)
+_WEIGHED = tuple(_CH[c] for c in ("x", "v_rel", "stick", "cos1", "sin1", "cos2", "sin2"))
+_STICK = _CH["stick"]
 TWO_PI = 2.0 * math.pi
-
-
-def modes(P: np.ndarray, x: np.ndarray, v: np.ndarray, phi1: np.ndarray,
-          phi2: np.ndarray) -> np.ndarray:
-    """``core.state.initial_mode`` on arrays (rows of parameter vectors ``P``): -1/+1 when
-    slipping below/above the belt, 0 when stuck (v == V and the force within x_fs)."""
-    vr = v - P[:, P_V]
-    f = (-P[:, P_LAM] * P[:, P_V] - x + P[:, P_U1] * np.cos(phi1) + P[:, P_U2] * np.cos(phi2))
-    stuck = np.where(np.abs(f) <= P[:, P_XFS], 0.0, np.sign(f))
-    return np.where(vr != 0.0, np.sign(vr), stuck)
 
 
 def _systematic(w: np.ndarray, m: int, rng: np.random.Generator) -> np.ndarray:
@@ -127,10 +122,10 @@ class ParticleFilter:
         self.rng = np.random.default_rng(seed)
         inst = setup.instruments
         self.delay = 0 if inst is None else inst.delay
-        self.noise = np.zeros(K.N_OBS) if inst is None or inst.noise is None else inst.noise
-        channels = range(K.N_OBS) if inst is None or inst.channels is None else inst.channels
+        self.noise = np.zeros(len(CHANNELS)) if inst is None or inst.noise is None else inst.noise
+        channels = range(len(CHANNELS)) if inst is None or inst.channels is None else inst.channels
         #: column of each full channel in a reading (-1: not observed)
-        self.column = np.full(K.N_OBS, -1)
+        self.column = np.full(len(CHANNELS), -1)
         self.column[list(channels)] = np.arange(len(channels))
         self.n_obs = len(channels)
         self.weighed = [c for c in _WEIGHED if self.column[c] >= 0]
@@ -138,9 +133,11 @@ class ParticleFilter:
         sc = setup.scene
         self._base = sc.params.to_array()
         self._gains = sc.tone_gains
-        self._free = [(k, _PARAM_SLOT[name]) for k, name in enumerate(RANDOMIZABLE)
-                      if setup.draw_hi[k] > setup.draw_lo[k]]
-        self._template = new_workspace(extrema=False)
+        self._ranges = draw_ranges(setup)
+        #: the randomised parameters, in the order they are drawn
+        self._free = [name for name in RANDOMIZABLE
+                      if self._ranges[name][1] > self._ranges[name][0]]
+        self._template = fresh_workspace()
         self._n = 0
 
     # -- buffers ---------------------------------------------------------------------------
@@ -151,11 +148,11 @@ class ParticleFilter:
             return
         m = n * self.particles
         self._n = n
-        self._lag = np.zeros((m, N_PLANT))  # the state the latest reading measured
+        self._lag = Plants.new(m).table  # the state the latest reading measured
         self._lag_cmd = np.zeros((m, 2))
-        self._now = np.zeros((m, N_PLANT))  # predicted to the current interval
+        self._now = Plants.new(m).table  # predicted to the current interval
         self._now_cmd = np.zeros((m, 2))
-        self._ahead = np.zeros((m, N_PLANT))  # _lag stepped by the oldest action given
+        self._ahead = Plants.new(m).table  # _lag stepped by the oldest action given
         self._ahead_cmd = np.zeros((m, 2))
         self._ahead_ok = np.zeros(n, dtype=bool)
         self._ahead_dead = np.zeros(m, dtype=bool)  # (stepped from a failed interval)
@@ -181,6 +178,7 @@ class ParticleFilter:
             raise ValueError(f"readings must have shape (n, {self.n_obs}), got {obs.shape}")
         if not np.all(np.isfinite(obs)):
             raise ValueError("readings must be finite (no NaN or inf)")
+        check_observations(obs, self.setup)  # (within the box, a 0/1 stick flag: by name)
         n = obs.shape[0]
         self._size(n)
         starting = ~self._started
@@ -245,32 +243,17 @@ class ParticleFilter:
             best = int(np.argmax(logw[i]))
             table[b][bad[i]] = table[b][best]
 
-    def exact_obs(self, plants: np.ndarray) -> np.ndarray:
-        """The noise-free full observations (m, 9) of plant vectors (m, N_PLANT), as the
-        environments' ``write_obs`` makes them (x and v - V clipped to the box)."""
-        cfg = self.setup.cfg
-        S = plants[:, PL_S:PL_CTRL]
-        out = np.empty((plants.shape[0], K.N_OBS))
-        out[:, K.O_X] = np.clip(S[:, S_X], -cfg[K.C_X_LIM], cfg[K.C_X_LIM])
-        out[:, K.O_VR] = np.clip(S[:, S_V] - plants[:, PL_P + P_V], -cfg[K.C_V_LIM],
-                                 cfg[K.C_V_LIM])
-        out[:, K.O_STICK] = S[:, S_MODE] == 0.0
-        out[:, K.O_COS1], out[:, K.O_SIN1] = np.cos(S[:, S_PHI1]), np.sin(S[:, S_PHI1])
-        out[:, K.O_COS2], out[:, K.O_SIN2] = np.cos(S[:, S_PHI2]), np.sin(S[:, S_PHI2])
-        out[:, K.O_U0:] = plants[:, PL_CTRL:PL_WORK]
-        return out
-
     def loglik(self, idx: np.ndarray, reading: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Log-likelihood (len(idx), P) of the readings of plants ``idx`` given their
         particles' measured states, and each particle's mean squared miss per channel in
         standard deviations (the stick flag's mismatch counted as its log-likelihood)."""
         P = self.particles
         rows = (idx[:, None] * P + np.arange(P)).reshape(-1)
-        pred = self.exact_obs(self._lag[rows]).reshape(idx.size, P, K.N_OBS)
+        pred = observe(self._lag[rows], self.setup).reshape(idx.size, P, len(CHANNELS))
         ll = np.zeros((idx.size, P))
         for c in self.weighed:
             miss = reading[:, None, self.column[c]] - pred[:, :, c]
-            if c == K.O_STICK and self.noise[c] == 0.0:
+            if c == _STICK and self.noise[c] == 0.0:
                 ll += np.where(np.abs(miss) > 0.5, math.log(STICK_MISMATCH), 0.0)
             else:
                 ll -= 0.5 * (miss / max(self.noise[c], NOISE_FLOOR)) ** 2
@@ -308,80 +291,76 @@ class ParticleFilter:
         """Jitter the particles ``T`` (rows of plant vectors) in place: each coordinate by
         ``roughening`` x its spread x P^(-1/dims), within the prior for the parameters."""
         m = T.shape[0]
-        S = T[:, PL_S:PL_CTRL]
-        stuck = S[:, S_MODE] == 0.0
-        vr = S[:, S_V] - T[:, PL_P + P_V]
+        p = Plants(T)
+        stuck = p.mode == 0.0
+        vr = p.v - p.V
         scale = self.roughening * m ** (-1.0 / (len(self._free) + 4))
 
         def jitter(values: np.ndarray) -> np.ndarray:
             return scale * np.ptp(values) * self.rng.standard_normal(m)
 
-        dx, dvr = jitter(S[:, S_X]), jitter(vr)
-        dp = [jitter(T[:, PL_P + slot]) for _, slot in self._free]
-        for slot in (S_PHI1, S_PHI2):  # spread of the phases about the first one
-            wrapped = (S[:, slot] - S[0, slot] + math.pi) % TWO_PI
-            S[:, slot] = (S[:, slot] + jitter(wrapped)) % TWO_PI
-        S[:, S_X] += dx
-        for (k, slot), d in zip(self._free, dp, strict=True):
-            T[:, PL_P + slot] = np.clip(T[:, PL_P + slot] + d, self.setup.draw_lo[k],
-                                        self.setup.draw_hi[k])
-        V = T[:, PL_P + P_V]
-        S[:, S_V] = np.where(stuck, V, V + vr + dvr)
-        T[:, PL_P + P_W2] = T[:, PL_CTRL + 1] * T[:, PL_P + P_W1]
-        S[:, S_MODE] = modes(T[:, PL_P:PL_S], S[:, S_X], S[:, S_V], S[:, S_PHI1],
-                             S[:, S_PHI2])
-        T[:, PL_WORK:] = self._template
+        dx, dvr = jitter(p.x), jitter(vr)
+        dp = [jitter(p.param(name)) for name in self._free]
+        for phi in (p.phi1, p.phi2):  # spread of the phases about the first one
+            wrapped = (phi - phi[0] + math.pi) % TWO_PI
+            phi[:] = (phi + jitter(wrapped)) % TWO_PI
+        p.x += dx
+        for name, d in zip(self._free, dp, strict=True):
+            lo, hi = self._ranges[name]
+            p.set_param(name, np.clip(p.param(name) + d, lo, hi))
+        V = p.V
+        p.v = np.where(stuck, V, V + vr + dvr)
+        p.set_param("w2", p.nu * p.param("eta"))
+        p.settle_modes()
+        p.workspace = self._template
 
     def _init(self, idx: np.ndarray, reading: np.ndarray, episode: np.ndarray) -> None:
         """Particles of plants ``idx`` from their readings (measured states) and the prior:
         the randomised parameters from their ranges, each observed quantity about its
         reading by the channel's noise, the rest from the episode's starting ranges."""
         P, rng, col = self.particles, self.rng, self.column
-        lo, hi = self.setup.draw_lo, self.setup.draw_hi
+        ranges = self._ranges
         m = idx.size * P
-        T = np.zeros((m, N_PLANT))
-        T[:, PL_P:PL_S] = self._base
-        for k, slot in self._free:
-            T[:, PL_P + slot] = rng.uniform(lo[k], hi[k], m)
-        cfg = self.setup.cfg
+        p = Plants.new(m)
+        p.params = self._base
+        for name in self._free:
+            p.set_param(name, rng.uniform(*ranges[name], m))
+        start = setting_start(self.setup)
+        settings = setting_ranges(self.setup)
 
         def per_particle(c: int, default: float) -> np.ndarray:
             return np.repeat(reading[:, col[c]] if col[c] >= 0 else
                              np.full(idx.size, default), P)
 
-        def about(c: int, lo_k: float, hi_k: float) -> np.ndarray:
+        def about(c: int, lo_k: Any, hi_k: Any) -> np.ndarray:
             if col[c] < 0:
                 return rng.uniform(lo_k, hi_k, m)
             return per_particle(c, 0.0) + max(self.noise[c], NOISE_FLOOR) * rng.standard_normal(m)
 
-        u0 = np.clip(per_particle(K.O_U0, cfg[K.C_U0_START]), cfg[K.C_U_LO], cfg[K.C_U_HI])
-        nu = np.clip(per_particle(K.O_NU, cfg[K.C_NU_START]), cfg[K.C_NU_LO], cfg[K.C_NU_HI])
-        T[:, PL_P + P_U1] = self._gains[0] * u0
-        T[:, PL_P + P_U2] = self._gains[1] * u0
-        T[:, PL_P + P_W2] = nu * T[:, PL_P + P_W1]
-        S = T[:, PL_S:PL_CTRL]
-        S[:, S_T] = 0.0
-        S[:, S_X] = about(K.O_X, lo[D_X0], hi[D_X0])
-        V = T[:, PL_P + P_V]
-        S[:, S_V] = V + about(K.O_VR, lo[D_V0] - V, hi[D_V0] - V)
-        if col[K.O_STICK] >= 0 and self.noise[K.O_STICK] == 0.0:
-            S[:, S_V] = np.where(per_particle(K.O_STICK, 0.0) > 0.5, V, S[:, S_V])
-        for (c, s), slot, k in (((K.O_COS1, K.O_SIN1), S_PHI1, D_PHI1),
-                                ((K.O_COS2, K.O_SIN2), S_PHI2, D_PHI2)):
+        p.u0 = np.clip(per_particle(_CH["u0"], start[0]), *settings["u0"])
+        p.nu = np.clip(per_particle(_CH["nu"], start[1]), *settings["nu"])
+        p.drive(self._gains)
+        p.t = 0.0
+        p.x = about(_CH["x"], *ranges["x0"])
+        V = p.V
+        v0_lo, v0_hi = ranges["v0"]
+        p.v = V + about(_CH["v_rel"], v0_lo - V, v0_hi - V)
+        if col[_STICK] >= 0 and self.noise[_STICK] == 0.0:
+            p.v = np.where(per_particle(_STICK, 0.0) > 0.5, V, p.v)
+        for (c, s), phase in (((_CH["cos1"], _CH["sin1"]), "phi1"),
+                              ((_CH["cos2"], _CH["sin2"]), "phi2")):
             if col[c] >= 0 and col[s] >= 0:
                 sd = max(0.5 * (self.noise[c] + self.noise[s]), NOISE_FLOOR)
                 phi = np.arctan2(per_particle(s, 0.0), per_particle(c, 1.0))
-                S[:, slot] = (phi + sd * rng.standard_normal(m)) % TWO_PI
+                setattr(p, phase, (phi + sd * rng.standard_normal(m)) % TWO_PI)
             else:
-                S[:, slot] = rng.uniform(lo[k], hi[k], m)
-        S[:, S_MODE] = modes(T[:, PL_P:PL_S], S[:, S_X], S[:, S_V], S[:, S_PHI1], S[:, S_PHI2])
-        T[:, PL_CTRL] = u0
-        T[:, PL_CTRL + 1] = nu
-        T[:, PL_WORK:] = self._template
+                setattr(p, phase, rng.uniform(*ranges[phase], m))
+        p.settle_modes()
+        p.workspace = self._template
         for j, i in enumerate(idx):
             b = self._block(int(i))
-            self._lag[b] = T[j * P:(j + 1) * P]
-            self._lag_cmd[b] = T[j * P:(j + 1) * P, PL_CTRL:PL_WORK]
+            self._lag[b] = p.table[j * P:(j + 1) * P]
+            self._lag_cmd[b] = p.setting[j * P:(j + 1) * P]
             self.logw[i] = -math.log(P)
             self._ahead_ok[i] = False
             if episode[j]:
@@ -436,15 +415,15 @@ class ParticleFilter:
         randomised parameter."""
         T, _, w = self.now_states()
         P = self.particles
-        S = T[:, PL_S:PL_CTRL]
+        p = Plants(T)
 
         def mean(values: np.ndarray) -> np.ndarray:
             return (w * values.reshape(self._n, P)).sum(axis=1)
 
-        out = {"x": mean(S[:, S_X]), "v_rel": mean(S[:, S_V] - T[:, PL_P + P_V]),
-               "stuck": mean((S[:, S_MODE] == 0.0).astype(float))}
-        for k, slot in self._free:
-            out[RANDOMIZABLE[k]] = mean(T[:, PL_P + slot])
+        out = {"x": mean(p.x), "v_rel": mean(p.v - p.V),
+               "stuck": mean((p.mode == 0.0).astype(float))}
+        for name in self._free:
+            out[name] = mean(p.param(name))
         return out
 
     def mean_states(self) -> tuple[np.ndarray, np.ndarray]:
@@ -456,25 +435,23 @@ class ParticleFilter:
         heavy = np.arange(n) * P + np.argmax(w, axis=1)
         out, cmds = T[heavy].copy(), C[heavy].copy()
         est = self.estimate()
-        Sn = T[:, PL_S:PL_CTRL]
-        for k, slot in self._free:
-            out[:, PL_P + slot] = est[RANDOMIZABLE[k]]
-        out[:, PL_P + P_W2] = out[:, PL_CTRL + 1] * out[:, PL_P + P_W1]
-        S = out[:, PL_S:PL_CTRL]
-        S[:, S_X] = est["x"]
-        for slot in (S_PHI1, S_PHI2):
-            c = (w * np.cos(Sn[:, slot]).reshape(n, P)).sum(axis=1)
-            s = (w * np.sin(Sn[:, slot]).reshape(n, P)).sum(axis=1)
-            S[:, slot] = np.arctan2(s, c) % TWO_PI
-        V = out[:, PL_P + P_V]
-        slip = (Sn[:, S_MODE] != 0.0).reshape(n, P)
-        vr = (Sn[:, S_V] - T[:, PL_P + P_V]).reshape(n, P)
+        each, mean = Plants(T), Plants(out)
+        for name in self._free:
+            mean.set_param(name, est[name])
+        mean.set_param("w2", mean.nu * mean.param("eta"))
+        mean.x = est["x"]
+        for phase in ("phi1", "phi2"):
+            c = (w * np.cos(each.state(phase)).reshape(n, P)).sum(axis=1)
+            s = (w * np.sin(each.state(phase)).reshape(n, P)).sum(axis=1)
+            setattr(mean, phase, np.arctan2(s, c) % TWO_PI)
+        V = mean.V
+        slip = (each.mode != 0.0).reshape(n, P)
+        vr = (each.v - each.V).reshape(n, P)
         ws = (w * slip).sum(axis=1)
-        S[:, S_V] = np.where(est["stuck"] > 0.5, V,
-                             V + (w * slip * vr).sum(axis=1) / np.maximum(ws, 1e-300))
-        S[:, S_MODE] = modes(out[:, PL_P:PL_S], S[:, S_X], S[:, S_V], S[:, S_PHI1],
-                             S[:, S_PHI2])
-        out[:, PL_WORK:] = self._template
+        mean.v = np.where(est["stuck"] > 0.5, V,
+                          V + (w * slip * vr).sum(axis=1) / np.maximum(ws, 1e-300))
+        mean.settle_modes()
+        mean.workspace = self._template
         return out, cmds
 
 
@@ -532,7 +509,7 @@ class FilteredMPC(MPPIController):
     def predict(self, observation: np.ndarray, state: Any = None,
                 episode_start: np.ndarray | None = None,
                 deterministic: bool = True) -> tuple[np.ndarray, Any]:
-        obs, batch = observation_batch(observation)
+        obs, batch = observation_batch(observation, self.setup)
         n = batch.shape[0]
         start = None if episode_start is None else np.asarray(episode_start, bool).reshape(-1)
         if start is not None and start.shape != (n,):
@@ -582,17 +559,17 @@ class TrackingProbe:
                 deterministic: bool = True) -> tuple[np.ndarray, Any]:
         act, state = self.controller.predict(observation, state, episode_start, deterministic)
         if self._env is not None:
-            plants, _ = self._env.state_arrays()
-            x = plants[:, PL_S + S_X]
-            vr = plants[:, PL_S + S_V] - plants[:, PL_P + P_V]
+            plants = Plants(self._env.state_arrays()[0])
+            x, vr = plants.x, plants.v - plants.V
             est = self.controller.estimate()
             obs = np.asarray(observation, dtype=np.float64).reshape(x.size, -1)
             col = self.controller.filter.column
             self.sq["x"] += float(((est["x"] - x) ** 2).sum())
             self.sq["v_rel"] += float(((est["v_rel"] - vr) ** 2).sum())
-            if col[K.O_X] >= 0 and col[K.O_VR] >= 0:
-                self.sq["raw_x"] += float(((obs[:, col[K.O_X]] - x) ** 2).sum())
-                self.sq["raw_v_rel"] += float(((obs[:, col[K.O_VR]] - vr) ** 2).sum())
+            cx, cv = col[_CH["x"]], col[_CH["v_rel"]]
+            if cx >= 0 and cv >= 0:
+                self.sq["raw_x"] += float(((obs[:, cx] - x) ** 2).sum())
+                self.sq["raw_v_rel"] += float(((obs[:, cv] - vr) ** 2).sum())
             self.count += x.size
         return act, state
 

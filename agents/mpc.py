@@ -18,7 +18,7 @@ the plant's state:
   randomised parameters included (``state_arrays()`` / ``get_state()``): the
   "exact-model MPC" of the benchmark. This is the only way it works under partial
   observation (``observe=...``): the observation alone does not determine the state.
-- unbound, it estimates the state from the observation (``fricenv.envs.state.
+- unbound, it estimates the state from the observation (``fricenv.envs.observation.
   plants_from_observations``) with the scene's nominal parameters: under observation
   noise it plans from the noisy state as if it were exact, and under a delay from the
   delayed one (no filter, no predictor).
@@ -28,6 +28,10 @@ from the sweep of return against compute in ``scripts/mpc_sweep.py``
 (``docs/results/mpc_sweep.md``): shorter horizons lose the forced paper scene, longer
 ones need more samples than they are worth; fewer samples lose return in every scene; at
 the same compute a second iteration beats twice the samples.
+
+An observation no environment of the controller's settings can give (NaN, a value outside
+the observation box, a stick flag other than 0 or 1, an empty batch) is refused with a
+``ValueError`` naming it, bound or not: a plan made from it would be silently wrong.
 """
 
 from __future__ import annotations
@@ -37,11 +41,10 @@ from typing import Any
 import numpy as np
 
 from fricenv.checks import check_bool, check_finite_real, check_int, got
-from fricenv.envs import kernels as K
+from fricenv.envs.observation import check_observations, plants_from_observations
 from fricenv.envs.rollout import BatchRollout
 from fricenv.envs.scenes import Scene
 from fricenv.envs.setup import EnvSetup
-from fricenv.envs.state import plants_from_observations
 
 from .layout import MAX_PLANTS, SEARCH_SEED_BASE
 
@@ -62,13 +65,18 @@ NOISE_DECAY = 0.5
 TUNE_SEED_BASE = SEARCH_SEED_BASE + MAX_PLANTS
 
 
-def observation_batch(observation: Any) -> tuple[np.ndarray, np.ndarray]:
+def observation_batch(observation: Any, setup: EnvSetup) -> tuple[np.ndarray, np.ndarray]:
     """``observation`` as float32 and as a batch ``(n, m)`` (one row for a single
-    observation ``(m,)``); ``ValueError`` for any other shape."""
+    observation ``(m,)``). ``ValueError`` naming the row, channel and value for anything
+    an environment of ``setup`` cannot give (``fricenv.envs.observation.
+    check_observations``: an empty batch, the wrong shape, NaN or inf, a value outside the
+    observation box, a stick flag other than 0 or 1), so that no plan is made from it."""
     obs = np.asarray(observation, dtype=np.float32)
     if obs.ndim not in (1, 2):
         raise ValueError(f"observation must have shape (m,) or (n, m), got {obs.shape}")
-    return obs, obs.reshape(1, -1) if obs.ndim == 1 else obs
+    batch = obs.reshape(1, -1) if obs.ndim == 1 else obs
+    check_observations(batch, setup)
+    return obs, batch
 
 
 class MPPIController:
@@ -132,7 +140,7 @@ class MPPIController:
     def _states(self, obs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         env = self._env
         if env is None:
-            if self._partial or obs.shape[1] != K.N_OBS:
+            if self._partial:
                 raise ValueError("the MPC needs the plant's state: under partial observation "
                                  "bind it to the environment (bind(env)) to plan from the "
                                  "exact state")
@@ -160,7 +168,7 @@ class MPPIController:
     def predict(self, observation: np.ndarray, state: Any = None,
                 episode_start: np.ndarray | None = None,
                 deterministic: bool = True) -> tuple[np.ndarray, Any]:
-        obs, batch = observation_batch(observation)
+        obs, batch = observation_batch(observation, self.setup)
         self._size(batch.shape[0])
         if episode_start is not None:
             self._plan[np.asarray(episode_start, dtype=bool).reshape(-1)] = 0.0

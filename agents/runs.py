@@ -3,12 +3,19 @@
 A run folder (``config.yml``, ``model.zip``, ``vecnormalize.pkl``) is what
 ``fricenv train`` writes; a model file (``<algo>_*.zip`` with an optional
 ``<stem>_vecnormalize.pkl`` and ``<stem>.yml`` beside it) is what ships in ``pretrained/``.
+
+A run's config records the names of the channels its model observes (``observation``,
+``fricenv.envs.observation.channel_names``), and a model is used on an environment only
+when the names agree (:func:`check_observation`): two layouts of nine channels have the
+same shape, so the shape alone cannot tell them apart.
 """
 
 from __future__ import annotations
 
 import pickle
+from collections.abc import Mapping
 from pathlib import Path
+from typing import Any
 
 import yaml
 
@@ -83,3 +90,34 @@ def load_controller(path: str | Path, algo: str | None = None) -> tuple[TrainedC
             vn = pickle.load(fh)
         vn.training = False
     return TrainedController(model, vn, name=algo), config
+
+
+def observation_names(scene: Any, env_kwargs: Mapping[str, Any] | None = None) -> list[str]:
+    """The names of the channels an environment of ``scene`` made with ``env_kwargs``
+    observes, in order (what a run's config records as ``observation``)."""
+    from fricenv.envs.observation import channel_names
+    from fricenv.envs.setup import EnvSetup
+
+    kw = dict(env_kwargs or {})
+    kw.pop("max_episode_steps", None)
+    return channel_names(EnvSetup.build(scene, **kw))
+
+
+def check_observation(config: Mapping[str, Any], names: list[str], where: Any) -> None:
+    """``ValueError`` naming ``where`` (a run or model file) and the first channel that
+    differs unless the channels ``config`` records (``observation``) are ``names``, those
+    of the environment the model is to run on. A config without the record (a bare model
+    file) passes: its shape is all there is to check."""
+    recorded = config.get("observation")
+    if recorded is None:
+        return
+    recorded = list(recorded)
+    if recorded == names:
+        return
+    diff = next((i for i, (a, b) in enumerate(zip(recorded, names, strict=False)) if a != b),
+                min(len(recorded), len(names)))
+    have = recorded[diff] if diff < len(recorded) else "(none)"
+    want = names[diff] if diff < len(names) else "(none)"
+    raise ValueError(f"{where}: the model observes channels {recorded}, the environment "
+                     f"gives {names}: channel {diff} is {have!r} for the model, {want!r} "
+                     "for the environment")

@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from fricenv.envs import kernels as K
+from fricenv.envs.observation import CHANNELS
 from fricenv.envs.scenes import Scene
 
 from .baselines import (
@@ -38,11 +38,12 @@ from .rollouts import (
     rollout,
     summarize,
 )
-from .runs import load_controller
+from .runs import check_observation, load_controller, observation_names
 from .statistics import Interval, iqm_ci
 
 LABELS = {"ppo": "PPO", "sac": "SAC"}
-OBS_SHAPE = (K.N_OBS,)  #: every scene's observation
+#: The observed setting's channels (the time history plots them).
+_U0, _NU = CHANNELS.index("u0"), CHANNELS.index("nu")
 COLUMNS = (
     ("stick_fraction", "stick-time fraction", 4),
     ("rms_vr", "RMS relative velocity", 3),
@@ -146,10 +147,12 @@ def trained_entries(paths: list[Path], scene: str,
         if ctrl.action_space.shape != want:
             raise ValueError(f"{p}: the model's actions have shape {ctrl.action_space.shape}, "
                              f"scene {scene!r} needs {want}")
+        names = observation_names(scene, kw)
+        check_observation(cfg, names, p)
         obs = ctrl.model.observation_space.shape
-        if obs != OBS_SHAPE:
+        if obs != (len(names),):
             raise ValueError(f"{p}: the model's observations have shape {obs}, "
-                             f"the environments give {OBS_SHAPE}")
+                             f"the environments give {(len(names),)} (channels {names})")
         key = ctrl.name if p.is_dir() else f"{ctrl.name}:{p.name}"
         groups.setdefault(key, []).append((ctrl, cfg, p))
     entries = []
@@ -343,8 +346,6 @@ def time_history(controllers: list[tuple[str, Controller]], scene: str, env_kwar
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from fricenv.envs import kernels as K
-
     n = len(controllers)
     fig, axes = plt.subplots(n, 2, figsize=(11, 1.6 * n + 0.7), sharex="col", squeeze=False,
                              gridspec_kw={"width_ratios": [3, 1.2]})
@@ -367,8 +368,8 @@ def time_history(controllers: list[tuple[str, Controller]], scene: str, env_kwar
             vs.append(vb)
             ss.append(sb)
             tu.append(t_now)
-            us.append(float(obs[K.O_U0]))
-            ns.append(float(obs[K.O_NU]))
+            us.append(float(obs[_U0]))
+            ns.append(float(obs[_NU]))
             total += float(r)
             stuck += info["stick_fraction"]
             done = term or trunc

@@ -225,13 +225,14 @@ def train(args: argparse.Namespace, prepared: tuple | None = None,
         outputs.append(make_output_format("tensorboard", str(run_dir / "tb")))
     model.set_logger(Logger(str(run_dir), outputs))
 
-    from .runs import portable_path
+    from .runs import observation_names, portable_path
 
     config = {
         "algo": args.algo, "scene": args.scene, "env_id": SCENE_ENV_IDS[args.scene],
         "seed": seed, "n_timesteps": spec.n_timesteps, "n_envs": spec.n_envs,
         "hyperparams_file": portable_path(hp_file), "overrides": list(args.params),
         "hyperparams": _plain(raw), "env_kwargs": spec.env_kwargs,
+        "observation": observation_names(args.scene, spec.env_kwargs),
         "normalize": spec.normalize, "train_env_seeds": [train_env_seed(seed),
                                                          train_env_seed(seed) + spec.n_envs - 1],
         "eval_callback_seeds": [callback_env_seed(seed),

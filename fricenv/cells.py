@@ -34,6 +34,7 @@ from .core import conditioned_rows
 from .core.constants import MAX_STEPS_PER_CALL, MAX_STEPS_PER_TAU
 from .core.workspace import N_WORK, W_MAX_STEPS_CALL
 from .divergence import diverged
+from .friction import LAWS, OWNER, closed_form_rows, law_of_code
 from .jit import parallel_section
 from .layout import (
     METHOD_EVENT,
@@ -51,9 +52,8 @@ from .layout import (
 )
 from .params import (
     N_PARAMS,
-    P_B1,
-    P_B3,
     P_LAM,
+    P_LAW,
     P_U1,
     P_U2,
     P_V,
@@ -223,7 +223,9 @@ def plan_cells(params: OscillatorParams, nu: np.ndarray, settings: SweepSettings
     nu_exact = exact_rationals(nu, q)
     t1 = 2.0 * math.pi / params.eta
     t_mod = modulation_period(params.eta, nu_exact, settings.modulation_cap)
-    lam_eff = params.lam - params.b1  # damping of slip near v = V (b1 pumps energy in)
+    # damping of slip near v = V (a friction that falls with speed pumps energy in)
+    lam_eff = params.lam - params.law_spec.near_belt_slope(params.law_values(), params.xfk,
+                                                            params.xfs)
     decay = settings.transient_efolds * 2.0 / lam_eff if lam_eff > 0 else 0.0
     t_tr = np.maximum(max(settings.transient_min, decay), settings.transient_periods * t_mod)
     win = np.maximum(settings.window_min, settings.window_periods * t_mod)
@@ -300,7 +302,8 @@ def _check_cells(P_cells: np.ndarray, t_transient: np.ndarray, t_segment: np.nda
 
 
 #: What each column of a parameter row is (layout ``params.P_*``), for messages.
-_P_COLUMNS = ("lam", "V", "xfk", "xfs", "b1", "b3", "u1", "u2", "w1 = eta", "w2 = nu * eta")
+_P_COLUMNS = ("lam", "V", "xfk", "xfs", "u1", "u2", "w1 = eta", "w2 = nu * eta", "law code",
+              "law parameter 1", "law parameter 2", "law parameter 3")
 assert len(_P_COLUMNS) == N_PARAMS
 
 
@@ -319,7 +322,9 @@ def _check_rows(P: np.ndarray) -> None:
              (P_U1, P[:, P_U1] >= 0.0, "must be >= 0"),
              (P_U2, P[:, P_U2] >= 0.0, "must be >= 0"),
              (P_XFK, P[:, P_XFK] >= 0.0, "must be >= 0"),
-             (P_XFS, P[:, P_XFS] >= P[:, P_XFK], "must be >= xfk"))
+             (P_XFS, P[:, P_XFS] >= P[:, P_XFK], "must be >= xfk"),
+             (P_LAW, np.isin(P[:, P_LAW], [law.code for law in LAWS.values()]),
+              f"must be a friction law's code ({ {k: v.code for k, v in LAWS.items()} })"))
     for j, ok, why in rules:
         if not ok.all():
             i = int(np.argmin(ok))
@@ -386,11 +391,11 @@ def run_cells(P_cells: np.ndarray, t_transient: np.ndarray, t_segment: np.ndarra
             raise ValueError(f"cell {i}: {name} must be at most {most}, got "
                              f"{float(spans[name][i])!r}")
     if method == METHOD_EXACT and n:
-        friction = (P_cells[:, P_B1] != 0.0) | (P_cells[:, P_B3] != 0.0)
-        if friction.any():  # the closed form would silently drop b1, b3
-            i = int(np.argmax(friction))
-            raise ValueError(f"cell {i}: METHOD_EXACT needs the Coulomb law (b1 = b3 = 0), "
-                             f"got b1 = {P_cells[i, P_B1]!r}, b3 = {P_cells[i, P_B3]!r}")
+        other = ~closed_form_rows(P_cells[:, P_LAW])
+        if other.any():  # the closed form would silently drop the law's speed dependence
+            i = int(np.argmax(other))
+            raise ValueError(f"cell {i}: METHOD_EXACT needs the Coulomb law, got the "
+                             f"{law_of_code(P_cells[i, P_LAW]).name} law")
     t_transient, t_segment = spans["t_transient"], spans["t_segment"]
     n_segment, tries = spans["n_segment"].astype(np.int64), spans["tries"].astype(np.int64)
     # A cell the kernel never writes must not read as a result (np.empty once returned
@@ -491,12 +496,14 @@ def _run_group(method: int, rows: np.ndarray, P_cells: np.ndarray,
 #: Column of the kernels' parameter row that each field of a cell's values sets, beside
 #: ``u0`` (both amplitudes, unless ``u1`` / ``u2`` set one) and ``nu`` (the second tone's
 #: frequency, ``nu_exact * eta``).
-_COLUMN = {"lam": P_LAM, "V": P_V, "xfk": P_XFK, "xfs": P_XFS, "b1": P_B1, "b3": P_B3,
+_COLUMN = {"lam": P_LAM, "V": P_V, "xfk": P_XFK, "xfs": P_XFS,
            "eta": P_W1, "u1": P_U1, "u2": P_U2}
-#: Fields of :class:`OscillatorParams` that a cell's values may set.
-CELL_FIELDS = ("u0", "nu", *_COLUMN)
-#: Fields the time spans depend on (:func:`plan_cells` reads eta and lam - b1; nu is its
-#: argument).
+#: Fields of :class:`OscillatorParams` that a cell's values may set (a friction law's
+#: parameters where the base has that law).
+CELL_FIELDS = ("u0", "nu", *_COLUMN, *OWNER)
+#: Fields the time spans of a plant of the paper's laws depend on (:func:`plan_cells`
+#: reads eta and lam - b1; nu is its argument); ``OscillatorParams.plan_fields`` gives any
+#: plant's.
 PLAN_FIELDS = ("eta", "lam", "b1")
 
 
@@ -574,18 +581,20 @@ def cell_inputs(base: OscillatorParams, values: Mapping[str, object],
     for k, col in _COLUMN.items():
         if k in vals:
             P[:, col] = vals[k]
+    P[:, P_LAW:] = base.law_rows(vals, n)
+    plan_fields = base.plan_fields()
     nu = vals.get("nu", np.full(n, base.nu))
     t_tr, t_seg, nu_exact = np.empty(n), np.empty(n), np.empty(n)
     n_seg, tries, q = (np.empty(n, dtype=np.int64) for _ in range(3))
-    if any(k in vals for k in PLAN_FIELDS):
-        keys = np.stack([vals.get(k, np.full(n, getattr(base, k))) for k in PLAN_FIELDS], 1)
+    if any(k in vals for k in plan_fields):
+        keys = np.stack([vals.get(k, np.full(n, getattr(base, k))) for k in plan_fields], 1)
         groups, inverse = np.unique(keys, axis=0, return_inverse=True)
     else:  # (a regime map's chunk: the base's plan for every cell)
-        groups = np.array([[getattr(base, k) for k in PLAN_FIELDS]])
+        groups = np.array([[getattr(base, k) for k in plan_fields]])
         inverse = np.zeros(n, dtype=np.int64)
     for g, key in enumerate(groups):  # one plan per distinct (eta, lam, b1)
         idx = np.flatnonzero(inverse.ravel() == g)
-        p = base.replace(**dict(zip(PLAN_FIELDS, (float(v) for v in key), strict=True)))
+        p = base.replace(**dict(zip(plan_fields, (float(v) for v in key), strict=True)))
         grid, where = np.unique(nu[idx], return_inverse=True)
         plan = plan_cells(p, grid, settings)
         for dst, src in ((t_tr, plan.t_transient), (t_seg, plan.t_segment),
@@ -594,8 +603,8 @@ def cell_inputs(base: OscillatorParams, values: Mapping[str, object],
             dst[idx] = src[where.ravel()]
     P[:, P_W2] = nu_exact * P[:, P_W1]
     if settings.method == "auto":
-        coulomb = (P[:, P_B1] == 0.0) & (P[:, P_B3] == 0.0)
-        method = np.where(coulomb, METHOD_EXACT, METHOD_EVENT).astype(np.int64)
+        method = np.where(closed_form_rows(P[:, P_LAW]), METHOD_EXACT,
+                          METHOD_EVENT).astype(np.int64)
     else:
         method = np.full(n, METHODS[settings.method], dtype=np.int64)
     return CellInputs(P, t_tr, t_seg, n_seg, tries, method, nu, q)

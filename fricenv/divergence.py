@@ -41,7 +41,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from .layout import N_STATS, ST_V_MAX, ST_V_MIN, ST_VR2_INT, ST_X_MAX, ST_X_MIN
-from .params import P_B1, P_B3, P_LAM, P_U1, P_U2, P_V, P_XFS
+from .params import P_LAM, P_U1, P_U2, P_V, P_XFS, law_envelope
 
 #: How many motion scales (times ``max(1, t)``) a run may reach before it counts as
 #: diverged: 25 times the energy bound above for any plant that damps large speeds.
@@ -59,7 +59,8 @@ def motion_scale(P: np.ndarray, x0: ArrayLike, v0: ArrayLike) -> np.ndarray:
     """The motion scale (module docstring) of parameter rows ``P`` (layout ``params.P_*``,
     last axis the parameters) started at ``(x0, v0)``; broadcasts over the rows."""
     P = np.asarray(P, dtype=np.float64)
-    lam, V, b1, b3 = P[..., P_LAM], P[..., P_V], P[..., P_B1], P[..., P_B3]
+    lam, V = P[..., P_LAM], P[..., P_V]
+    _, b1, b3 = law_envelope(P)
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         band = np.where((b3 > 0.0) & (b1 > lam), (b1 - lam) / np.where(b3 > 0.0, b3, 1.0), 0.0)
         terms = (np.abs(x0), np.abs(v0), P[..., P_U1] + P[..., P_U2], P[..., P_XFS],

@@ -52,6 +52,15 @@ assert len(STAT_NAMES) == N_STATS
 
 
 # ------------------------------------------------------------------------------------------
+def stick_fractions(stats: np.ndarray) -> np.ndarray:
+    """The stick fraction (stuck time over time covered) of each row of statistics
+    ``stats`` (..., N_STATS), as ``cell_statistics`` and the maps return them; NaN where
+    no time was covered."""
+    d = stats[..., ST_DURATION]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(d > 0, stats[..., ST_STICK_TIME] / np.where(d > 0, d, 1), np.nan)
+
+
 @dataclass
 class RegimeMap:
     """Labels and window statistics on a (u0, nu) grid; axis 0 is u0, axis 1 is nu."""
@@ -81,10 +90,7 @@ class RegimeMap:
 
     @property
     def stick_fraction(self) -> np.ndarray:
-        d = self.stats[..., ST_DURATION]
-        with np.errstate(invalid="ignore", divide="ignore"):
-            return np.where(d > 0, self.stats[..., ST_STICK_TIME] / np.where(d > 0, d, 1),
-                            np.nan)
+        return stick_fractions(self.stats)
 
     @property
     def n_stick(self) -> np.ndarray:

@@ -64,7 +64,9 @@ REGIME_SHORT: dict[Regime, str] = {
 }
 assert set(REGIME_COLORS) == set(REGIME_SHORT) == set(Regime)
 LAW_TITLES = {"coulomb": "Coulomb", "viscous": "Coulomb + viscosity",
-              "stribeck": "complete (Stribeck)"}
+              "stribeck": "complete (Stribeck)", "exponential": "exponential Stribeck"}
+# Laws' parameters as the figures write them.
+_SYMBOLS = {"b1": "b_1", "b3": "b_3", "vs": "v_s", "delta": "\\delta", "cv": "c_v"}
 
 #: Axis labels: the quantity, its symbol and its unit (the model is dimensionless).
 TIME_LABEL = "time τ (dimensionless)"
@@ -139,29 +141,35 @@ def _subplots(nrows: int, ncols: int, figsize: tuple[float, float], **kw: Any
 
 # -- Fig. 2 --------------------------------------------------------------------------------
 def friction_laws_figure(xfk: float = 2.5, xfs: float = 4.0, vr_max: float = 3.0) -> Figure:
-    """Fig. 2: ``F(v_r) = x_f sgn(v_r) - b1 v_r + b3 v_r^3`` for the three laws.
+    """Fig. 2: the friction force ``F(v_r)`` of every named law (:data:`FRICTION_LAWS`):
+    the paper's three, ``x_f sgn(v_r) - b1 v_r + b3 v_r^3``, and the exponential Stribeck
+    law, each drawn by its own module's force.
 
     At ``v_r = 0`` the force is set-valued, ``[-x_fs, x_fs]`` (stick), drawn as a bar.
     """
-    fig, axes = _subplots(1, 3, figsize=(11, 3.4), sharey=True)
+    names = list(FRICTION_LAWS)
+    fig, axes = _subplots(1, len(names), figsize=(3.7 * len(names), 3.4), sharey=True)
     axes = axes[0]
     vr = np.linspace(-vr_max, vr_max, 801)
-    for ax, (name, (b1, b3)), tag in zip(axes, FRICTION_LAWS.items(), "abc", strict=True):
+    for ax, name, tag in zip(axes, names, "abcdefgh", strict=False):
+        p = OscillatorParams.preset(name, xfk=xfk, xfs=xfs)
+        law, values = p.law_spec, p.law_values()
         for side in (vr < 0, vr > 0):
             v = vr[side]
-            ax.plot(v, xfk * np.sign(v) - b1 * v + b3 * v**3, color="C0", lw=2,
-                    label="slip, $x_{fk}$ sgn$(v_r) - b_1 v_r + b_3 v_r^3$"
-                    if side[0] else None)
+            ax.plot(v, law.force(v, values, xfk, xfs), color="C0", lw=2,
+                    label="slip" if side[0] else None)
         ax.plot([0, 0], [-xfs, xfs], color="C3", lw=3, label="stick: $|F| \\leq x_{fs}$")
         ax.axhline(0, color="k", lw=0.5)
         ax.axvline(0, color="k", lw=0.5)
-        ax.set_title(f"({tag}) {LAW_TITLES[name]}: $b_1$={b1}, $b_3$={b3}")
+        shown = ", ".join(f"${_SYMBOLS.get(k, k)}$={v:g}" for k, v in values.items())
+        ax.set_title(f"({tag}) {LAW_TITLES.get(name, name)}" + (f": {shown}" if shown else ""),
+                     fontsize=9)
         ax.set_xlabel(VR_LABEL)
         ax.grid(alpha=0.3)
     axes[0].set_ylabel(FORCE_LABEL)  # (the panels share their y axis)
     axes[0].legend(loc="upper left", fontsize=8)
     fig.suptitle(f"Fig. 2: friction force against relative velocity ($x_{{fk}}$ = {xfk:g}, "
-                 f"$x_{{fs}}$ = {xfs:g})")
+                 f"$x_{{fs}}$ = {xfs:g}); (d) is fricenv's exponential Stribeck law")
     return fig
 
 

@@ -46,7 +46,7 @@ from .layout import (
     STATUS_STEP_BUDGET,
     STATUS_TOO_STIFF,
 )
-from .params import P_B1, P_B3, P_LAM, P_W1, P_W2, PARAM_LIMIT, OscillatorParams
+from .params import P_LAM, P_W1, P_W2, PARAM_LIMIT, OscillatorParams, law_envelope
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
@@ -164,8 +164,8 @@ def resolve_method(params: OscillatorParams, method: str) -> str:
         raise ValueError(f"unknown method {method!r}; expected 'auto' or one of {sorted(METHODS)}")
     elif method == "exact" and not params.is_coulomb:
         raise ValueError(
-            f"method 'exact' needs the Coulomb law (b1 = b3 = 0), got b1={params.b1!r}, "
-            f"b3={params.b3!r}; use 'event' or 'auto'"
+            f"method 'exact' needs the Coulomb law, got the {params.law_spec.name} law "
+            f"({params.law_values()}); use 'event' or 'auto'"
         )
     if method == "exact" and not core.closed_form_conditioned(params.to_array()):
         return "event"
@@ -208,9 +208,10 @@ def _raise_if_diverged(P: np.ndarray, x0: float, v0: float, t_span: float,
     limit = float(divergence.motion_limit(P, x0, v0, t_span))
     size = max(abs(stats[k]) for k in (ST_V_MAX, ST_V_MIN, ST_X_MAX, ST_X_MIN))
     why = ""
-    if P[P_B3] < 0.0 or (P[P_B3] == 0.0 and P[P_B1] > P[P_LAM]):
-        why = (f"; slip has negative net damping (lam = {P[P_LAM]:g}, b1 = {P[P_B1]:g}, "
-               f"b3 = {P[P_B3]:g}: b1 > lam with b3 = 0, or b3 < 0)")
+    _, b1, b3 = (float(a) for a in law_envelope(P))
+    if b3 < 0.0 or (b3 == 0.0 and b1 > P[P_LAM]):
+        why = (f"; slip has negative net damping (lam = {P[P_LAM]:g}, b1 = {b1:g}, "
+               f"b3 = {b3:g}: b1 > lam with b3 = 0, or b3 < 0)")
     raise SimulationError(
         f"the motion diverged by t = {S[S_T]:.6g}: |x| or |v| reached {size:.3g} and the "
         f"integral of (v - V)^2 {stats[ST_VR2_INT]:.3g}, beyond {limit:.3g} "

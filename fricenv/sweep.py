@@ -310,6 +310,11 @@ def cell_statistics(params: list[OscillatorParams], settings: SweepSettings | No
             raise TypeError(
                 f"params[{i}] must be an OscillatorParams, {got(p)}"
             )
+    for i, p in enumerate(params):
+        if p.friction != params[0].friction:
+            raise ValueError(f"params[{i}] has friction={p.friction!r} where params[0] has "
+                             f"{params[0].friction!r}: measure each friction law in its own "
+                             "call")
     settings = settings_with(settings, overrides)
     if settings.method == "exact":
         for i, p in enumerate(params):  # the method must suit every entry
@@ -318,7 +323,10 @@ def cell_statistics(params: list[OscillatorParams], settings: SweepSettings | No
             except ValueError as e:
                 raise ValueError(f"params[{i}]: {e}") from None
     values = {k: np.array([getattr(p, k) for p in params], dtype=np.float64)
-              for k in ("nu", "eta", "lam", "V", "xfk", "xfs", "b1", "b3")}
+              for k in ("nu", "eta", "lam", "V", "xfk", "xfs")}
+    for name in ({n for p in params for n in p.law_values()}
+                 if params[0].friction is not None else ("b1", "b3")):
+        values[name] = np.array([getattr(p, name) for p in params], dtype=np.float64)
     values["u1"] = np.array([p.amp1 for p in params], dtype=np.float64)
     values["u2"] = np.array([p.amp2 for p in params], dtype=np.float64)
     try:

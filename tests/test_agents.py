@@ -64,6 +64,8 @@ def ppo_run(tmp_path_factory) -> Path:
 def test_smoke_training_writes_a_loadable_model(ppo_run):
     from stable_baselines3 import PPO
 
+    from fricenv.envs.observation import CHANNELS
+
     for name in ("config.yml", "model.zip", "vecnormalize.pkl", "evaluations.npz",
                  "eval_log.csv", "monitor.csv"):
         assert (ppo_run / name).exists(), name
@@ -71,6 +73,7 @@ def test_smoke_training_writes_a_loadable_model(ppo_run):
     assert cfg["algo"] == "ppo" and cfg["scene"] == "self_excited" and cfg["seed"] == 3
     assert cfg["timesteps_done"] >= 256 and cfg["train_seconds"] > 0
     assert cfg["train_env_seeds"] == [train_env_seed(3), train_env_seed(3) + 3]
+    assert cfg["observation"] == list(CHANNELS)  # (loading compares the names)
     model = PPO.load(ppo_run / "model.zip", device="cpu")
     obs, _ = gym.make(SCENE_ENV_IDS["self_excited"]).reset(seed=0)
     action, _ = model.predict(obs, deterministic=True)

@@ -59,7 +59,7 @@ def test_import_fricenv_loads_no_scale_dependency():
             "('dask', 'distributed', 'zarr', 'xarray')]; print(bad); "
             "assert not bad; assert callable(fricenv.atlas); "
             "import fricenv.atlas as a; assert fricenv.atlas is a and callable(a); "
-            "import fricenv.atlas.cli, fricenv.atlas.core; assert not [m for m in "
+            "import fricenv.cli.atlas, fricenv.atlas.core; assert not [m for m in "
             "sys.modules if m.split('.')[0] in ('dask', 'distributed', 'zarr', 'xarray')]; "
             "import inspect; assert 'axes' in inspect.signature(fricenv.atlas).parameters")
     subprocess.run([sys.executable, "-c", code], check=True, cwd=ROOT,

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 import fricenv
-from fricenv.atlas.cli import main as cli_main
-from fricenv.atlas.cli import parse_axis
+from fricenv.cli.atlas import module_main as cli_main
+from fricenv.cli.atlas import parse_axis
 from fricenv.regimes import Regime
 
 

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import json
 import re
+import shutil
+from typing import Any
 
 import gymnasium as gym
 import numpy as np
@@ -13,7 +15,8 @@ from fricenv_agents.rollouts import rollout
 
 import fricenv  # noqa: F401  (registers the environments)
 from fricenv.core import new_workspace
-from fricenv.envs.state import PL_CTRL, PL_S, PL_WORK, plants_from_observations
+from fricenv.envs.observation import plants_from_observations
+from fricenv.envs.state import PL_CTRL, PL_S, PL_WORK
 from fricenv.envs.stick_slip import StickSlipEnv
 from fricenv.envs.vector import StickSlipVectorEnv
 from fricenv.layout import S_MODE, S_PHI1, S_PHI2, S_T, S_V, S_X
@@ -278,6 +281,7 @@ def test_the_benchmarks_trained_runs_ship_complete():
     import yaml
     from fricenv_agents import benchmark as BM
     from fricenv_agents.config import load_hyperparams
+    from fricenv_agents.runs import observation_names
 
     for group, (algo, kw) in BM.training_groups().items():
         for scene in BM.BENCH_SCENES:
@@ -290,6 +294,7 @@ def test_the_benchmarks_trained_runs_ship_complete():
                 cfg = yaml.safe_load(text)
                 assert (cfg["algo"], cfg["scene"]) == (algo, scene), run
                 assert cfg["env_kwargs"] == expected, run
+                assert cfg["observation"] == observation_names(scene, expected), run
                 assert cfg["timesteps_done"] >= cfg["n_timesteps"], run
     root = Path(__file__).resolve().parents[1]
     page = (root / "docs" / "results" / "control_benchmark.json").read_text()
@@ -338,3 +343,55 @@ def test_a_trained_models_episodes_run_side_by_side_as_seed_by_seed():
         np.testing.assert_allclose(getattr(entry.scores, field),
                                    np.concatenate([getattr(m, field) for m in per_seed]),
                                    rtol=1e-6, atol=1e-9)
+
+
+@pytest.mark.parametrize("kind", ["unbound", "bound", "filtered"])
+def test_the_mpcs_refuse_observations_no_environment_gives(kind):
+    """NaN, a value beyond the observation box, a stick flag of 0.5 and an empty batch are
+    refused by name before any plan is made, bound or not; the controller then plans on."""
+    from fricenv_agents.estimation import FilteredMPC
+
+    from fricenv.envs.observation import CHANNELS
+
+    env = StickSlipEnv(scene="self_excited")
+    obs, _ = env.reset(seed=0)
+    if kind == "filtered":
+        ctrl: Any = FilteredMPC("self_excited", particles=8, **SMALL)
+    else:
+        ctrl = MPPIController("self_excited", exact_state=kind == "bound", **SMALL)
+        ctrl.bind(env)
+    x, stick = CHANNELS.index("x"), CHANNELS.index("stick")
+    for value, channel, match in ((np.nan, x, r"channel 'x' = nan"),
+                                  (1e30, x, r"channel 'x' = 1e\+30"),
+                                  (0.5, stick, r"channel 'stick' = 0.5")):
+        bad = obs.copy()
+        bad[channel] = value
+        with pytest.raises(ValueError, match=match):
+            ctrl.predict(bad)
+    with pytest.raises(ValueError, match="empty batch"):
+        ctrl.predict(np.zeros((0, obs.size), np.float32))
+    assert ctrl.predict(obs)[0].shape == (2,)
+
+
+def test_a_model_runs_only_where_its_channels_are_the_environments(tmp_path):
+    """Two layouts of nine channels have the same shape: loading compares the channel
+    names a run records with the environment's and names the first that differs."""
+    import yaml
+    from fricenv_agents.benchmark import PRETRAINED_RUNS
+    from fricenv_agents.runs import check_observation, observation_names
+    from fricenv_agents.scoring import trained_entries
+
+    run = tmp_path / "ppo_paper_s0"
+    shutil.copytree(PRETRAINED_RUNS / "ppo_paper_s0", run)
+    cfg = yaml.safe_load((run / "config.yml").read_text())
+    names = observation_names("paper", cfg["env_kwargs"])
+    assert cfg["observation"] == names
+    assert len(trained_entries([run], "paper")[0]) == 1
+    cfg["observation"] = [names[1], names[0], *names[2:]]
+    (run / "config.yml").write_text(yaml.safe_dump(cfg, sort_keys=False))
+    with pytest.raises(ValueError, match=r"ppo_paper_s0: the model observes channels .*"
+                       r"channel 0 is 'v_rel' for the model, 'x' for the environment"):
+        trained_entries([run], "paper")
+    with pytest.raises(ValueError, match=r"channel 5 is '\(none\)' for the model"):
+        check_observation({"observation": names[:5]}, names, "m.zip")
+    check_observation({}, names, "m.zip")  # (a bare model file: its shape is checked)

@@ -9,12 +9,12 @@ from fricenv_agents.estimation import (
     FilteredMPC,
     ParticleFilter,
     TrackingProbe,
-    modes,
     noise_retention,
 )
 from fricenv_agents.rollouts import rollout
 
 from fricenv.envs import kernels as K
+from fricenv.envs.observation import initial_modes
 from fricenv.envs.rollout import BatchRollout
 from fricenv.envs.setup import EnvSetup
 from fricenv.envs.state import PL_P, PL_S, PL_WORK
@@ -109,6 +109,8 @@ def test_filter_checks_its_input():
         filt.observe(np.zeros((2, 5)))
     with pytest.raises(ValueError, match="finite"):
         filt.observe(np.full((2, 9), np.nan))
+    with pytest.raises(ValueError, match=r"observation 0, channel 'stick' = 0.5"):
+        filt.observe(np.full((1, 9), 0.5))
     obs = StickSlipEnv(scene="paper").reset(seed=0)[0][None]
     with pytest.raises(ValueError, match="one flag per plant"):
         filt.observe(obs, np.ones(3, bool))
@@ -129,7 +131,7 @@ def test_modes_match_the_kernels_rule():
     v = np.where(rng.random(200) < 0.5, P[:, P_V], rng.uniform(-1, 1, 200))
     phi1, phi2 = rng.uniform(0, 6.3, (2, 200))
     want = [K.initial_mode(P[i], x[i], v[i], phi1[i], phi2[i]) for i in range(200)]
-    assert np.array_equal(modes(P, x, v, phi1, phi2), want)
+    assert np.array_equal(initial_modes(P, x, v, phi1, phi2), want)
 
 
 def test_end_states_are_the_environments_next_state():

@@ -4,8 +4,11 @@ Every module under ``fricenv/`` is parsed (nothing is imported), and an edge is 
 each import, at module or function level, for each ``importlib.import_module`` of a
 constant name, for each string that names a module (``"fricenv.cli.simulate"``, an entry
 point ``"fricenv.envs.vector:StickSlipVectorEnv"``) and for each value of a package's
-``_HOMES`` table (the public names its ``__getattr__`` imports on first use). The layers
-are read from ``docs/development.md``, so that the page and the check cannot drift apart.
+``_HOMES`` table (the public names its ``__getattr__`` imports on first use). Attribute use of
+an imported name is an import too: ``import fricenv`` then ``fricenv.regime_map`` imports
+``fricenv.sweep``. The layers are read from ``docs/development.md``, so that the page and the
+check cannot drift apart. The agents (``agents/``, installed as ``fricenv_agents``) are
+parsed the same way and checked for cycles.
 """
 
 from __future__ import annotations
@@ -54,13 +57,58 @@ def _resolve(name: str, package: str, level: int) -> str:
     return ".".join([*base, name] if name else base)
 
 
+def _homes_table(node: ast.expr) -> dict[str, str]:
+    """A ``_HOMES`` table's literal entries: ``{"name": "module"}`` and
+    ``**dict.fromkeys(("a", "b"), "module")``."""
+    table: dict[str, str] = {}
+    for sub in ast.walk(node):
+        if isinstance(sub, ast.Dict):
+            table.update({k.value: v.value for k, v in zip(sub.keys, sub.values, strict=True)
+                          if isinstance(k, ast.Constant) and isinstance(v, ast.Constant)})
+        elif (isinstance(sub, ast.Call) and getattr(sub.func, "attr", None) == "fromkeys"
+              and len(sub.args) == 2 and isinstance(sub.args[1], ast.Constant)):
+            table.update({e.value: sub.args[1].value for e in ast.walk(sub.args[0])
+                          if isinstance(e, ast.Constant)})
+    return table
+
+
+def _lazy_homes() -> dict[str, dict[str, str]]:
+    """package -> its ``_HOMES`` table (public name -> module relative to the package)."""
+    out: dict[str, dict[str, str]] = {}
+    for name, path in MODULES.items():
+        if path.name != "__init__.py":
+            continue
+        for node in ast.walk(ast.parse(path.read_text(), str(path))):
+            targets = (node.targets if isinstance(node, ast.Assign) else
+                       [node.target] if isinstance(node, ast.AnnAssign) else [])
+            if any(getattr(t, "id", None) == "_HOMES" for t in targets):
+                assert isinstance(node, (ast.Assign, ast.AnnAssign)) and node.value is not None
+                out[name] = _homes_table(node.value)
+    return out
+
+
+HOMES = _lazy_homes()
+
+
+def _canonical(name: str) -> str:
+    """``name`` as the checkout spells it: ``fricenv_agents`` installs the folder ``agents``."""
+    head, dot, rest = name.partition(".")
+    return f"agents{dot}{rest}" if head == "fricenv_agents" else name
+
+
 def _target(name: str) -> str | None:
-    """The known module ``name`` denotes: itself, or the module holding it as an attribute
-    (``fricenv.simulate.simulate`` -> ``fricenv.simulate``); None if outside the checkout."""
+    """The known module ``name`` denotes: itself, the module holding it as an attribute
+    (``fricenv.simulate.simulate`` -> ``fricenv.simulate``), or the home of a package's
+    lazy public name (``fricenv.regime_map`` -> ``fricenv.sweep``); None if outside the
+    checkout."""
+    name = _canonical(name)
     while name:
+        package, _, attr = name.rpartition(".")
+        if package in HOMES and attr in HOMES[package]:
+            return f"{package}.{HOMES[package][attr]}"
         if name in MODULES:
             return name
-        name = name.rpartition(".")[0]
+        name = package
     return None
 
 
@@ -69,12 +117,42 @@ def _ancestors(module: str) -> set[str]:
     return {".".join(parts[:i]) for i in range(1, len(parts) + 1)}
 
 
-def imports_of(module: str) -> set[str]:
-    """The known modules ``module`` imports or names (see the module docstring)."""
-    path = LIBRARY[module]
+def _attribute_chain(node: ast.Attribute) -> list[str] | None:
+    """``a.b.c`` as ``["a", "b", "c"]``; None unless the chain starts at a plain name."""
+    parts = [node.attr]
+    value = node.value
+    while isinstance(value, ast.Attribute):
+        parts.append(value.attr)
+        value = value.value
+    return [value.id, *reversed(parts)] if isinstance(value, ast.Name) else None
+
+
+def _bound_modules(tree: ast.AST, package: str) -> dict[str, str]:
+    """Local name -> the dotted name it is bound to by an import (``import fricenv`` binds
+    ``fricenv``; ``import fricenv.envs as E`` binds ``E``; ``from fricenv import envs``
+    binds ``envs``), so that attribute use (``fricenv.regime_map``) counts as an import."""
+    bound: dict[str, str] = {}
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            for alias in node.names:
+                if alias.asname:
+                    bound[alias.asname] = alias.name
+                else:
+                    top = alias.name.split(".")[0]
+                    bound[top] = top
+        elif isinstance(node, ast.ImportFrom):
+            base = _resolve(node.module or "", package, node.level)
+            for alias in node.names:
+                bound[alias.asname or alias.name] = f"{base}.{alias.name}"
+    return bound
+
+
+def imports_in(source: str, module: str) -> set[str]:
+    """The known modules that ``source``, read as module ``module``, imports or names
+    (see the module docstring); attribute use of an imported name counts too."""
     package = _package(module)
     names: set[str] = set()
-    tree = ast.parse(path.read_text(), str(path))
+    tree = ast.parse(source)
     for node in ast.walk(tree):
         if isinstance(node, ast.Import):
             names.update(alias.name for alias in node.names)
@@ -96,11 +174,24 @@ def imports_of(module: str) -> set[str]:
             names.update(_resolve(v.value, package, 1) for v in ast.walk(node.value)
                          if isinstance(v, ast.Constant) and isinstance(v.value, str)
                          and f"{package}.{v.value}" in MODULES)
+    bound = _bound_modules(tree, package)
+    for node in ast.walk(tree):
+        chain = _attribute_chain(node) if isinstance(node, ast.Attribute) else None
+        if chain and chain[0] in bound:
+            names.add(".".join([bound[chain[0]], *chain[1:]]))
     targets = {_target(n) for n in names}
     return {t for t in targets if t is not None} - _ancestors(module)
 
 
+def imports_of(module: str) -> set[str]:
+    """The known modules ``module`` of the checkout imports or names."""
+    return imports_in(MODULES[module].read_text(), module)
+
+
 GRAPH = {module: imports_of(module) for module in LIBRARY}
+#: The agents (``agents/``, installed as ``fricenv_agents``): the top layer.
+AGENTS = {name: path for name, path in MODULES.items() if name.split(".")[0] == "agents"}
+AGENTS_GRAPH = {module: imports_of(module) for module in AGENTS}
 
 
 def _strongly_connected(graph: dict[str, set[str]]) -> list[set[str]]:
@@ -254,3 +345,87 @@ def test_numba_is_imported_with_fricenv_jit(module: str) -> None:
         top_level = {_resolve(n.module or "", _package(module), n.level)
                      for n in tree.body if isinstance(n, ast.ImportFrom)}
         assert "fricenv.jit" in top_level, f"{module} imports numba but not fricenv.jit"
+
+
+@pytest.mark.parametrize("source, found", [
+    ("import fricenv\ndef f():\n    return fricenv.regime_map", "fricenv.sweep"),
+    ("import fricenv\nfricenv.envs.kernels.N_OBS", "fricenv.envs.kernels"),
+    ("import fricenv.envs as E\nE.vector", "fricenv.envs.vector"),
+    ("from fricenv import simulate", "fricenv.simulate"),
+    ("from fricenv import regime_map", "fricenv.sweep"),
+    ("from fricenv import atlas\natlas.open_atlas", "fricenv.atlas.store"),
+])
+def test_attribute_use_of_an_imported_package_is_an_import(source: str, found: str) -> None:
+    """``import fricenv`` then ``fricenv.regime_map`` in a lower layer imports the sweeps as
+    surely as ``from fricenv import sweep`` does: the graph follows attributes of imported
+    names and the packages' lazy public names to their home modules."""
+    assert found in imports_in(source, "fricenv.core.contacts")
+
+
+def test_the_agents_are_seen() -> None:
+    """The agents' graph holds module- and function-level imports of the library and of
+    each other (else the checks below would pass on an empty graph)."""
+    assert "fricenv.envs.scenes" in AGENTS_GRAPH["agents.benchmark_rows"]  # module level
+    assert "agents.estimation" in AGENTS_GRAPH["agents.benchmark_rows"]  # function level
+
+
+def test_the_agents_import_no_scripts_or_tests() -> None:
+    outside = {(m, t) for m, targets in AGENTS_GRAPH.items() for t in targets
+               if t.split(".")[0] in ("scripts", "tests")}
+    assert outside == set()
+
+
+def test_no_import_cycle_in_the_agents() -> None:
+    """No cycle among the agents' modules, function-level imports included."""
+    assert _strongly_connected(AGENTS_GRAPH) == []
+
+
+def test_only_programs_import_the_command_line() -> None:
+    """The command line sits on top: no module outside ``fricenv.cli`` imports it, but the
+    ``python -m`` programs (``__main__``), which nothing imports. So ``fricenv.atlas`` and
+    ``fricenv.cli`` never import each other."""
+    def outside(module: str) -> bool:
+        return not (module == "fricenv.cli" or module.startswith("fricenv.cli."))
+
+    found = {(m, t) for m, targets in GRAPH.items() for t in targets
+             if outside(m) and not m.endswith(".__main__") and not outside(t)}
+    assert found == set()
+    assert not any("__main__" in t for targets in GRAPH.values() for t in targets)
+
+
+#: Prefixes of the slot constants that index the library's flat arrays (``P_*`` parameters,
+#: ``S_*`` state, ``ST_*`` statistics, ``PL_*`` plant vectors, ``T_*`` table columns,
+#: ``C_*`` configuration, ``O_*`` observation, ``D_*`` draws, ``W_*`` workspace, ...) and
+#: their sizes (``N_*``).
+SLOT = re.compile(r"(P|S|ST|PL|T|C|O|OB|D|I|IV|R|W|A|F|CT|N)_[A-Z0-9_]+")
+
+
+def slot_uses(path: Path) -> list[str]:
+    """The slot constants a module of the agents takes from the library: imported by name
+    (``from fricenv.params import P_LAM``) or read off an imported module (``K.O_X``)."""
+    tree = ast.parse(path.read_text())
+    modules: set[str] = set()
+    found = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.ImportFrom) and (node.module or "").split(".")[0] == "fricenv":
+            for alias in node.names:
+                if SLOT.fullmatch(alias.name):
+                    found.append(f"{node.module}.{alias.name}")
+                else:
+                    modules.add(alias.asname or alias.name)
+        elif isinstance(node, ast.Import):
+            modules.update(a.asname or a.name.split(".")[0] for a in node.names
+                           if a.name.split(".")[0] == "fricenv")
+    for node in ast.walk(tree):
+        if (isinstance(node, ast.Attribute) and SLOT.fullmatch(node.attr)
+                and _attribute_chain(node) and (_attribute_chain(node) or [""])[0] in modules):
+            found.append(".".join(_attribute_chain(node) or []))
+    return found
+
+
+def test_the_agents_take_no_slot_constant() -> None:
+    """The agents reach plants, observations and actions through named functions and
+    records (``fricenv.envs.observation``), never through the library's array slots."""
+    assert "fricenv.params.P_V" in slot_uses(ROOT / "tests" / "test_estimation.py")  # (seen)
+    found = {module: uses for module, path in AGENTS.items() if (uses := slot_uses(path))}
+    assert found == {}

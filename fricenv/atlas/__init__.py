@@ -16,9 +16,9 @@ consolidated, in that order).
 
 Layers: :mod:`.core` (grid, validation, chunks, local execution; numpy only),
 :mod:`.store` (xarray and Zarr), :mod:`.distributed` (Dask, imported only with a client),
-:mod:`.views` (matplotlib), :mod:`.cli`. Names are resolved on first use, so that
-importing the package, its core (on a worker) or its command line (under ``fricenv
---help``) loads none of the optional dependencies.
+:mod:`.views` (matplotlib); its command line is :mod:`fricenv.cli.atlas`. Names are
+resolved on first use, so that importing the package, its core (on a worker) or its
+command line (under ``fricenv --help``) loads none of the optional dependencies.
 """
 
 from __future__ import annotations

@@ -26,7 +26,6 @@ import numpy as np
 from ..calls import SweepInterrupted
 from ..cells import (
     NOT_COMPUTED,
-    PLAN_FIELDS,
     STATUS_NOT_RUN,  # (the stored fill value of a cell that has not run)
     SweepSettings,
     cell_inputs,
@@ -35,6 +34,7 @@ from ..cells import (
     settings_with,
 )
 from ..checks import check_int, got, real_array
+from ..friction import OWNER
 from ..layout import (
     ST_DURATION,
     ST_N_REVERSAL,
@@ -51,7 +51,7 @@ from ..params import (
 
 #: Parameters an atlas may sweep: every numeric field of OscillatorParams that sets a cell
 #: (u1 and u2 are not: both tones get amplitude u0, as in a regime map).
-AXIS_FIELDS = ("u0", "nu", "eta", "lam", "V", "xfk", "xfs", "b1", "b3")
+AXIS_FIELDS = ("u0", "nu", "eta", "lam", "V", "xfk", "xfs", *OWNER)
 
 #: The variables of an atlas, their dtype and the value of a cell not computed yet. The
 #: label is written last for each chunk, so a stored label marks its chunk complete.
@@ -224,7 +224,7 @@ def _check_friction_levels(axes: dict[str, np.ndarray], base: OscillatorParams) 
 def _plan_groups(spec_axes: dict[str, np.ndarray], base: OscillatorParams
                  ) -> Iterator[tuple[dict[str, float], OscillatorParams]]:
     """Each distinct combination of the fields the time spans depend on, and its params."""
-    names = [k for k in PLAN_FIELDS if k in spec_axes]
+    names = [k for k in base.plan_fields() if k in spec_axes]
     for values in itertools.product(*(spec_axes[k] for k in names)):
         fixed = {k: float(v) for k, v in zip(names, values, strict=True)}
         yield fixed, base.replace(**fixed)
@@ -350,7 +350,7 @@ def _span_costs(spec: AtlasSpec, tasks: list[ChunkTask]) -> list[float]:
         span = plan.t_transient + plan.t_segment * plan.n_segment * np.maximum(plan.tries, 1)
         spans[tuple(fixed.values())] = span * p.eta * np.maximum(1.0, plan.nu_exact)
     costs = []
-    names = [k for k in PLAN_FIELDS if k in spec.axes]
+    names = [k for k in spec.base.plan_fields() if k in spec.axes]
     for t in tasks:
         n_other = math.prod(g.size for k, g in t.grids.items()
                             if k not in names + ["nu", "u0"])

@@ -33,7 +33,10 @@ AXIS_LABELS = {"u0": U0_LABEL, "nu": NU_LABEL, "eta": ETA_LABEL,
                "xfk": "kinetic friction $x_{fk}$ (dimensionless)",
                "xfs": "static friction $x_{fs}$ (dimensionless)",
                "b1": "viscous coefficient $b_1$ (dimensionless)",
-               "b3": "cubic coefficient $b_3$ (dimensionless)"}
+               "b3": "cubic coefficient $b_3$ (dimensionless)",
+               "vs": "Stribeck speed $v_s$ (dimensionless)",
+               "delta": "Stribeck shape exponent $\\delta$",
+               "cv": "viscous coefficient $c_v$ (dimensionless)"}
 
 
 def _label(name: str) -> str:

@@ -1,7 +1,8 @@
 """The ``fricenv`` command: every job of the package behind one entry point.
 
-``fricenv <command> --help`` describes each command. Commands that have long lived as
-modules of their own (``fricenv.reproduce``, ``fricenv.atlas``) keep their own parsers;
+``fricenv <command> --help`` describes each command. Each command's module lives here
+(``fricenv.cli.atlas`` also serves ``python -m fricenv.atlas``), except the reproduction,
+which has long lived as a module of its own (``fricenv.reproduce``) and keeps its parser;
 this module only dispatches.
 
 Other distributions add commands through the entry-point group :data:`PLUGIN_GROUP`

@@ -10,8 +10,6 @@ from ..jit import kernel
 from .constants import HOMOG_SERIES_MAX
 from .trig import _sincos
 from .workspace import (
-    C_B1,
-    C_B3,
     C_C1A,
     C_C2A,
     C_DV,
@@ -187,7 +185,5 @@ def _stick_at(cx, tau):
 
 @kernel
 def _jerk(cx, v, a, s1, s2):
-    """v'' in slip from v, v' and the tones' sines (the friction law's slope included)."""
-    vr = v - cx[C_V]
-    slope = cx[C_B1] - 3.0 * cx[C_B3] * vr * vr
-    return (slope - cx[C_LAM]) * a - v - (cx[C_U1] * cx[C_W1] * s1 + cx[C_U2] * cx[C_W2] * s2)
+    """v'' in Coulomb slip from v, v' and the tones' sines (the law adds no slope)."""
+    return -cx[C_LAM] * a - v - (cx[C_U1] * cx[C_W1] * s1 + cx[C_U2] * cx[C_W2] * s2)

@@ -1,9 +1,10 @@
 """Contacts of slip with v = V, and what follows them (stick or reversal)."""
 
+from ..friction import kernels as friction
 from ..jit import kernel
 from ..layout import EVENT_REVERSAL, EVENT_STICK, ST_N_REVERSAL, ST_N_SLIP, ST_N_STICK
 from .constants import GRAZE_REL
-from .workspace import C_LAM, C_U1, C_U2, C_V, C_W1, C_W2, C_XFK, C_XFS
+from .workspace import C_LAM, C_LAW, C_U1, C_U2, C_V, C_W1, C_W2, C_XFK, C_XFS
 
 
 @kernel
@@ -11,15 +12,18 @@ def _start_slope(cx, fresh, h0, d0, x, v):
     """h' at a slip step's start, for the contact search.
 
     A phase that starts on the switching surface (``fresh``, h0 <= 0) leaves stick or
-    reverses with h' = |f| - x_fk >= x_fs - x_fk >= 0, so a negative h' there within the
-    rounding of the acceleration's terms is taken as 0. A larger negative one (a given
+    reverses with h' = |f| - F(0+) >= x_fs - F(0+) >= 0 (F(0+) is x_fk for a law that
+    jumps to its kinetic level, x_fs for one continuous at break-away, where h' starts
+    at 0), so a negative h' there within the rounding of the acceleration's terms is
+    taken as 0. A larger negative one (a given
     state, or an excitation retuned between calls) heads to the other side at once and is
     kept: the contact is then at the start (clamped to 0 too, a dip of h below 0 that comes
     back within the step would go unseen: slip on with v past V, status OK).
     """
     if fresh and h0 <= 0.0 and d0 < 0.0:
+        level = friction.start_level(cx[C_LAW], cx[C_XFK], cx[C_XFS])
         noise = GRAZE_REL * (
-            abs(cx[C_LAM] * v) + abs(x) + cx[C_XFK] + abs(cx[C_U1]) + abs(cx[C_U2]))
+            abs(cx[C_LAM] * v) + abs(x) + level + abs(cx[C_U1]) + abs(cx[C_U2]))
         if d0 >= -noise:
             return 0.0
     return d0

@@ -4,17 +4,18 @@ import math
 
 import numpy as np
 
+from ..friction import kernels as friction
 from ..jit import kernel
-from ..params import P_B1, P_B3, P_LAM, P_U1, P_U2, P_V, P_W1, P_W2, P_XFK, P_XFS
+from ..params import P_LAM, P_LAW, P_LAW_PARAMS, P_U1, P_U2, P_V, P_W1, P_W2, P_XFK, P_XFS
 from .constants import _D2_MIN, DELTA_MAX, DELTA_WIDE, PHASE_PER_STEP, PHASE_PER_STEP_WIDE
 from .workspace import (
-    C_B1,
-    C_B3,
     C_GDD,
     C_GDDD,
     C_KC1,
     C_KS1,
     C_LAM,
+    C_LAW,
+    C_LC,
     C_P2,
     C_RES1,
     C_U1,
@@ -91,8 +92,12 @@ def _setup_context(P, cx):
     cx[C_U2] = P[P_U2]
     cx[C_W1] = P[P_W1]
     cx[C_W2] = P[P_W2]
-    cx[C_B1] = P[P_B1]
-    cx[C_B3] = P[P_B3]
+    law = P[P_LAW]
+    cx[C_LAW] = law
+    lc = friction.prepare(law, P[P_LAW_PARAMS], P[P_LAW_PARAMS + 1], P[P_LAW_PARAMS + 2],
+                          P[P_XFK], P[P_XFS])
+    for i in range(4):
+        cx[C_LC + i] = lc[i]
     cx[C_P2] = 1.0 - 0.25 * lam * lam
     for i in range(2):
         u = P[P_U1 + i]

@@ -8,6 +8,7 @@ of :mod:`fricenv.core.stick` (``_event_stick_step``).
 
 import math
 
+from ..friction import kernels as friction
 from ..jit import kernel
 from ..layout import (
     EVENT_SLIP,
@@ -46,15 +47,13 @@ from .proofs import _extremum_matters, _v_one_extremum
 from .recording import _log_event, _write_output, recording
 from .roots import K_DENSE_H, K_DENSE_V, _extremum_dense, _root_dense
 from .rosenbrock import _ros4_step
-from .slip import _acc, _carry, _end_phases, _rhs_acc, _set_phases
+from .slip import _acc, _carry, _end_phases, _law, _rhs_acc, _set_phases
 from .state import _note_v, _note_x
 from .stats import _slip_extrema, _vr2_from_values, _x_turn_dense
 from .stick import _stick_exit_time, _stick_trial
 from .taylor import _dense_bounds, _dense_v, _dense_x, _taylor_coeffs, _taylor_vr2, taylor_order
 from .trig import _sincos, _wrap
 from .workspace import (
-    C_B1,
-    C_B3,
     C_C1A,
     C_C2A,
     C_CP1,
@@ -77,6 +76,13 @@ from .workspace import (
     W_SKIP_VR2,
     _budget_check,
 )
+
+
+@kernel
+def _stiffness(cx, sd, vr):
+    """|dv'/dv| in slip at vr = v - V: how fast slip relaxes, against the step length."""
+    law, lc = _law(cx)
+    return abs(friction.net_slope(law, lc, cx[C_LAM], sd, vr))
 
 
 @kernel
@@ -107,7 +113,7 @@ def _stiff_step(cx, stats, t, t_stop, x, v, acc, ph1, ph2, sd, h, cap, rtol, ato
     """
     V = cx[C_V]
     vr0 = v - V
-    k_stiff = abs(cx[C_B1] - cx[C_LAM] - 3.0 * cx[C_B3] * vr0 * vr0)
+    k_stiff = _stiffness(cx, sd, vr0)
     taken = False
     if not k_stiff * min(h, cap) >= STIFF_HK:
         return taken, k_stiff, t, x, v, acc, ph1, ph2, -1.0, ros_backoff, ros_skip
@@ -273,7 +279,8 @@ def _taylor_step(cx, stats, rec, j_out, origin, t, t_stop, x, v, ph1, ph2, sd, h
     c_end1, c_end2 = _end_phases(cx, cx[C_CP1], cx[C_SP1], cx[C_CP2], cx[C_SP2], ce1, se1,
                                  ce2, se2)
     # the equation's own acceleration at the end (the next series' v_1)
-    a_end = _acc(cx[C_LAM], V, sd * cx[C_XFK], cx[C_B1], cx[C_B3], 0.0, 0.0, x1, v1, 0.0,
+    law, lc = _law(cx)
+    a_end = _acc(cx[C_LAM], V, sd, cx[C_XFK], law, lc, 0.0, 0.0, x1, v1, 0.0,
                  0.0) + cx[C_U1] * c_end1 + cx[C_U2] * c_end2
     t, x, v, acc, ph1, ph2 = _carry(cx, t, x1, v1, a_end, ph1, ph2, hstep)
     return False, 0, h, j_out, t, x, v, acc, ph1, ph2, sd
@@ -392,8 +399,7 @@ def _run_event(P, S, t_span, stats, max_events, rtol, atol, rec, cx):
                     _stiff_step(cx, stats, t, t_stop, x, v, acc, ph1, ph2, sd, h, cap, rtol,
                                 atol, h_ros, ros_backoff, ros_skip))
             else:
-                vr0 = v - cx[C_V]
-                k_stiff = abs(cx[C_B1] - cx[C_LAM] - 3.0 * cx[C_B3] * vr0 * vr0)
+                k_stiff = _stiffness(cx, sd, v - cx[C_V])
                 h_ros = -1.0
             if taken:
                 n_carried += 1

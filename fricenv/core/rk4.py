@@ -2,6 +2,7 @@
 
 import math
 
+from ..friction import kernels as friction
 from ..jit import kernel
 from ..layout import (
     S_MODE,
@@ -17,7 +18,7 @@ from ..layout import (
     STATUS_NONFINITE,
     STATUS_OK,
 )
-from ..params import P_B1, P_B3, P_LAM, P_U1, P_U2, P_V, P_W1, P_W2, P_XFK
+from ..params import P_LAM, P_LAW, P_LAW_PARAMS, P_U1, P_U2, P_V, P_W1, P_W2, P_XFK, P_XFS
 from .constants import COUNT_SLACK, GRID_REL_TOL
 from .state import _note_v, _note_x
 from .trig import _wrap
@@ -26,11 +27,13 @@ from .trig import _wrap
 # The paper's scheme: fixed-step RK4 with sgn
 # ----------------------------------------------------------------------------------------
 @kernel
-def _sgn_acc(P, x, v, ph1, ph2):
+def _sgn_acc(P, lc, x, v, ph1, ph2):
+    """Eq. 7 with the friction law's sgn(v - V) taken literally (0 at v = V); ``lc``: the
+    law's constants."""
     vr = v - P[P_V]
     s = 1.0 if vr > 0.0 else (-1.0 if vr < 0.0 else 0.0)
-    return (-P[P_LAM] * v - x - P[P_XFK] * s + P[P_B1] * vr - P[P_B3] * vr * vr * vr
-            + P[P_U1] * math.cos(ph1) + P[P_U2] * math.cos(ph2))
+    a = friction.sgn_accel(P[P_LAW], lc, -P[P_LAM] * v - x - P[P_XFK] * s, s, vr)
+    return a + P[P_U1] * math.cos(ph1) + P[P_U2] * math.cos(ph2)
 
 @kernel(allocates=True)
 def run_rk4(P, S, t_span, dt, out_t, stats, out_x, out_v, out_mode):
@@ -46,6 +49,8 @@ def run_rk4(P, S, t_span, dt, out_t, stats, out_x, out_v, out_mode):
     w1 = P[P_W1]
     w2 = P[P_W2]
     V = P[P_V]
+    lc = friction.prepare(P[P_LAW], P[P_LAW_PARAMS], P[P_LAW_PARAMS + 1], P[P_LAW_PARAMS + 2],
+                          P[P_XFK], P[P_XFS])
     t0 = S[S_T]
     t = t0
     x = S[S_X]
@@ -61,22 +66,22 @@ def run_rk4(P, S, t_span, dt, out_t, stats, out_x, out_v, out_mode):
     _note_v(stats, v)
     _note_x(stats, x)
     n = int(math.ceil(t_span / dt - COUNT_SLACK))
-    k1v = _sgn_acc(P, x, v, ph1, ph2)
+    k1v = _sgn_acc(P, lc, x, v, ph1, ph2)
     status = STATUS_OK
     for i in range(n):
         hh = dt if i < n - 1 else t_span - (n - 1) * dt
         k1x = v
         k2x = v + 0.5 * hh * k1v
-        k2v = _sgn_acc(P, x + 0.5 * hh * k1x, k2x, ph1 + 0.5 * hh * w1, ph2 + 0.5 * hh * w2)
+        k2v = _sgn_acc(P, lc, x + 0.5 * hh * k1x, k2x, ph1 + 0.5 * hh * w1, ph2 + 0.5 * hh * w2)
         k3x = v + 0.5 * hh * k2v
-        k3v = _sgn_acc(P, x + 0.5 * hh * k2x, k3x, ph1 + 0.5 * hh * w1, ph2 + 0.5 * hh * w2)
+        k3v = _sgn_acc(P, lc, x + 0.5 * hh * k2x, k3x, ph1 + 0.5 * hh * w1, ph2 + 0.5 * hh * w2)
         k4x = v + hh * k3v
-        k4v = _sgn_acc(P, x + hh * k3x, k4x, ph1 + hh * w1, ph2 + hh * w2)
+        k4v = _sgn_acc(P, lc, x + hh * k3x, k4x, ph1 + hh * w1, ph2 + hh * w2)
         xn = x + hh / 6.0 * (k1x + 2.0 * k2x + 2.0 * k3x + k4x)
         vn = v + hh / 6.0 * (k1v + 2.0 * k2v + 2.0 * k3v + k4v)
         ph1n = _wrap(ph1 + hh * w1)
         ph2n = _wrap(ph2 + hh * w2)
-        an = _sgn_acc(P, xn, vn, ph1n, ph2n)
+        an = _sgn_acc(P, lc, xn, vn, ph1n, ph2n)
         tn = t0 + (i + 1) * dt if i < n - 1 else t0 + t_span
         while j < n_out and out_t[j] <= tn + GRID_REL_TOL * max(1.0, abs(tn)):
             th = (out_t[j] - t) / hh

@@ -5,16 +5,17 @@ Shared by the Taylor and the Rosenbrock steps of the event method.
 
 import math
 
+from ..friction import kernels as friction
 from ..jit import kernel
 from .trig import _renorm, _wrap
 from .workspace import (
-    C_B1,
-    C_B3,
     C_CE1,
     C_CE2,
     C_CP1,
     C_CP2,
     C_LAM,
+    C_LAW,
+    C_LC,
     C_SE1,
     C_SE2,
     C_SP1,
@@ -32,23 +33,27 @@ from .workspace import (
 # Event-driven runner: Taylor steps in slip, exact stick
 # ----------------------------------------------------------------------------------------
 @kernel
+def _law(cx):
+    """The friction law's code and constants ``lc`` (see :mod:`fricenv.friction.kernels`)."""
+    return cx[C_LAW], (cx[C_LC], cx[C_LC + 1], cx[C_LC + 2], cx[C_LC + 3])
+
+@kernel
 def _rhs_acc(cx, sd, x, v, ph1, ph2):
     """Slip acceleration for any friction law; tone phases given as angles."""
-    return _acc(cx[C_LAM], cx[C_V], sd * cx[C_XFK], cx[C_B1], cx[C_B3], cx[C_U1], cx[C_U2],
+    law, lc = _law(cx)
+    return _acc(cx[C_LAM], cx[C_V], sd, cx[C_XFK], law, lc, cx[C_U1], cx[C_U2],
                 x, v, ph1, ph2)
 
 @kernel
-def _acc(lam, V, sxfk, b1, b3, u1, u2, x, v, ph1, ph2):
-    """Slip acceleration from scalars; terms a configuration zeroes are skipped."""
-    a = -lam * v - x - sxfk
+def _acc(lam, V, sd, xfk, law, lc, u1, u2, x, v, ph1, ph2):
+    """Slip acceleration in direction ``sd`` from scalars; terms a configuration zeroes are
+    skipped."""
+    a = -lam * v - x - sd * xfk
     if u1 != 0.0:
         a += u1 * math.cos(ph1)
     if u2 != 0.0:
         a += u2 * math.cos(ph2)
-    if b1 != 0.0 or b3 != 0.0:
-        vr = v - V
-        a += (b1 - b3 * vr * vr) * vr
-    return a
+    return friction.add_accel(law, lc, a, sd, v - V)
 
 @kernel
 def _set_phases(cx, ph1, ph2):
@@ -62,7 +67,8 @@ def _set_phases(cx, ph1, ph2):
 def _step_inputs(cx, sd):
     """What a Taylor or Rosenbrock slip step reads from the context, as scalars (kept
     in registers: the stages then never reload the array)."""
-    return (cx[C_LAM], cx[C_V], sd * cx[C_XFK], cx[C_B1], cx[C_B3], cx[C_U1], cx[C_U2],
+    law, lc = _law(cx)
+    return (cx[C_LAM], cx[C_V], cx[C_XFK], law, lc, cx[C_U1], cx[C_U2],
             cx[C_CP1], cx[C_SP1], cx[C_CP2], cx[C_SP2])
 
 @kernel

@@ -11,11 +11,12 @@ times are found on it).
 
 import math
 
+from ..friction import kernels as friction
 from ..jit import kernel
 from .constants import TAYLOR_EPS_FLOOR, TINY
 from .slip import _step_inputs
 from .trig import _INV
-from .workspace import C_TN, C_TQ, C_TV, C_TW, C_TX, C_W1, C_W2, TAYLOR_MAX_ORDER
+from .workspace import C_TL, C_TN, C_TQ, C_TV, C_TW, C_TX, C_W1, C_W2, TAYLOR_MAX_ORDER
 
 
 @kernel
@@ -30,11 +31,11 @@ def _taylor_coeffs(cx, sd, x0, v0, rtol, atol):
     """Taylor coefficients of x and v at the step start (tone cos/sin in cx[C_CP1..]), to
     the order in cx[C_TN]; returns the step length at which the last two terms of the
     series fall to the tolerance (Jorba & Zou's rule, which needs no rejected steps)."""
-    lam, V, sxfk, b1, b3, u1, u2, cp1, sp1, cp2, sp2 = _step_inputs(cx, sd)
+    lam, V, xfk, law, lc, u1, u2, cp1, sp1, cp2, sp2 = _step_inputs(cx, sd)
+    sxfk = sd * xfk
     w1 = cx[C_W1]
     w2 = cx[C_W2]
     n = int(cx[C_TN])
-    cubic = b3 != 0.0
     p1 = u1  # u_i w_i^k / k!
     p2 = u2
     xk = x0
@@ -44,34 +45,7 @@ def _taylor_coeffs(cx, sd, x0, v0, rtol, atol):
     cx[C_TV] = v0
     for k in range(n):
         cx[C_TW + k] = wk
-        fric = b1 * wk
-        if cubic:
-            # (w^2)_k by symmetry, and (w^3)_k; two partial sums each halve the chains
-            q0 = 0.0
-            q1 = 0.0
-            half = (k + 1) // 2
-            i = 0
-            while i + 1 < half:
-                q0 += cx[C_TW + i] * cx[C_TW + k - i]
-                q1 += cx[C_TW + i + 1] * cx[C_TW + k - i - 1]
-                i += 2
-            if i < half:
-                q0 += cx[C_TW + i] * cx[C_TW + k - i]
-            q = 2.0 * (q0 + q1)
-            if k % 2 == 0:
-                q += cx[C_TW + k // 2] * cx[C_TW + k // 2]
-            cx[C_TQ + k] = q
-            c0 = 0.0
-            c1 = 0.0
-            i = 1
-            while i + 1 <= k:
-                c0 += cx[C_TQ + k - i] * cx[C_TW + i]
-                c1 += cx[C_TQ + k - i - 1] * cx[C_TW + i + 1]
-                i += 2
-            if i <= k:
-                c0 += cx[C_TQ + k - i] * cx[C_TW + i]
-            c = (c0 + c1) + q * cx[C_TW]
-            fric -= b3 * c
+        fric = friction.taylor_term(law, lc, sd, cx, C_TW, C_TQ, C_TL, k, wk)
         m = k & 3
         if m == 0:
             g = p1 * cp1 + p2 * cp2
@@ -106,7 +80,8 @@ def _taylor_coeffs(cx, sd, x0, v0, rtol, atol):
         lh = (le - math.log(prev)) * _INV[n - 1]
     if last > 0.0:
         lh = min(lh, (le - math.log(last)) * _INV[n])
-    return math.exp(lh - 0.7 * _INV[n - 1])
+    h = math.exp(lh - 0.7 * _INV[n - 1])
+    return friction.taylor_step_cap(law, lc, cx, C_TL, n, eps, h)
 
 @kernel
 def _taylor_vr2(cx, tau):

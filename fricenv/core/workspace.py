@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..friction.kernels import LAW_SCRATCH
+from ..friction.spec import SERIES_LEN
 from ..jit import kernel
 from ..slots import Layout
 from .constants import BUDGET_CHECK_STEPS, MAX_STEPS_PER_CALL, MAX_STEPS_PER_TAU
@@ -21,9 +23,13 @@ _take = WORKSPACE.take
 C_LAM, C_V, C_XFK, C_XFS, C_U1, C_U2, C_W1, C_W2, C_P2 = WORKSPACE.group(
     "C_LAM", "C_V", "C_XFK", "C_XFS", "C_U1", "C_U2", "C_W1", "C_W2", "C_P2")
 # Each tone's particular-solution coefficients x_p = kc cos(phi) + ks sin(phi), 1.0 if the
-# tone is exactly resonant, and the friction law's b1, b3.
-C_KC1, C_KS1, C_KC2, C_KS2, C_RES1, C_RES2, C_B1, C_B3 = WORKSPACE.group(
-    "C_KC1", "C_KS1", "C_KC2", "C_KS2", "C_RES1", "C_RES2", "C_B1", "C_B3")
+# tone is exactly resonant.
+C_KC1, C_KS1, C_KC2, C_KS2, C_RES1, C_RES2 = WORKSPACE.group(
+    "C_KC1", "C_KS1", "C_KC2", "C_KS2", "C_RES1", "C_RES2")
+# The friction law: its code and its constants inside the kernels (``lc``, made by its
+# module's ``prepare``; see :mod:`fricenv.friction.kernels`).
+C_LAW = _take("C_LAW")
+C_LC = _take("C_LC", 4)
 # The current step's start: state, tones' cos/sin, slip direction and distance from the
 # particular solution.
 C_XA, C_VA, C_C1A, C_S1A, C_C2A, C_S2A, C_SD, C_DX, C_DV = WORKSPACE.group(
@@ -60,11 +66,12 @@ W_M11, W_M12, W_M21, W_M22, W_MC1, W_MS1, W_MC2, W_MS2 = WORKSPACE.group(
 W_SKIP_VR2 = _take("W_SKIP_VR2")
 # Taylor coefficients of the current slip step (event method): x, v, w = v - V and the
 # scratch of the series products, TAYLOR_MAX_ORDER + 1 slots each.
-TAYLOR_MAX_ORDER = 20
+TAYLOR_MAX_ORDER = SERIES_LEN - 1
 C_TX = _take("C_TX", TAYLOR_MAX_ORDER + 1)
 C_TV = _take("C_TV", TAYLOR_MAX_ORDER + 1)
 C_TW = _take("C_TW", TAYLOR_MAX_ORDER + 1)
 C_TQ = _take("C_TQ", TAYLOR_MAX_ORDER + 1)
+C_TL = _take("C_TL", LAW_SCRATCH)  # the friction law's own series (its Taylor recurrence)
 # Whole-interval closed form (``_whole_interval``): constants over the call's span T, keyed
 # on (lam, T) and on each tone's frequency (a retuned tone recomputes only its own).
 W_I_KEY_LAM, W_I_KEY_T, W_I_KEY_W1, W_I_KEY_W2 = WORKSPACE.group(

@@ -10,6 +10,8 @@ ENV_IDS: dict[str, str] = {
     "fricenv/StickSlipSelfExcited-v0": "self_excited",
     "fricenv/StickSlipStribeck-v0": "stribeck",
     "fricenv/StickSlipViscous-v0": "viscous",
+    "fricenv/StickSlipExponential-v0": "exponential",
 }
 #: Each scene's horizon: the ``max_episode_steps`` of its id and of its ``Scene``.
-HORIZONS: dict[str, int] = {"paper": 200, "self_excited": 400, "stribeck": 300, "viscous": 300}
+HORIZONS: dict[str, int] = {"paper": 200, "self_excited": 400, "stribeck": 300, "viscous": 300,
+                            "exponential": 300}

@@ -41,6 +41,8 @@ from fricenv.envs.tables import (  # noqa: F401
     C_G1,
     C_G2,
     C_INCREMENTAL,
+    C_LAW,
+    C_LAW_P,
     C_MAX_EVENTS,
     C_METHOD,
     C_NU_HI,
@@ -116,6 +118,7 @@ from fricenv.envs.tables import (  # noqa: F401
     T_STATS,
     T_WORK,
 )
+from fricenv.friction import kernels as friction
 from fricenv.jit import kernel
 from fricenv.layout import (
     METHOD_EVENT,
@@ -130,7 +133,19 @@ from fricenv.layout import (
     ST_VR2_INT,
     STATUS_NONFINITE,
 )
-from fricenv.params import P_B1, P_B3, P_LAM, P_U1, P_U2, P_V, P_W1, P_W2, P_XFK, P_XFS
+from fricenv.params import (
+    N_LAW_PARAMS,
+    P_LAM,
+    P_LAW,
+    P_LAW_PARAMS,
+    P_U1,
+    P_U2,
+    P_V,
+    P_W1,
+    P_W2,
+    P_XFK,
+    P_XFS,
+)
 
 # Floor of V^2 in the velocity-fluctuation term (a belt at rest would divide by 0).
 V2_FLOOR = 1e-12
@@ -200,7 +215,7 @@ def _method(P, cfg) -> int:
     m = int(cfg[C_METHOD])
     if m != METHOD_AUTO:
         return m
-    if P[P_B1] == 0.0 and P[P_B3] == 0.0:
+    if friction.closed_form(P[P_LAW]):
         return METHOD_EXACT
     return METHOD_EVENT
 
@@ -296,6 +311,23 @@ def _scaled(u, bounds, k):
 
 
 @kernel
+def _episode_law(cfg, b1, b3, P_out) -> None:
+    """An episode's friction law: from its drawn b1, b3 for the paper's laws (cfg[C_LAW]
+    = -1), else the scene's law and parameters."""
+    law = cfg[C_LAW]
+    if law < 0.0:
+        P_out[P_LAW] = friction.polynomial_code(b1, b3)
+        P_out[P_LAW_PARAMS] = b1
+        P_out[P_LAW_PARAMS + 1] = b3
+        for i in range(2, N_LAW_PARAMS):
+            P_out[P_LAW_PARAMS + i] = 0.0
+    else:
+        P_out[P_LAW] = law
+        for i in range(N_LAW_PARAMS):
+            P_out[P_LAW_PARAMS + i] = cfg[C_LAW_P + i]
+
+
+@kernel
 def episode_from_uniforms(u, bounds, cfg, P_out, init_out) -> None:
     """One episode's parameter and starting vectors from its N_DRAWS uniforms ``u``.
 
@@ -311,8 +343,7 @@ def episode_from_uniforms(u, bounds, cfg, P_out, init_out) -> None:
     P_out[P_V] = _scaled(u, bounds, D_V)
     P_out[P_XFK] = _scaled(u, bounds, D_XFK)
     P_out[P_XFS] = _scaled(u, bounds, D_XFS)
-    P_out[P_B1] = _scaled(u, bounds, D_B1)
-    P_out[P_B3] = _scaled(u, bounds, D_B3)
+    _episode_law(cfg, _scaled(u, bounds, D_B1), _scaled(u, bounds, D_B3), P_out)
     P_out[P_W1] = eta
     P_out[P_U1] = cfg[C_G1] * u0
     P_out[P_U2] = cfg[C_G2] * u0

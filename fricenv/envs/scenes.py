@@ -37,11 +37,13 @@ from fricenv.envs.tables import (  # noqa: F401  (the draws' order and starting 
     N_INIT,
     RANDOMIZABLE,
 )
+from fricenv.friction import polynomial_law
 from fricenv.params import (
     N_PARAMS,
     P_B1,
     P_B3,
     P_LAM,
+    P_LAW,
     P_U1,
     P_U2,
     P_V,
@@ -316,8 +318,13 @@ def episode_from_draws(
     P_out[P_V] = vals["V"]
     P_out[P_XFK] = vals["xfk"]
     P_out[P_XFS] = vals["xfs"]
-    P_out[P_B1] = vals["b1"]
-    P_out[P_B3] = vals["b3"]
+    if scene.params.friction is None:  # (kernels._episode_law, operation for operation)
+        P_out[P_LAW] = polynomial_law(vals["b1"], vals["b3"]).code
+        P_out[P_B1] = vals["b1"]
+        P_out[P_B3] = vals["b3"]
+        P_out[P_B3 + 1:] = 0.0
+    else:
+        P_out[P_LAW:] = scene.params.to_array()[P_LAW:]
     P_out[P_W1] = vals["eta"]
     # The excitation slots are written by the kernels from (u0, nu) and the tone gains.
     P_out[P_U1] = scene.tone_gains[0] * u0
@@ -413,6 +420,24 @@ SCENES: dict[str, Scene] = {
         max_episode_steps=HORIZONS["viscous"],
         # lam stays below b1 = 0.2 in every corner: the sliding stays unstable
         randomization={"lam": (0.05, 0.15), **_PLANT_RANDOMIZATION},
+    ),
+    "exponential": Scene(
+        name="exponential",
+        description=(
+            "The exponential Stribeck law (x_fs = 4 at break-away, falling to x_fk = 2.5 "
+            "past the Stribeck speed vs = 0.4 as a Gaussian, delta = 2, with viscosity cv "
+            "= 0.05) on a slow belt (V = 0.3) and a light damper (lambda = 0.1). Friction is "
+            "continuous at break-away, and falls with slip speed far faster than the damper "
+            "rises around the block's sliding speed, so the block stick-slips with no "
+            "excitation at all. Shaking at eta = 6 can quench it."
+        ),
+        params=OscillatorParams.preset("exponential", lam=0.1, V=0.3, eta=6.0, u0=0.0,
+                                       nu=1.0),
+        u0_range=(0.0, 6.0),
+        nu_range=(0.5, 1.5),
+        max_episode_steps=HORIZONS["exponential"],
+        randomization={"lam": (0.07, 0.13), "V": (0.25, 0.35), "xfk": (2.2, 2.8),
+                       "xfs": (3.6, 4.4)},
     ),
 }
 

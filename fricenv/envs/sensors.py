@@ -49,16 +49,9 @@ from gymnasium import spaces
 
 from fricenv.checks import check_bool, check_dict, check_finite_real, check_int, got, items_of
 from fricenv.envs import kernels as K
+from fricenv.envs.channels import CHANNEL_GROUPS, CHANNELS
 from fricenv.jit import kernel
 
-#: Observation channels in the kernels' order (``kernels.O_*``).
-CHANNELS = ("x", "v_rel", "stick", "cos1", "sin1", "cos2", "sin2", "u0", "nu")
-#: Names that stand for several channels in ``observe``.
-CHANNEL_GROUPS = {
-    "phases": ("cos1", "sin1", "cos2", "sin2"),
-    "settings": ("u0", "nu"),
-}
-assert len(CHANNELS) == K.N_OBS
 #: Observations' worth of standard normals drawn per plant at a time.
 NOISE_ROWS = 64
 #: Longest observation delay, in control intervals (the delay line is copied every step).

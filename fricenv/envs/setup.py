@@ -21,6 +21,7 @@ from gymnasium import spaces
 from fricenv.checks import check_bool, check_dict, check_real, real_array, real_tuple
 from fricenv.core.constants import MAX_STEPS_PER_TAU
 from fricenv.envs import kernels as K
+from fricenv.envs.channels import OBSERVATION, Limits
 from fricenv.envs.scenes import (
     ACTION_MODES,
     N_DRAWS,
@@ -31,6 +32,7 @@ from fricenv.envs.scenes import (
 )
 from fricenv.envs.sensors import Instruments
 from fricenv.envs.settings import EnvSettings
+from fricenv.friction import closed_form_rows
 from fricenv.layout import (
     METHOD_EVENT,
     METHOD_EXACT,
@@ -40,7 +42,7 @@ from fricenv.layout import (
     STATUS_STEP_BUDGET,
     STATUS_TOO_STIFF,
 )
-from fricenv.params import P_B1, P_B3
+from fricenv.params import N_LAW_PARAMS, P_LAW
 
 _METHODS = {"auto": K.METHOD_AUTO, "exact": METHOD_EXACT, "event": METHOD_EVENT}
 _WEIGHT_KEYS = ("stick", "velocity", "effort")
@@ -118,12 +120,7 @@ class EnvSetup:
         n_act = 2 if sc.action_mode == "both" else 1
         (ulo, uhi), (nlo, nhi) = sc.u0_range, sc.nu_range
         action_space = spaces.Box(-1.0, 1.0, shape=(n_act,), dtype=np.float32)
-        high = np.array(
-            [sc.x_limit, sc.v_limit, 1.0, 1.0, 1.0, 1.0, 1.0, uhi, nhi], dtype=np.float32
-        )
-        low = np.array(
-            [-sc.x_limit, -sc.v_limit, 0.0, -1.0, -1.0, -1.0, -1.0, ulo, nlo], dtype=np.float32
-        )
+        low, high = OBSERVATION.box(Limits(sc.x_limit, sc.v_limit, (ulo, uhi), (nlo, nhi)))
         full_space = spaces.Box(low, high, dtype=np.float32)
         observation_space: spaces.Box = full_space
         kernel_cfg = cfg
@@ -158,7 +155,7 @@ class EnvSetup:
 
     def episode(self, values: np.ndarray, options: dict | None, P_out, init_out) -> None:
         episode_from_draws(self.scene, values, options, P_out, init_out)
-        if self.cfg[K.C_METHOD] == METHOD_EXACT and (P_out[P_B1] != 0.0 or P_out[P_B3] != 0.0):
+        if self.cfg[K.C_METHOD] == METHOD_EXACT and not closed_form_rows(P_out[P_LAW]):
             raise ValueError("method='exact' needs the Coulomb law (b1 = b3 = 0)")
 
 
@@ -204,6 +201,9 @@ def _kernel_cfg(sc: Scene, incremental: bool, method: str) -> np.ndarray:
     cfg[K.C_METHOD] = _METHODS[method]
     cfg[K.C_RTOL], cfg[K.C_ATOL], cfg[K.C_MAX_EVENTS] = RTOL, ATOL, MAX_EVENTS
     cfg[K.C_U0_START], cfg[K.C_NU_START] = sc.params.u0, sc.params.nu
+    law = sc.params.to_array()[P_LAW:]
+    cfg[K.C_LAW] = -1.0 if sc.params.friction is None else law[0]
+    cfg[K.C_LAW_P:K.C_LAW_P + N_LAW_PARAMS] = law[1:]
     return cfg
 
 

@@ -34,7 +34,6 @@ from typing import Any
 import numpy as np
 
 from fricenv.checks import got, is_int, is_real
-from fricenv.core import new_workspace
 from fricenv.core.workspace import (
     W_C1,
     W_C2,
@@ -65,8 +64,6 @@ from fricenv.params import (
     OscillatorParams,
 )
 from fricenv.simulate import OscillatorState, check_start
-
-TWO_PI = 2.0 * np.pi
 
 #: Length of the core's workspace (the vector kernels' table ends with it).
 N_WORK = K.N_TABLE - K.T_WORK
@@ -284,40 +281,3 @@ def _check_sensors(state: PlantState, delay_rows: int | None) -> None:
     if lag is not None and not (is_int(lag) and 0 <= lag <= most):
         raise ValueError(f"state.obs_delay must be None or an int from 0 to the "
                          f"environment's obs_delay = {most}, {got(lag)}")
-
-
-def plants_from_observations(obs: np.ndarray, params: np.ndarray, tone_gains: tuple[float, float]
-                             ) -> tuple[np.ndarray, np.ndarray]:
-    """Plant vectors and commands (n, N_PLANT), (n, 2) estimated from full observations
-    ``obs`` (n, 9) of plants with the parameter vector ``params`` (``params.P_*``).
-
-    For a controller that has only the observation: x, v - V, the stick flag (read as
-    stuck above 0.5; a stuck plant has v = V exactly), the tones' phases from their cos and
-    sin, and the settings. The time is set to 0 (the plant is autonomous given the phases)
-    and the workspace is empty, so a plan made from it starts from the observation's
-    float32 precision, not the plant's exact state.
-    """
-    obs = np.asarray(obs, dtype=np.float64)
-    n = obs.shape[0]
-    plants = np.empty((n, N_PLANT))
-    plants[:, PL_P:PL_S] = params
-    V = params[P_V]
-    g1, g2 = tone_gains
-    u0, nu = obs[:, K.O_U0], obs[:, K.O_NU]
-    plants[:, PL_P + P_U1] = g1 * u0
-    plants[:, PL_P + P_U2] = g2 * u0
-    plants[:, PL_P + P_W2] = nu * params[P_W1]
-    S = plants[:, PL_S:PL_CTRL]
-    S[:, S_T] = 0.0
-    S[:, S_X] = obs[:, K.O_X]
-    stuck = obs[:, K.O_STICK] > 0.5
-    S[:, S_V] = np.where(stuck, V, obs[:, K.O_VR] + V)
-    S[:, S_PHI1] = np.arctan2(obs[:, K.O_SIN1], obs[:, K.O_COS1]) % TWO_PI
-    S[:, S_PHI2] = np.arctan2(obs[:, K.O_SIN2], obs[:, K.O_COS2]) % TWO_PI
-    for i in range(n):
-        S[i, S_MODE] = K.initial_mode(plants[i, PL_P:PL_S], S[i, S_X], S[i, S_V],
-                                      S[i, S_PHI1], S[i, S_PHI2])
-    plants[:, PL_CTRL] = u0
-    plants[:, PL_CTRL + 1] = nu
-    plants[:, PL_WORK:] = new_workspace(n, extrema=False)
-    return plants, plants[:, PL_CTRL:PL_WORK].copy()

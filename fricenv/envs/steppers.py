@@ -25,9 +25,10 @@ from fricenv.core import (
 )
 from fricenv.envs import batch
 from fricenv.envs import kernels as K
+from fricenv.friction import closed_form_rows
 from fricenv.jit import kernel
 from fricenv.layout import METHOD_EVENT, METHOD_EXACT
-from fricenv.params import P_B1, P_B3, P_LAM
+from fricenv.params import P_LAM, P_LAW
 
 
 @kernel
@@ -136,7 +137,7 @@ def steppers_for_plants(method: int, P_rows: np.ndarray, lo: np.ndarray | None =
     """``steppers_for`` the plants of the rows of ``P_rows`` (layout ``params.P_*``) and, if
     given, those drawn from the draw bounds ``lo``, ``hi`` (layout ``tables.D_*``)."""
     P_rows = np.atleast_2d(np.asarray(P_rows, dtype=float))
-    law = (P_rows[:, P_B1] != 0.0) | (P_rows[:, P_B3] != 0.0)
+    law = ~closed_form_rows(P_rows[:, P_LAW])
     coulomb = bool((~law).any())
     friction = bool(law.any())
     lam_min = float(P_rows[:, P_LAM].min()) if P_rows.size else np.inf

@@ -22,6 +22,7 @@ from fricenv.envs.settings import EnvKwargs, EnvSettings, settings_signature
 from fricenv.envs.setup import ACTION_DTYPES, EnvSetup, coerce_action, raise_status
 from fricenv.envs.state import PL_CTRL, PL_P, PL_S, PL_WORK, PlantState, check_state, pack, unpack
 from fricenv.envs.steppers import steppers_for, steppers_for_plants
+from fricenv.friction.kernels import COULOMB
 from fricenv.layout import (
     N_STATE,
     N_STATS,
@@ -38,6 +39,7 @@ from fricenv.params import (
     P_B1,
     P_B3,
     P_LAM,
+    P_LAW,
     P_U1,
     P_U2,
     P_V,
@@ -490,7 +492,7 @@ class StickSlipEnv(gym.Env):
     def _fit_steppers(self) -> None:
         """The entry kernels of the episode's plant (see ``steppers_for``)."""
         # within an episode only u0 and nu change, which leave the method's choice alone
-        law = self._P[P_B1] != 0.0 or self._P[P_B3] != 0.0  # (scalars: a reset stays cheap)
+        law = self._P[P_LAW] != COULOMB  # (scalars: a reset stays cheap)
         self._steppers = steppers_for(self._cfg[K.C_METHOD], self._P[P_LAM], not law, law)
 
     def _observation(self) -> np.ndarray:

@@ -7,8 +7,9 @@ environments name slots from here; offsets are computed by :class:`fricenv.slots
 from __future__ import annotations
 
 from fricenv.core.workspace import N_WORK
+from fricenv.envs.channels import OBSERVATION
 from fricenv.layout import N_STATE, N_STATS
-from fricenv.params import N_PARAMS
+from fricenv.params import N_LAW_PARAMS, N_PARAMS
 from fricenv.slots import Layout
 
 # The float64 configuration vector shared by all plants of an environment.
@@ -26,6 +27,10 @@ C_W_STICK, C_W_VEL, C_W_EFFORT, C_EFFORT_NORM, C_X_LIM, C_V_LIM = CONFIG.group(
 C_METHOD, C_RTOL, C_ATOL, C_MAX_EVENTS = CONFIG.group(
     "C_METHOD", "C_RTOL", "C_ATOL", "C_MAX_EVENTS")
 C_U0_START, C_NU_START = CONFIG.group("C_U0_START", "C_NU_START")  # excitation at reset
+# The scene's friction law: -1 for the paper's laws, whose code each episode takes from its
+# drawn b1 and b3; otherwise the law's code and its parameters (params.P_LAW_PARAMS order).
+C_LAW = CONFIG.take("C_LAW")
+C_LAW_P = CONFIG.take("C_LAW_P", N_LAW_PARAMS)
 N_CFG = CONFIG.size
 
 # Per-step results (float64): reward, stick fraction, effort, velocity variance, mean of
@@ -55,10 +60,11 @@ INITIAL = tuple(name for name, _, _ in DRAWS.slots[D_X0:])
 #: Number of uniform draws one episode consumes, whatever the options or settings.
 N_DRAWS = DRAWS.size
 
-# Observation vector.
-OBS = Layout("observation")
-O_X, O_VR, O_STICK, O_COS1, O_SIN1, O_COS2, O_SIN2, O_U0, O_NU = OBS.group(
-    "O_X", "O_VR", "O_STICK", "O_COS1", "O_SIN1", "O_COS2", "O_SIN2", "O_U0", "O_NU")
+# Observation vector: laid out from its channels' declaration (``channels.OBSERVATION``);
+# the kernels name its slots by these constants.
+OBS = OBSERVATION.layout
+O_X, O_VR, O_STICK, O_COS1, O_SIN1, O_COS2, O_SIN2, O_U0, O_NU = (OBS.offsets()[name] for name in (
+    "O_X", "O_VR", "O_STICK", "O_COS1", "O_SIN1", "O_COS2", "O_SIN2", "O_U0", "O_NU"))
 N_OBS = OBS.size
 
 # Slots of the vector kernel's int64 ``ivars``: two inputs and two counts it writes.

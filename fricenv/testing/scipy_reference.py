@@ -55,15 +55,31 @@ class _P:
     u2: float
     w1: float
     w2: float
+    # the exponential Stribeck law (``exponential`` True): its speed, exponent, viscosity
+    exponential: bool = False
+    vs: float = 1.0
+    delta: float = 1.0
+    cv: float = 0.0
 
     @classmethod
     def of(cls, params: Any) -> _P:
+        exponential = getattr(params, "friction", None) == "exponential"
         return cls(
             lam=float(params.lam), V=float(params.V), xfk=float(params.xfk),
             xfs=float(params.xfs), b1=float(params.b1), b3=float(params.b3),
             u1=float(params.amp1), u2=float(params.amp2),
             w1=float(params.omega1), w2=float(params.omega2),
+            exponential=exponential,
+            **({k: float(getattr(params, k)) for k in ("vs", "delta", "cv")} if exponential
+               else {}),
         )
+
+    def friction(self, vr: float, s: int) -> float:
+        """The friction force in slip in direction ``s`` (the model page's laws)."""
+        if self.exponential:
+            return (s * (self.xfk + (self.xfs - self.xfk)
+                         * math.exp(-((abs(vr) / self.vs) ** self.delta))) + self.cv * vr)
+        return s * self.xfk - self.b1 * vr + self.b3 * vr**3
 
     def g(self, t: Any) -> Any:
         return self.u1 * np.cos(self.w1 * t) + self.u2 * np.cos(self.w2 * t)
@@ -76,8 +92,7 @@ class _P:
         return -self.lam * self.V - x + self.g(t)
 
     def accel(self, t: float, x: float, v: float, s: int) -> float:
-        vr = v - self.V
-        return (-self.lam * v - x - s * self.xfk + self.b1 * vr - self.b3 * vr**3
+        return (-self.lam * v - x - self.friction(v - self.V, s)
                 + self.u1 * math.cos(self.w1 * t) + self.u2 * math.cos(self.w2 * t))
 
 

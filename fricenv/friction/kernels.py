@@ -1,0 +1,115 @@
+"""The friction laws inside the kernels: one entry per question, dispatched on the law's code.
+
+The solvers call these and never a law's module directly, so a law joins every kernel by
+a branch here (its ``CODE``), and its module holds the mathematics. The law's constants
+travel as a 4-tuple ``lc`` that its ``prepare`` makes from the parameter row's law block
+(``params.P_LAW_PARAMS``); ``sd`` is the slip direction (+1 above the belt speed, -1
+below) and ``vr = v - V``.
+"""
+
+from ..jit import kernel
+from . import coulomb, cubic, exponential
+
+COULOMB = float(coulomb.CODE)
+CUBIC = float(cubic.CODE)
+EXPONENTIAL = float(exponential.CODE)
+#: Workspace scratch any law's Taylor recurrence needs (its ``SCRATCH``), in doubles.
+LAW_SCRATCH = exponential.SCRATCH
+
+
+@kernel
+def polynomial_code(b1, b3):
+    """The law of a plant given by b1 and b3 alone (the paper's family): Coulomb where
+    both are 0, else cubic."""
+    return COULOMB if b1 == 0.0 and b3 == 0.0 else CUBIC
+
+
+@kernel
+def closed_form(law):
+    """Whether the ``exact`` method's closed form runs the law (``method_for``, inside the
+    kernels)."""
+    return law == COULOMB
+
+
+@kernel
+def prepare(law, p0, p1, p2, xfk, xfs):
+    """The law's constants ``lc`` from its parameters (p0, p1, p2) and the levels."""
+    if law == CUBIC:
+        return cubic.prepare(p0, p1, p2, xfk, xfs)
+    if law == EXPONENTIAL:
+        return exponential.prepare(p0, p1, p2, xfk, xfs)
+    return coulomb.prepare(p0, p1, p2, xfk, xfs)
+
+
+@kernel
+def add_accel(law, lc, a, sd, vr):
+    """``a`` plus the speed-dependent part of the slip acceleration (all of ``-F`` but the
+    kinetic level ``-sd xfk``, which the solvers add themselves)."""
+    if law == CUBIC:
+        return cubic.add_accel(a, lc, sd, vr)
+    if law == EXPONENTIAL:
+        return exponential.add_accel(a, lc, sd, vr)
+    return coulomb.add_accel(a, lc, sd, vr)
+
+
+@kernel
+def sgn_accel(law, lc, a, s, vr):
+    """``add_accel`` for the RK4 baseline, which takes ``s = sgn(vr)`` literally (0 at vr =
+    0) and writes each law as the paper's Eq. 7 does."""
+    if law == CUBIC:
+        return cubic.sgn_accel(a, lc, s, vr)
+    if law == EXPONENTIAL:
+        return exponential.sgn_accel(a, lc, s, vr)
+    return coulomb.sgn_accel(a, lc, s, vr)
+
+
+@kernel
+def slope(law, lc, sd, vr):
+    """-dF/dvr in slip."""
+    if law == CUBIC:
+        return cubic.slope(lc, sd, vr)
+    if law == EXPONENTIAL:
+        return exponential.slope(lc, sd, vr)
+    return coulomb.slope(lc, sd, vr)
+
+
+@kernel
+def net_slope(law, lc, lam, sd, vr):
+    """dv'/dv in slip, -lam - dF/dvr: the stiffness of slip and the Rosenbrock Jacobian."""
+    if law == CUBIC:
+        return cubic.net_slope(lc, lam, sd, vr)
+    if law == EXPONENTIAL:
+        return exponential.net_slope(lc, lam, sd, vr)
+    return coulomb.net_slope(lc, lam, sd, vr)
+
+
+@kernel
+def taylor_term(law, lc, sd, cx, tw, tq, tl, k, wk):
+    """k-th Taylor coefficient of the speed-dependent acceleration along a slip step, from
+    the series of w = v - V in ``cx[tw:]`` (``wk`` = its k-th term); ``cx[tq:]`` and
+    ``cx[tl:]`` are the law's scratch. Orders are asked in turn from 0."""
+    if law == CUBIC:
+        return cubic.taylor_term(lc, sd, cx, tw, tq, tl, k, wk)
+    if law == EXPONENTIAL:
+        return exponential.taylor_term(lc, sd, cx, tw, tq, tl, k, wk)
+    return coulomb.taylor_term(lc, sd, cx, tw, tq, tl, k, wk)
+
+
+@kernel
+def taylor_step_cap(law, lc, cx, tl, n, eps, h):
+    """The Taylor step ``h`` of order ``n``, shortened where the law's own series would not
+    converge over it at tolerance ``eps``."""
+    if law == CUBIC:
+        return cubic.taylor_step_cap(lc, cx, tl, n, eps, h)
+    if law == EXPONENTIAL:
+        return exponential.taylor_step_cap(lc, cx, tl, n, eps, h)
+    return coulomb.taylor_step_cap(lc, cx, tl, n, eps, h)
+
+
+@kernel
+def start_level(law, xfk, xfs):
+    """|F| as slip starts (vr -> 0): ``xfs`` for a law continuous at break-away, else the
+    kinetic level ``xfk``."""
+    if law == EXPONENTIAL:
+        return xfs
+    return xfk
