@@ -75,6 +75,31 @@ def resolve_law(name: str) -> str:
     return key
 
 
+#: Fastest relaxation of slip, |dv'/dv| near the belt speed (``FrictionLaw.stiffness``),
+#: that the event method runs: its Taylor steps are about 2.5 / |dv'/dv| long, and a recorded run takes
+#: Taylor steps only, so past this a unit of time needs over 4e4 steps. Measured on
+#: ``OscillatorParams(b1=b, u0=5, nu=1)`` over 100 units: ``run_stats`` and ``simulate``
+#: agreed to 2e-5 in the stick fraction up to b = -1e5 (1.1 s); at b = -1e6 ``simulate``
+#: ran out of its step budget, and from b = -1e7 both did, or blamed chattering.
+SLIP_STIFFNESS_LIMIT = 1e5
+
+
+def law_stiffness(P: np.ndarray) -> np.ndarray:
+    """Each row's slip stiffness (``FrictionLaw.stiffness``) where the event method runs
+    its law, 0 where the closed form does (rows of ``P``, last axis the layout ``P_*``)."""
+    P = np.asarray(P, dtype=np.float64)
+    out = np.zeros(P.shape[:-1])
+    codes = P[..., P_LAW]
+    for law in friction.LAWS.values():
+        rows = codes == law.code
+        if law.closed_form or not np.any(rows):
+            continue
+        values = {p.name: P[..., P_LAW_PARAMS + i][rows] for i, p in enumerate(law.params)}
+        out[rows] = law.stiffness(values, P[..., P_LAM][rows], P[..., P_XFK][rows],
+                                  P[..., P_XFS][rows])
+    return out
+
+
 def law_envelope(P: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``(level, b1, b3)`` of parameter rows ``P`` (last axis the layout ``P_*``): a
     Coulomb-plus-cubic law that bounds each row's friction law
@@ -247,7 +272,7 @@ class OscillatorParams:
 
     # -- constructors -------------------------------------------------------------------
     @classmethod
-    def preset(cls, law: str, **overrides: float) -> OscillatorParams:
+    def preset(cls, law: str, **overrides: Any) -> OscillatorParams:
         """Paper defaults with the friction law of Fig. 2 named by ``law``.
 
         ``law`` is ``"coulomb"``, ``"viscous"`` (Coulomb + viscosity, b1 = 0.2),
@@ -265,7 +290,7 @@ class OscillatorParams:
         check_known_fields(cls, overrides, "parameter")
         return cls(**{**FRICTION_LAWS[key], **overrides})
 
-    def replace(self, **changes: float) -> OscillatorParams:
+    def replace(self, **changes: Any) -> OscillatorParams:
         """A copy with ``changes`` applied (validated like a new instance)."""
         check_known_fields(self, changes, "parameter")
         return replace(self, **changes)

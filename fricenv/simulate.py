@@ -12,6 +12,7 @@ import numpy as np
 from . import calls, core, divergence
 from .checks import check_bounded_real, check_finite_real, check_int, check_rtol, got
 from .core import constants
+from .friction import law_of_code
 from .layout import (
     EVENT_REVERSAL,
     EVENT_SLIP,
@@ -46,7 +47,18 @@ from .layout import (
     STATUS_STEP_BUDGET,
     STATUS_TOO_STIFF,
 )
-from .params import P_LAM, P_W1, P_W2, PARAM_LIMIT, OscillatorParams, law_envelope
+from .params import (
+    P_LAM,
+    P_LAW,
+    P_LAW_PARAMS,
+    P_W1,
+    P_W2,
+    PARAM_LIMIT,
+    SLIP_STIFFNESS_LIMIT,
+    OscillatorParams,
+    law_envelope,
+    law_stiffness,
+)
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
@@ -128,14 +140,27 @@ _SCAN_REMEDY = ("shorten the span, check these values, or raise max_steps (up to
 def check_scan_steps(P_rows: np.ndarray, spans: np.ndarray,
                      remedy: str = "shorten the span or check these values",
                      cap: float = MAX_SCAN_STEPS) -> float:
-    """``ValueError`` if a run (row ``i`` of ``P_rows`` over ``spans[i]``) needs more than
-    ``cap`` scan steps (default ``MAX_SCAN_STEPS``; the environments cap one control
+    """``ValueError`` if a run (row ``i`` of ``P_rows`` over ``spans[i]``) has slip stiffer
+    than ``params.SLIP_STIFFNESS_LIMIT`` or needs more than ``cap`` scan steps (default
+    ``MAX_SCAN_STEPS``; the environments cap one control
     interval far lower, see ``fricenv.envs.scenes.MAX_INTERVAL_SCAN_STEPS``).
 
     Event-driven runs step at most half a radian of the fastest active tone (and 1 / rate
     when over-damped), so a very fast tone or stiff damping would otherwise run for hours
     without a word. Returns the most scan steps a row needs.
     """
+    stiff = law_stiffness(P_rows)
+    if np.any(stiff > SLIP_STIFFNESS_LIMIT):
+        P = P_rows[int(np.argmax(stiff > SLIP_STIFFNESS_LIMIT))]
+        law = law_of_code(P[P_LAW])
+        values = {p.name: float(P[P_LAW_PARAMS + i]) for i, p in enumerate(law.params)}
+        raise ValueError(
+            f"slip is too stiff for the event method: |dv'/dv| reaches "
+            f"{float(np.max(stiff)):.3g} near the belt speed (lam = {P[P_LAM]:.6g}, "
+            f"{law.name} law {values}), beyond SLIP_STIFFNESS_LIMIT = "
+            f"{SLIP_STIFFNESS_LIMIT:g}: its steps would be shorter than "
+            f"{2.5 / SLIP_STIFFNESS_LIMIT:g} (keep lam - b1 of the cubic law, or lam + cv "
+            f"+ (xfs - xfk) / vs of the exponential law, within the limit)")
     most, i = core.most_scan_steps(P_rows, spans)
     if most > cap:
         P = P_rows[i]
@@ -172,14 +197,28 @@ def resolve_method(params: OscillatorParams, method: str) -> str:
     return method
 
 
-def _raise_status(status: int, t: float, max_events: int, t_span: float,
+def _damping_cause(P: np.ndarray) -> str:
+    """Why a plant's slip runs away, or "": negative net damping, from the law's envelope
+    (b1 > lam with b3 = 0, or b3 < 0: |v - V| then grows without bound)."""
+    _, b1, b3 = (float(a) for a in law_envelope(P))
+    if b3 < 0.0 or (b3 == 0.0 and b1 > P[P_LAM]):
+        return (f"slip has negative net damping (lam = {P[P_LAM]:g}, b1 = {b1:g}, "
+                f"b3 = {b3:g}: b1 > lam with b3 = 0, or b3 < 0)")
+    return ""
+
+
+def _raise_status(status: int, t: float, max_events: int, t_span: float, P: np.ndarray,
                   budget: tuple[float, float] = (MAX_STEPS_PER_TAU, MAX_STEPS_PER_CALL)
                   ) -> None:
+    cause = _damping_cause(P) if status != STATUS_OK else ""
+    if cause and status in (STATUS_STEP_BUDGET, STATUS_EVENT_CAP, STATUS_NONFINITE,
+                            STATUS_TOO_STIFF):
+        raise SimulationError(f"the motion ran away by t = {t:.6g}: {cause}", status)
     if status == STATUS_STEP_BUDGET:
         raise SimulationError(
             f"stopped at t = {t:.6g} after more steps than the budget allows "
             f"({budget[0]:g} in a unit of tau, {budget[1]:g} in the call): slip far stiffer "
-            "than the model's O(1) scale (|df/dv| of b1, b3 huge) or a state far from it "
+            "than the model's O(1) scale or a state far from it "
             "needs too many steps; if this run is meant, raise max_steps_per_tau / "
             "max_steps", status)
     if status == STATUS_EVENT_CAP:
@@ -207,11 +246,8 @@ def _raise_if_diverged(P: np.ndarray, x0: float, v0: float, t_span: float,
         return
     limit = float(divergence.motion_limit(P, x0, v0, t_span))
     size = max(abs(stats[k]) for k in (ST_V_MAX, ST_V_MIN, ST_X_MAX, ST_X_MIN))
-    why = ""
-    _, b1, b3 = (float(a) for a in law_envelope(P))
-    if b3 < 0.0 or (b3 == 0.0 and b1 > P[P_LAM]):
-        why = (f"; slip has negative net damping (lam = {P[P_LAM]:g}, b1 = {b1:g}, "
-               f"b3 = {b3:g}: b1 > lam with b3 = 0, or b3 < 0)")
+    cause = _damping_cause(P)
+    why = f"; {cause}" if cause else ""
     raise SimulationError(
         f"the motion diverged by t = {S[S_T]:.6g}: |x| or |v| reached {size:.3g} and the "
         f"integral of (v - V)^2 {stats[ST_VR2_INT]:.3g}, beyond {limit:.3g} "
@@ -542,7 +578,7 @@ def simulate(
         # the one step is t_span long either way
         status = core.run_rk4(P, S, t_span, min(dt, t_span), out_t, stats, out_x, out_v,
                               out_mode)
-        _raise_status(status, S[S_T], 0, t_span)
+        _raise_status(status, S[S_T], 0, t_span, P)
         _raise_if_diverged(P, state.x, state.v, t_span, stats, S)
         empty = np.empty(0)
         return Trajectory(params, method, out_t, out_x, out_v, out_mode.astype(np.int8),
@@ -576,7 +612,7 @@ def simulate(
         if status != STATUS_BUFFER_FULL:
             break
         capacity *= 4
-    _raise_status(status, S[S_T], max_events, t_span, budget)
+    _raise_status(status, S[S_T], max_events, t_span, P, budget)
     _raise_if_diverged(P, state.x, state.v, t_span, stats, S)
     k = int(counts[0])
     return Trajectory(params, method, out_t, out_x, out_v, out_mode.astype(np.int8),
@@ -644,6 +680,6 @@ def run_stats(
         return advance(P, S, t_span, stats, code, rtol, atol, max_events, work)
 
     status = calls.run_call(run, lambda: calls.new_workspace(budget), scan_steps)
-    _raise_status(status, S[S_T], max_events, t_span, budget)
+    _raise_status(status, S[S_T], max_events, t_span, P, budget)
     _raise_if_diverged(P, state.x, state.v, t_span, stats, S)
     return RunStats.from_array(stats, OscillatorState.from_array(S))

@@ -37,7 +37,10 @@ RAISE_S = 10.0
 INTERRUPT_S = 1.0
 #: Time allowed a child process, numba compilation from a cold cache included.
 CHILD_TIMEOUT_S = 600.0
-STIFF = "OscillatorParams(b1=1e12, b3=1e12, u0=5.0, nu=1.0)"
+#: A run over budget without stiff parameters: a start at x0 = 1e12 (~3e7 steps in a unit
+#: of tau), and the call that makes it.
+FAR = "OscillatorParams.preset('stribeck', u0=5.0, nu=1.0)"
+FAR_STATE = "OscillatorState.start(p, x0=1e12)"
 
 
 def _child(code: str) -> str:
@@ -100,19 +103,36 @@ def test_a_budget_that_is_not_reached_changes_nothing() -> None:
     assert np.array_equal(ta.x, tb.x) and np.array_equal(ta.v, tb.v)
 
 
-def test_stiff_slip_raises_the_step_budget_within_seconds() -> None:
-    """b1 = b3 = 1e12: from v's sign change near t = 3.04 the slip took ~|df/dv| steps in
-    a unit of tau (run_stats over 3.8 did not return in an hour)."""
+@pytest.mark.parametrize(("b1", "b3"), [(-1e6, 0.0), (-1e10, 0.0), (-1e12, 0.0),
+                                        (-1e8, 1e12)])
+def test_stiff_slip_is_refused_before_it_runs(b1: float, b3: float) -> None:
+    """b1 = -1e10 .. -1e12 gave stick fractions 0.18-0.24 with status OK where a Radau
+    integration gives 0.19158, or ran out of budget, or blamed chattering. Slip damped
+    faster than SLIP_STIFFNESS_LIMIT is refused, naming the parameters and the limit."""
+    from fricenv.params import SLIP_STIFFNESS_LIMIT
+
+    p = OscillatorParams(b1=b1, b3=b3, u0=5.0, nu=1.0)
+    for call in (run_stats, simulate):
+        with pytest.raises(ValueError, match=rf"too stiff .*b1': {b1!r}.*"
+                                             rf"SLIP_STIFFNESS_LIMIT = {SLIP_STIFFNESS_LIMIT:g}"):
+            call(p, 3.8)
+    with pytest.raises(ValueError, match="too stiff"):
+        cell_statistics([p])
+    ok = OscillatorParams(b1=-0.9e5, u0=5.0, nu=1.0)  # within the limit: it runs
+    assert run_stats(ok, 3.0).stick_fraction >= 0.0
+
+
+def test_a_run_over_budget_raises_within_seconds() -> None:
+    """A start at x0 = 1e12 takes ~3e7 steps in a unit of tau: the budget ends it."""
     out = _child(f"""
 import time
-from fricenv import OscillatorParams, SimulationError, run_stats, simulate
-p = {STIFF}
-run_stats(p, 3.03)  # warm-up: same kernels, within budget (the recording path's
-simulate(OscillatorParams(b1=1.0, b3=1.0), 1.0)  # Taylor steps are stiff from the start)
+from fricenv import OscillatorParams, OscillatorState, SimulationError, run_stats, simulate
+p = {FAR}
 for name, call in (("run_stats", run_stats), ("simulate", simulate)):
+    call(p, 1.0)  # warm-up: same kernels
     t = time.perf_counter()
     try:
-        call(p, 3.8)
+        call(p, 3.8, state={FAR_STATE}, max_steps=2e6)
     except SimulationError as e:
         assert e.status == {STATUS_STEP_BUDGET}, e
         print(name, time.perf_counter() - t)
@@ -121,13 +141,22 @@ for name, call in (("run_stats", run_stats), ("simulate", simulate)):
     assert _seconds(out, "simulate") <= RAISE_S
 
 
+def test_env_refuses_stiff_slip_at_reset() -> None:
+    import gymnasium as gym
+
+    env = gym.make("fricenv/StickSlipSelfExcited-v0")
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match="too stiff"):
+        env.reset(seed=0, options={"b1": -1e8})
+
+
 @pytest.mark.parametrize("options", [
     {"b1": 1e12, "b3": 1e12},
     {"x0": 1e12, "b1": 0.2, "b3": 0.16},
 ])
 def test_env_steps_over_budget_raise_within_seconds(options: dict) -> None:
-    """Stiff slip, or a start at x0 = 1e12 (~3e7 steps in a unit of tau), took 10-38 s
-    per env.step."""
+    """Stiff anti-damped slip, or a start at x0 = 1e12 (~3e7 steps in a unit of tau), took
+    10-38 s per env.step."""
     env_id = ("fricenv/StickSlipSelfExcited-v0" if "x0" not in options
               else "fricenv/StickSlip-v0")
     out = _child(f"""
@@ -187,12 +216,12 @@ def test_a_sweep_cell_takes_the_budget_of_its_settings() -> None:
 
 _INTERRUPTED = """
 import sys, time
-from fricenv import OscillatorParams, run_stats, simulate
+from fricenv import OscillatorParams, OscillatorState, run_stats, simulate
 p = {params}
-{call}(OscillatorParams(b1=1.0, b3=1.0), 0.5)  # warm-up
+{call}(p, 0.5)  # warm-up
 print("ready", flush=True)
 try:
-    {call}(p, {span}, max_steps_per_tau=1e15, max_steps=1e15)
+    {call}(p, {span}, state={state}, max_steps_per_tau=1e15, max_steps=1e15)
 except KeyboardInterrupt:
     print("interrupted", time.perf_counter(), flush=True)
     sys.exit(0)
@@ -205,7 +234,7 @@ print("finished", flush=True)
 def test_ctrl_c_stops_a_running_call_within_a_second(call: str) -> None:
     """SIGINT 2 s into a call that would run for minutes: KeyboardInterrupt in the caller
     within INTERRUPT_S."""
-    code = _INTERRUPTED.format(params=STIFF, call=call, span=3.8)
+    code = _INTERRUPTED.format(params=FAR, state=FAR_STATE, call=call, span=3.8)
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
     child = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE,
                              stderr=subprocess.PIPE, text=True, env=env, cwd=ROOT)

@@ -118,4 +118,4 @@ def test_measure_cells_refuses_bad_values():
     with pytest.raises(TypeError, match="values must be a mapping"):
         measure_cells(HELD, [1.0], s)  # type: ignore[arg-type]
     assert set(CELL_FIELDS) == {"u0", "u1", "u2", "nu", "eta", "lam", "V", "xfk", "xfs",
-                                "b1", "b3"}
+                                "b1", "b3", "vs", "delta", "cv"}

@@ -130,9 +130,17 @@ def test_cells_sweep_a_law_parameter():
     assert list(poly.P[:, P_LAW]) == [0, 1] and list(poly.method) == [0, 1]
 
 
-def test_scenes_refuse_another_law():
-    from fricenv.envs.scenes import SCENES
+def test_exponential_scene_keeps_its_law():
+    """An episode of the exponential scene runs its law, drawn or not; b1 is not one of its
+    parameters."""
+    import gymnasium as gym
 
-    with pytest.raises(ValueError, match="friction='exponential'"):
-        SCENES["paper"].__class__(**{**SCENES["paper"].__dict__,
-                                     "params": OscillatorParams.preset(EXP)})
+    from fricenv.params import P_LAW, P_LAW_PARAMS
+
+    env = gym.make("fricenv/StickSlipExponential-v0", randomize=True)
+    env.reset(seed=3)
+    P = env.unwrapped._P
+    assert P[P_LAW] == friction.LAWS[EXP].code
+    np.testing.assert_array_equal(P[P_LAW_PARAMS:], [0.4, 2.0, 0.05])
+    with pytest.raises(ValueError, match="b1 belongs to the cubic law"):
+        env.reset(options={"b1": 0.2})

@@ -364,7 +364,7 @@ def test_run_cells_checks_what_its_kernel_would_not() -> None:
         ((P, np.full(2, 10.0), *ok[1:]), METHOD_EXACT, "t_transient must have one entry"),
         ((P, ok[0], np.array([5.0, np.nan, 5.0]), *ok[2:]), METHOD_EXACT, "cell 1: need"),
         ((P, np.array([10.0, 10.0, -1.0]), *ok[1:]), METHOD_EXACT, "cell 2: need"),
-        ((P[:, :4], *ok), METHOD_EXACT, r"P_cells must have shape \(n, 10\)"),
+        ((P[:, :4], *ok), METHOD_EXACT, r"P_cells must have shape \(n, 12\)"),
         ((P, *ok), 7, "method must be METHOD_EXACT"),
     ]
     stribeck = P.copy()
@@ -439,8 +439,9 @@ def test_run_cells_bounds_counts_before_the_int_cast() -> None:
     (0, -5.0, r"P_cells\[1, 0\] \(lam\) must be >= 0, got -5\.0"),
     (2, 1e300, r"P_cells\[1, 2\] \(xfk\) must be finite and within"),
     (3, 1.0, r"P_cells\[1, 3\] \(xfs\) must be >= xfk, got 1\.0 \(xfk = 2\.5\)"),
-    (6, -1.0, r"P_cells\[1, 6\] \(u1\) must be >= 0"),
-    (8, 0.0, r"P_cells\[1, 8\] \(w1 = eta\) must be > 0"),
+    (4, -1.0, r"P_cells\[1, 4\] \(u1\) must be >= 0"),
+    (6, 0.0, r"P_cells\[1, 6\] \(w1 = eta\) must be > 0"),
+    (8, 7.0, r"P_cells\[1, 8\] \(law code\) must be a friction law's code"),
 ])
 def test_run_cells_refuses_rows_that_oscillator_params_would(column: int, value: float,
                                                             match: str) -> None:

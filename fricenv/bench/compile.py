@@ -47,9 +47,9 @@ DEFAULT_TREE = SCRIPT.parents[2]
 LOGGER = logging.getLogger("fricenv")
 #: Scenes of ``fricenv.envs.ENV_IDS`` (fixed here, so that ``--help`` lists the workloads
 #: without importing a tree; a child of a tree without the scene fails, naming it).
-SCENES = ("paper", "self_excited", "stribeck", "viscous")
+SCENES = ("paper", "self_excited", "stribeck", "viscous", "exponential")
 SIMULATE_METHODS = ("exact", "event", "rk4")  # fricenv.layout.METHODS
-MAP_LAWS = ("coulomb", "viscous", "stribeck")
+MAP_LAWS = ("coulomb", "viscous", "stribeck", "exponential")
 VECTOR_PLANTS = 16
 #: Kernels listed in the compile-time table.
 TOP_KERNELS = 10

@@ -30,9 +30,10 @@ from fricenv.envs.channels import CHANNELS, OBSERVATION
 from fricenv.envs.setup import EnvSetup
 from fricenv.envs.state import N_PLANT, PL_CTRL, PL_P, PL_S, PL_WORK
 from fricenv.envs.tables import DRAWS, RANDOMIZABLE
+from fricenv.friction import LAWS
 from fricenv.jit import kernel
 from fricenv.layout import S_MODE, S_PHI1, S_PHI2, S_T, S_V, S_X
-from fricenv.params import P_B1, P_B3, P_LAM, P_U1, P_U2, P_V, P_W1, P_W2, P_XFK, P_XFS
+from fricenv.params import P_B1, P_B3, P_LAM, P_LAW, P_U1, P_U2, P_V, P_W1, P_W2, P_XFK, P_XFS
 
 TWO_PI = 2.0 * np.pi
 #: Column of each named plant parameter in a plant vector's parameter block: the
@@ -128,7 +129,16 @@ class Plants:
         return self._col(PL_P + _parameter(name))
 
     def set_param(self, name: str, values: Any) -> None:
+        """Set parameter ``name`` of every plant; b1 and b3 also set the law of a plant of
+        the paper's laws (Coulomb where both are 0, else cubic), as ``OscillatorParams``
+        does."""
         self._set(PL_P + _parameter(name), values)
+        if name in ("b1", "b3"):
+            law = self._col(PL_P + P_LAW)
+            paper = np.isin(law, _PAPER_CODES)
+            coulomb = (self.param("b1") == 0.0) & (self.param("b3") == 0.0)
+            self._set(PL_P + P_LAW, np.where(
+                paper, np.where(coulomb, LAWS["coulomb"].code, LAWS["cubic"].code), law))
 
     def state(self, name: str) -> np.ndarray:
         """State quantity ``name`` (t, x, v, mode, phi1, phi2), a view."""
@@ -147,6 +157,9 @@ class Plants:
     def settle_modes(self) -> None:
         """Each plant's mode from its state (:func:`initial_modes`)."""
         self.mode = initial_modes(self.params, self.x, self.v, self.phi1, self.phi2)
+
+
+_PAPER_CODES = (LAWS["coulomb"].code, LAWS["cubic"].code)
 
 
 def _parameter(name: str) -> int:

@@ -240,8 +240,8 @@ def raise_status(status: int, action: Any, where: str = "") -> None:
     if status == STATUS_STEP_BUDGET:
         raise RuntimeError(
             f"plant{where}: the control interval needed more integrator steps than the budget "
-            f"allows ({MAX_STEPS_PER_TAU:g} in a unit of tau): slip far stiffer than the "
-            "model's scale (b1, b3 huge) or a state far from it (check the parameters "
+            f"allows ({MAX_STEPS_PER_TAU:g} in a unit of tau): slip far faster than the "
+            "model's scale or a state far from it (check the parameters "
             "passed at make/reset); reset the environment")
     if status == STATUS_DIVERGED:
         raise RuntimeError(f"plant{where} diverged: the state is finite but the interval's "

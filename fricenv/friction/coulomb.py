@@ -2,6 +2,9 @@
 
 The paper's law (a) of Fig. 2. Slip is then linear, so the ``exact`` method's closed form
 runs it. The law has no parameters of its own: ``xfk`` and ``xfs`` are every law's.
+
+The numeric functions below are plain Python, which :mod:`fricenv.friction.kernels`
+compiles: naming the law loads no numba.
 """
 
 from __future__ import annotations
@@ -10,7 +13,6 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from ..jit import kernel
 from .spec import FrictionLaw
 
 CODE = 0
@@ -26,47 +28,41 @@ LAW = FrictionLaw(
     force=_force,
     near_belt_slope=lambda values, xfk, xfs: 0.0,
     envelope=lambda values, xfk, xfs: (xfk, 0.0, 0.0),
+    stiffness=lambda values, lam, xfk, xfs: lam,
     presets={"coulomb": {}},
 )
 
 
-@kernel
 def prepare(p0, p1, p2, xfk, xfs):
     """The law's constants inside the kernels: none."""
     return 0.0, 0.0, 0.0, 0.0
 
 
-@kernel
 def add_accel(a, lc, sd, vr):
     """``a`` plus the law's speed-dependent part of the slip acceleration: none."""
     return a
 
 
-@kernel
 def sgn_accel(a, lc, s, vr):
     """The RK4 baseline's speed-dependent acceleration: none."""
     return a
 
 
-@kernel
 def slope(lc, sd, vr):
     """d/dvr of that part: 0."""
     return 0.0
 
 
-@kernel
 def net_slope(lc, lam, sd, vr):
     """dv'/dv in slip: the damping alone."""
     return -lam
 
 
-@kernel
 def taylor_step_cap(lc, cx, tl, n, eps, h):
     """The law puts no bound of its own on a Taylor step."""
     return h
 
 
-@kernel
 def taylor_term(lc, sd, cx, tw, tq, tl, k, wk):
     """k-th Taylor coefficient of the speed-dependent part: 0."""
     return 0.0

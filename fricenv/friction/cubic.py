@@ -5,6 +5,9 @@ Stribeck-like law that falls, then rises with slip speed (``b1 = 0.2``, ``b3 = 0
 ``b1 > 0`` pumps energy into slip near the belt speed; ``b3 > 0`` damps large speeds.
 Slip is polynomial in the speed, so the Taylor coefficients of the event method follow
 from Cauchy products of the series of ``w = v - V``.
+
+The numeric functions below are plain Python, which :mod:`fricenv.friction.kernels`
+compiles: naming the law loads no numba.
 """
 
 from __future__ import annotations
@@ -13,7 +16,6 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from ..jit import kernel
 from .spec import FrictionLaw, LawParam
 
 CODE = 1
@@ -33,17 +35,19 @@ LAW = FrictionLaw(
     force=_force,
     near_belt_slope=lambda values, xfk, xfs: float(values["b1"]),
     envelope=lambda values, xfk, xfs: (xfk, values["b1"], values["b3"]),
+    # the damped side, lam - b1 > 0, where slip creeps towards the belt speed at that rate
+    # for as long as it lasts; anti-damped slip (b1 > lam) leaves the belt speed at once,
+    # and 3 b3 vr^2 grows with the speed (stiff cubic slip is brief: the steps take it)
+    stiffness=lambda values, lam, xfk, xfs: np.maximum(lam - values["b1"], 0.0),
     presets={"viscous": {"b1": 0.2}, "stribeck": {"b1": 0.2, "b3": 0.16}},
 )
 
 
-@kernel
 def prepare(p0, p1, p2, xfk, xfs):
     """The law's constants inside the kernels: (b1, b3, -, -)."""
     return p0, p1, 0.0, 0.0
 
 
-@kernel
 def add_accel(a, lc, sd, vr):
     """``a + (b1 - b3 vr^2) vr``; terms the coefficients zero are skipped."""
     b1 = lc[0]
@@ -53,33 +57,28 @@ def add_accel(a, lc, sd, vr):
     return a
 
 
-@kernel
 def sgn_accel(a, lc, s, vr):
     """``a + b1 vr - b3 vr^3``: the speed-dependent acceleration as the paper's Eq. 7 writes
     it, for the RK4 baseline (``s = sgn(vr)``)."""
     return a + lc[0] * vr - lc[1] * vr * vr * vr
 
 
-@kernel
 def slope(lc, sd, vr):
     """d/dvr of the speed-dependent acceleration: b1 - 3 b3 vr^2."""
     return lc[0] - 3.0 * lc[1] * vr * vr
 
 
-@kernel
 def net_slope(lc, lam, sd, vr):
     """dv'/dv in slip: b1 - lam - 3 b3 vr^2."""
     return lc[0] - lam - 3.0 * lc[1] * vr * vr
 
 
-@kernel
 def taylor_step_cap(lc, cx, tl, n, eps, h):
     """The law puts no bound of its own on a Taylor step: its series are polynomial in
     those of w, whose decay the step rule reads."""
     return h
 
 
-@kernel
 def taylor_term(lc, sd, cx, tw, tq, tl, k, wk):
     """k-th Taylor coefficient of ``b1 w - b3 w^3`` from the series of w in
     ``cx[tw:tw + k + 1]`` (``wk`` its k-th term); ``(w^2)_k`` is kept in ``cx[tq + k]``

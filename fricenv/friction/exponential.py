@@ -14,6 +14,9 @@ series of ``w = v - V``: the Taylor coefficients of ``u^delta`` follow from Cauc
 products, and those of ``E = exp(-u^delta)`` from ``E' = -(u^delta)' E``. ``delta`` is a
 whole number from 1 to :data:`DELTA_MAX`: ``|vr|^delta`` is not analytic at ``vr = 0`` for
 other exponents, and every slip phase starts there.
+
+The numeric functions below are plain Python, which :mod:`fricenv.friction.kernels`
+compiles: naming the law loads no numba.
 """
 
 from __future__ import annotations
@@ -23,7 +26,6 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from ..jit import kernel
 from .spec import SERIES_LEN, FrictionLaw, LawParam
 
 CODE = 2
@@ -64,32 +66,33 @@ LAW = FrictionLaw(
     near_belt_slope=_near_belt_slope,
     # |F| <= xfs + cv |vr| with cv >= 0: a Coulomb law at level xfs with damping cv bounds it
     envelope=lambda values, xfk, xfs: (xfs, -values["cv"], 0.0),
+    # the falling part's slope (xfs - xfk) delta u^(delta - 1) e^(-u^delta) / vs peaks at
+    # 1 (delta = 1, u = 0) or sqrt(2 / e) (delta = 2, u = 1 / sqrt(2)) times (xfs - xfk) / vs
+    stiffness=lambda values, lam, xfk, xfs: lam + values["cv"] + (xfs - xfk) / values["vs"] * (
+        (values["delta"] == 1.0) + (values["delta"] != 1.0) * 0.8577638849607068),
     presets={"exponential": {"vs": 0.4, "delta": 2.0, "cv": 0.05}},
 )
 
 
-@kernel
 def prepare(p0, p1, p2, xfk, xfs):
     """The law's constants inside the kernels from (vs, delta, cv): (1 / vs, delta, cv,
     xfs - xfk)."""
     return 1.0 / p0, p1, p2, xfs - xfk
 
 
-@kernel
 def add_accel(a, lc, sd, vr):
     """``a - sd (xfs - xfk) exp(-(sd vr / vs)^delta) - cv vr``."""
     u = sd * vr * lc[0]
     return a - sd * lc[3] * math.exp(-(u ** int(lc[1]))) - lc[2] * vr
 
 
-@kernel
 def sgn_accel(a, lc, s, vr):
     """The RK4 baseline's speed-dependent acceleration with ``s = sgn(vr)`` (0 at vr = 0,
-    where the law's jump term vanishes)."""
-    return add_accel(a, lc, s, vr)
+    where the law's jump term vanishes): ``add_accel``'s."""
+    u = s * vr * lc[0]
+    return a - s * lc[3] * math.exp(-(u ** int(lc[1]))) - lc[2] * vr
 
 
-@kernel
 def slope(lc, sd, vr):
     """d/dvr of the speed-dependent acceleration:
     (xfs - xfk) delta u^(delta - 1) E / vs - cv."""
@@ -99,24 +102,13 @@ def slope(lc, sd, vr):
     return lc[3] * n * u ** (n - 1) * e * lc[0] - lc[2]
 
 
-@kernel
 def net_slope(lc, lam, sd, vr):
-    """dv'/dv in slip: the slope less the damping."""
-    return slope(lc, sd, vr) - lam
+    """dv'/dv in slip: ``slope`` less the damping."""
+    n = int(lc[1])
+    u = sd * vr * lc[0]
+    return lc[3] * n * u ** (n - 1) * math.exp(-(u ** n)) * lc[0] - lc[2] - lam
 
 
-@kernel
-def _p_change(cx, pw, n, h):
-    """Bound on |P(t) - P(0)| over a step of length h from P's series: sum |P_k| h^k."""
-    total = 0.0
-    hk = 1.0
-    for k in range(1, n):
-        hk *= h
-        total += abs(cx[pw + k]) * hk
-    return total
-
-
-@kernel
 def taylor_step_cap(lc, cx, tl, n, eps, h):
     """The Taylor step ``h`` (of order ``n``, at tolerance ``eps``) shortened until the
     series of E = exp(-u^delta) stays converged over it (after ``taylor_term`` filled
@@ -133,23 +125,28 @@ def taylor_step_cap(lc, cx, tl, n, eps, h):
     """
     pw = tl + (int(lc[1]) - 1) * SERIES_LEN
     weight = lc[3] * cx[tl + _E]
-    change = _p_change(cx, pw, n, h)
-    if not (change > STEP_RATE and weight > 0.0):
-        return h
-    if math.log(weight) + change <= math.log(eps):
-        return h  # E stays below the tolerance over the whole step
     lo = 0.0
     hi = h
-    for _ in range(30):  # bisection to ~1e-9 of h: the bound rises with h
-        mid = 0.5 * (lo + hi)
-        if _p_change(cx, pw, n, mid) > STEP_RATE:
-            hi = mid
+    trial = h
+    for it in range(31):  # bisection to ~1e-9 of h: the bound rises with the step
+        change = 0.0  # sum_k |P_k| trial^k, the most P can move over the trial step
+        tk = 1.0
+        for k in range(1, n):
+            tk *= trial
+            change += abs(cx[pw + k]) * tk
+        if it == 0:  # the whole step: kept where P moves little, or E stays negligible
+            if not (change > STEP_RATE and weight > 0.0):
+                return h
+            if math.log(weight) + change <= math.log(eps):
+                return h
+        elif change > STEP_RATE:
+            hi = trial
         else:
-            lo = mid
+            lo = trial
+        trial = 0.5 * (lo + hi)
     return lo
 
 
-@kernel
 def taylor_term(lc, sd, cx, tw, tq, tl, k, wk):
     """k-th Taylor coefficient of ``-sd (xfs - xfk) E - cv w``, E = exp(-u^delta), from
     the series of w in ``cx[tw:tw + k + 1]``. The series of u, its powers and E up to

@@ -1,7 +1,8 @@
 """The friction laws inside the kernels: one entry per question, dispatched on the law's code.
 
 The solvers call these and never a law's module directly, so a law joins every kernel by
-a branch here (its ``CODE``), and its module holds the mathematics. The law's constants
+a branch here (its ``CODE``), and its module holds the mathematics, as plain Python
+functions that this module compiles (``QUESTIONS``). The law's constants
 travel as a 4-tuple ``lc`` that its ``prepare`` makes from the parameter row's law block
 (``params.P_LAW_PARAMS``); ``sd`` is the slip direction (+1 above the belt speed, -1
 below) and ``vr = v - V``.
@@ -15,6 +16,23 @@ CUBIC = float(cubic.CODE)
 EXPONENTIAL = float(exponential.CODE)
 #: Workspace scratch any law's Taylor recurrence needs (its ``SCRATCH``), in doubles.
 LAW_SCRATCH = exponential.SCRATCH
+
+#: The numeric functions each law's module defines, in plain Python (so that naming a law
+#: loads no numba); compiled here, in this order.
+QUESTIONS = ("prepare", "add_accel", "sgn_accel", "slope", "net_slope", "taylor_term",
+             "taylor_step_cap")
+
+
+def _compiled(law: object) -> tuple:
+    return tuple(kernel(getattr(law, q)) for q in QUESTIONS)
+
+
+(co_prepare, co_add_accel, co_sgn_accel, co_slope, co_net_slope, co_taylor_term,
+ co_taylor_step_cap) = _compiled(coulomb)
+(cu_prepare, cu_add_accel, cu_sgn_accel, cu_slope, cu_net_slope, cu_taylor_term,
+ cu_taylor_step_cap) = _compiled(cubic)
+(ex_prepare, ex_add_accel, ex_sgn_accel, ex_slope, ex_net_slope, ex_taylor_term,
+ ex_taylor_step_cap) = _compiled(exponential)
 
 
 @kernel
@@ -35,10 +53,10 @@ def closed_form(law):
 def prepare(law, p0, p1, p2, xfk, xfs):
     """The law's constants ``lc`` from its parameters (p0, p1, p2) and the levels."""
     if law == CUBIC:
-        return cubic.prepare(p0, p1, p2, xfk, xfs)
+        return cu_prepare(p0, p1, p2, xfk, xfs)
     if law == EXPONENTIAL:
-        return exponential.prepare(p0, p1, p2, xfk, xfs)
-    return coulomb.prepare(p0, p1, p2, xfk, xfs)
+        return ex_prepare(p0, p1, p2, xfk, xfs)
+    return co_prepare(p0, p1, p2, xfk, xfs)
 
 
 @kernel
@@ -46,10 +64,10 @@ def add_accel(law, lc, a, sd, vr):
     """``a`` plus the speed-dependent part of the slip acceleration (all of ``-F`` but the
     kinetic level ``-sd xfk``, which the solvers add themselves)."""
     if law == CUBIC:
-        return cubic.add_accel(a, lc, sd, vr)
+        return cu_add_accel(a, lc, sd, vr)
     if law == EXPONENTIAL:
-        return exponential.add_accel(a, lc, sd, vr)
-    return coulomb.add_accel(a, lc, sd, vr)
+        return ex_add_accel(a, lc, sd, vr)
+    return co_add_accel(a, lc, sd, vr)
 
 
 @kernel
@@ -57,30 +75,30 @@ def sgn_accel(law, lc, a, s, vr):
     """``add_accel`` for the RK4 baseline, which takes ``s = sgn(vr)`` literally (0 at vr =
     0) and writes each law as the paper's Eq. 7 does."""
     if law == CUBIC:
-        return cubic.sgn_accel(a, lc, s, vr)
+        return cu_sgn_accel(a, lc, s, vr)
     if law == EXPONENTIAL:
-        return exponential.sgn_accel(a, lc, s, vr)
-    return coulomb.sgn_accel(a, lc, s, vr)
+        return ex_sgn_accel(a, lc, s, vr)
+    return co_sgn_accel(a, lc, s, vr)
 
 
 @kernel
 def slope(law, lc, sd, vr):
     """-dF/dvr in slip."""
     if law == CUBIC:
-        return cubic.slope(lc, sd, vr)
+        return cu_slope(lc, sd, vr)
     if law == EXPONENTIAL:
-        return exponential.slope(lc, sd, vr)
-    return coulomb.slope(lc, sd, vr)
+        return ex_slope(lc, sd, vr)
+    return co_slope(lc, sd, vr)
 
 
 @kernel
 def net_slope(law, lc, lam, sd, vr):
     """dv'/dv in slip, -lam - dF/dvr: the stiffness of slip and the Rosenbrock Jacobian."""
     if law == CUBIC:
-        return cubic.net_slope(lc, lam, sd, vr)
+        return cu_net_slope(lc, lam, sd, vr)
     if law == EXPONENTIAL:
-        return exponential.net_slope(lc, lam, sd, vr)
-    return coulomb.net_slope(lc, lam, sd, vr)
+        return ex_net_slope(lc, lam, sd, vr)
+    return co_net_slope(lc, lam, sd, vr)
 
 
 @kernel
@@ -89,10 +107,10 @@ def taylor_term(law, lc, sd, cx, tw, tq, tl, k, wk):
     the series of w = v - V in ``cx[tw:]`` (``wk`` = its k-th term); ``cx[tq:]`` and
     ``cx[tl:]`` are the law's scratch. Orders are asked in turn from 0."""
     if law == CUBIC:
-        return cubic.taylor_term(lc, sd, cx, tw, tq, tl, k, wk)
+        return cu_taylor_term(lc, sd, cx, tw, tq, tl, k, wk)
     if law == EXPONENTIAL:
-        return exponential.taylor_term(lc, sd, cx, tw, tq, tl, k, wk)
-    return coulomb.taylor_term(lc, sd, cx, tw, tq, tl, k, wk)
+        return ex_taylor_term(lc, sd, cx, tw, tq, tl, k, wk)
+    return co_taylor_term(lc, sd, cx, tw, tq, tl, k, wk)
 
 
 @kernel
@@ -100,10 +118,10 @@ def taylor_step_cap(law, lc, cx, tl, n, eps, h):
     """The Taylor step ``h`` of order ``n``, shortened where the law's own series would not
     converge over it at tolerance ``eps``."""
     if law == CUBIC:
-        return cubic.taylor_step_cap(lc, cx, tl, n, eps, h)
+        return cu_taylor_step_cap(lc, cx, tl, n, eps, h)
     if law == EXPONENTIAL:
-        return exponential.taylor_step_cap(lc, cx, tl, n, eps, h)
-    return coulomb.taylor_step_cap(lc, cx, tl, n, eps, h)
+        return ex_taylor_step_cap(lc, cx, tl, n, eps, h)
+    return co_taylor_step_cap(lc, cx, tl, n, eps, h)
 
 
 @kernel

@@ -11,6 +11,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -69,6 +70,7 @@ class FrictionLaw:
     | force | ``F(vr)`` for ``vr != 0``, vectorised (:data:`ForceFn`) |
     | near_belt_slope | ``-dF/dvr`` as ``vr -> 0+``: the damping slip near V loses |
     | envelope | ``(level, b1, b3)``: a cubic law that bounds this one (divergence bound) |
+    | stiffness | the largest abs(dv'/dv) of slip not growing with the speed, vectorised |
     """
 
     name: str
@@ -80,6 +82,7 @@ class FrictionLaw:
     force: ForceFn
     near_belt_slope: Callable[[Mapping[str, float], float, float], float]
     envelope: Callable[[Mapping[str, float], float, float], tuple[float, float, float]]
+    stiffness: Callable[[Mapping[str, Any], Any, Any, Any], Any]
     presets: Mapping[str, Mapping[str, float]] = field(default_factory=dict)
 
     @property
