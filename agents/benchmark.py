@@ -1,7 +1,8 @@
 """The control benchmark: every controller on every scene, and how policies generalise.
 
-    python -m fricenv_agents.benchmark [--runs agents/pretrained/benchmark] [--out docs/results]
-        [--seeds 10] [--episodes 5] [--scenes paper self_excited stribeck viscous] [--jobs 2]
+    python -m fricenv_agents.benchmark [--runs agents/pretrained/benchmark]
+        [--out out/control-benchmark] [--seeds 10] [--episodes 5]
+        [--scenes paper self_excited stribeck viscous] [--jobs 2]
 
 Rows are controllers, columns scenes. The rows are data: ``ROWS`` lists each controller
 once (key, label, how to build its entry, the conditions it runs in), so adding one is one
@@ -165,8 +166,8 @@ def main_tables(rows: Sequence[Row], results: Results, n_seeds: int,
                                                        4)):
         lines += [f"### {title} (IQM [95 % CI])", "", head, rule]
         for key in row_keys(rows, results):
-            cells = [results[s][key].interval(name).format(digits) if key in results[s]
-                     else "—" for s in scenes]
+            cells = [nowrap(results[s][key].interval(name).format(digits))
+                     if key in results[s] else "—" for s in scenes]
             lines.append(f"| {_label(results, key)} | " + " | ".join(cells) + " |")
         lines.append("")
     best = "; ".join(f"`{s}` u0 = {r['best_constant'].info['u0']:.2f}, nu = "
@@ -183,6 +184,12 @@ def main_tables(rows: Sequence[Row], results: Results, n_seeds: int,
     return lines
 
 
+def nowrap(cell: str) -> str:
+    """A table cell with no-break spaces: ``-2.07 [-2.19, -1.95]`` stays on one line in a
+    narrow column instead of breaking after the estimate."""
+    return cell.replace(" ", "\u00a0")
+
+
 def gap_lines(rows: Sequence[Row], results: Results) -> list[str]:
     """The learned rows' gap to the MPC per scene (nothing without an MPC or a learned row)."""
     learned = [r.key for r in rows if r.train is not None]
@@ -193,16 +200,17 @@ def gap_lines(rows: Sequence[Row], results: Results) -> list[str]:
         present = [k for k in learned if k in r]
         if ref is None or not present:
             continue
-        body.append(f"| `{scene}` | {ref.label} | {ref.interval('ret').format()} | — | — | "
-                    "— | — |")
+        body.append(f"| `{scene}` | {ref.label} | {nowrap(ref.interval('ret').format())} | "
+                    "— | — | — | — |")
         for key in present:
             e, gap = r[key], _gap(r[key], ref)
             ok = gap.estimate <= GAP_BAR
             if not ok:
                 behind.append(f"{short_name(rows, key)} on `{scene}` "
                               f"({100 * gap.estimate:.0f} %)")
-            body.append(f"| `{scene}` | {e.label} | {e.interval('ret').format()} | "
-                        f"{gap.format(1, 100, ' %', signed=True)} | {'yes' if ok else 'no'} | "
+            body.append(f"| `{scene}` | {e.label} | {nowrap(e.interval('ret').format())} | "
+                        f"{nowrap(gap.format(1, 100, ' %', signed=True))} | "
+                        f"{'yes' if ok else 'no'} | "
                         f"{_over_models(e)} | {_seconds(e)} |")
     if not body:
         return []
@@ -277,10 +285,10 @@ def generalisation_lines(rows: Sequence[Row], gen: Generalisation,
         for key, cell in per_key.items():
             label = next(es[key].label for es in gen[scene].values() if key in es)
             lines.append(f"| `{scene}` | {label} | " + " | ".join(
-                cell[c].format(1, 100) if c in cell else "—" for c in CONDITIONS) + " |")
+                nowrap(cell[c].format(1, 100)) if c in cell else "—" for c in CONDITIONS) + " |")
             kept = {name: cell.get(name) for name in RETENTIONS}
             ret.append(f"| `{scene}` | {label} | " + " | ".join(
-                v.format(0, 100) if v else "—" for v in kept.values()) + " |")
+                nowrap(v.format(0, 100)) if v else "—" for v in kept.values()) + " |")
             low += [f"{short_name(rows, key)} on `{scene}` {name.split(', ')[1]} "
                     f"({100 * v.estimate:.0f} %)" for name, v in kept.items()
                     if v and v.estimate < RETENTION_BAR]
@@ -327,7 +335,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--runs", type=Path, default=PRETRAINED_RUNS,
                    help="folder of the run folders (default: the shipped ones; "
                    "scripts/train_control_benchmark.py makes them)")
-    p.add_argument("--out", type=Path, default=Path("docs/results"), help="output folder")
+    p.add_argument("--out", type=Path, default=Path("out/control-benchmark"),
+                   help="output folder (the published page: --out docs/results)")
     p.add_argument("--scenes", nargs="+", choices=BENCH_SCENES, default=list(BENCH_SCENES))
     p.add_argument("--seeds", type=int, default=10, help="evaluation seeds")
     p.add_argument("--episodes", type=int, default=5, help="episodes per evaluation seed")
@@ -392,13 +401,21 @@ def main(argv: Sequence[str] | None = None, rows: Sequence[Row] = ROWS) -> Path:
     return args.out / "control_benchmark.md"
 
 
+#: The caption of the generalisation figure on the page.
+GENERALISATION_CAPTION = (
+    "Stick cut against zero excitation on the same episodes, per condition of the "
+    "generalisation study (in range, held-out plants below and above the training ranges, "
+    "sensor noise + delay), one bar per controller: IQM with its 95 % bootstrap interval.")
+
+
 def write_page(out: Path, rows: Sequence[Row], results: Results, gen: Generalisation,
                summary: dict, args: argparse.Namespace,
                throughput: dict[str, Any] | None = None) -> None:
     """``control_benchmark.md`` and its figures."""
     lines = ["# Control benchmark: controllers × scenes", "",
              "Made by `python -m fricenv_agents.benchmark` (see its docstring and "
-             "docs/control.md). Raw results, one row per episode with the software versions: "
+             "[Control studies](../control.md#the-benchmark)). Raw results, one row per "
+             "episode with the software versions: "
              "[control_benchmark_episodes.csv](control_benchmark_episodes.csv).", "",
              *main_tables(rows, results, args.seeds, args.episodes),
              *gap_lines(rows, results)]
@@ -412,7 +429,8 @@ def write_page(out: Path, rows: Sequence[Row], results: Results, gen: Generalisa
               "2021).", "", "![control_profiles.png](control_profiles.png)", ""]
     if summary:
         plot_generalisation(rows, summary, out / "control_generalisation.png")
-        lines += ["![control_generalisation.png](control_generalisation.png)", ""]
+        lines += [GENERALISATION_CAPTION, "",
+                  "![control_generalisation.png](control_generalisation.png)", ""]
     if throughput is not None:
         from . import throughput as TP
 

@@ -115,7 +115,13 @@ def plot_generalisation(rows: Sequence[Row], summary: dict[str, dict[str, dict[s
         ax.set_ylim(min(0.0, ax.get_ylim()[0]), 105)
         ax.set_ylabel("stick cut vs zero excitation (%)", fontsize=8)
         ax.set_title(scene, fontsize=10)
-    axes[0][0].legend(fontsize=6, loc="lower left")
-    fig.tight_layout()
+    # one legend for all panels, below them, where it covers no bar
+    handles: dict[str, Any] = {}
+    for ax in axes[0]:
+        for handle, label in zip(*ax.get_legend_handles_labels(), strict=True):
+            handles.setdefault(label, handle)
+    fig.legend(list(handles.values()), list(handles), loc="lower center", fontsize=7,
+               ncol=min(len(handles), 6), frameon=False)
+    fig.tight_layout(rect=(0.0, 0.1 if len(handles) <= 6 else 0.16, 1.0, 1.0))
     fig.savefig(path, dpi=90)
     plt.close(fig)

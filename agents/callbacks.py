@@ -34,7 +34,7 @@ class ProgressBar(BaseCallback):
         self._done = 0
 
     def _on_training_start(self) -> None:
-        from tqdm.auto import tqdm
+        from fricenv.progress import tqdm  # (its rate leaves out compile time)
 
         self.bar = tqdm(total=self.total, unit="step", disable=not self.enabled,
                         dynamic_ncols=True, desc="train")

@@ -1,14 +1,16 @@
 """Evaluate trained agents against the baselines; write a markdown table and plots.
 
-    python -m fricenv_agents.evaluate --scene self_excited --runs runs/ppo_self_excited_s* \\
-        --seeds 5 --episodes 10 --out docs/results
+    python -m fricenv_agents.evaluate --scene self_excited --runs out/runs/ppo_self_excited_s* \\
+        --seeds 5 --episodes 10 --out out/eval
 
 Every controller runs the same episodes: evaluation seed k (k < ``--seeds``) starts
 ``--episodes`` episodes, episode j from plant seed ``10_000_000 + 1000 k + j`` (never a
 training or best-constant-search seed; this is checked against each run's config). A group
 of trained runs (same algorithm and scene, one run per training seed) runs every model on
 every episode. The table reports mean ± std over all evaluated episodes (models x seeds x
-episodes) per controller and scene:
+episodes) per controller and scene. Episodes have the scene's own length (400 control
+steps for ``self_excited``), whatever length the runs trained on (``max_episode_steps`` in
+a run's ``env_kwargs`` applies to its training only); ``--max-steps`` sets another.
 
 - stick-time fraction: time stuck / episode time (exact, from the event-driven plant);
 - RMS relative velocity: sqrt of the time mean of (v - V)^2 (steady sliding gives V);
@@ -34,11 +36,14 @@ from .cli import HelpFormatter, Stages
 from .layout import (
     BASELINES,
     MAX_PLANTS,
+    PRETRAINED_PREFIX,
     SCENE_ENV_IDS,
     SEARCH_SEED_BASE,
     SEED_STRIDE,
     check_disjoint,
     eval_env_seed,
+    model_path,
+    pretrained_names,
 )
 
 if TYPE_CHECKING:
@@ -48,6 +53,13 @@ if TYPE_CHECKING:
 
 
 # -- CLI --------------------------------------------------------------------------------------
+def _model_arg(text: str) -> Path:
+    try:
+        return model_path(text)
+    except ValueError as e:
+        raise argparse.ArgumentTypeError(str(e)) from None
+
+
 def build_parser(prog: str | None = None) -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog=prog or "python -m fricenv_agents.evaluate", description=__doc__.split("\n\n")[0],
@@ -56,14 +68,18 @@ def build_parser(prog: str | None = None) -> argparse.ArgumentParser:
                    help="scene(s) to evaluate (default: those of the runs)")
     p.add_argument("--runs", nargs="*", type=Path, default=[],
                    help="run folders of fricenv_agents.train (grouped by algorithm)")
-    p.add_argument("--models", nargs="*", type=Path, default=[],
+    names = ", ".join(PRETRAINED_PREFIX + n for n in pretrained_names())
+    p.add_argument("--models", nargs="*", type=_model_arg, default=[], metavar="MODEL",
                    help="model files (<algo>_*.zip, optional <stem>_vecnormalize.pkl and "
-                        "<stem>.yml beside them)")
+                        f"<stem>.yml beside them), or a shipped model by name: {names}")
     p.add_argument("--controllers", nargs="*", choices=BASELINES, default=list(BASELINES),
                    help="baselines to include")
     p.add_argument("--seeds", type=int, default=5, help="evaluation seeds")
     p.add_argument("--episodes", type=int, default=10, help="episodes per evaluation seed")
-    p.add_argument("--out", type=Path, default=Path("runs/eval"), help="output folder")
+    p.add_argument("--max-steps", type=int, default=None, metavar="N",
+                   help="episode length in control steps (default: the scene's, e.g. 400 "
+                        "for self_excited, whatever the runs trained on)")
+    p.add_argument("--out", type=Path, default=Path("out/eval"), help="output folder")
     p.add_argument("--no-plots", action="store_true", help="write only the table and json")
     p.add_argument("--grid", type=int, default=21,
                    help="best-constant search: grid points per action dimension")
@@ -86,6 +102,8 @@ def prepare(args: argparse.Namespace, stage: Callable[[str], None] | None = None
         raise ValueError(f"need --episodes <= {MAX_PLANTS} and fewer seeds")
     if args.grid < 2 or args.search_episodes < 2:
         raise ValueError("need --grid >= 2 and --search-episodes >= 2")
+    if args.max_steps is not None and args.max_steps < 1:
+        raise ValueError(f"--max-steps must be >= 1, got {args.max_steps}")
     check_output_dir("--out", args.out)
     from .runs import locate_model
 

@@ -6,6 +6,7 @@ the same seed must face the same episodes; the blocks of plant seeds below make 
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 import fricenv  # noqa: F401  (registers the environments)
@@ -92,3 +93,28 @@ def algo_class(algo: str) -> type[BaseAlgorithm]:
 
     classes: dict[str, type[BaseAlgorithm]] = {"ppo": PPO, "sac": SAC}
     return classes[check_algo(algo)]
+
+
+#: The models that ship with the package (``ppo_<scene>.zip`` and their files beside them).
+PRETRAINED = Path(__file__).resolve().parent / "pretrained"
+#: How a command line names a shipped model: ``pretrained:<scene>``.
+PRETRAINED_PREFIX = "pretrained:"
+
+
+def pretrained_names() -> list[str]:
+    """The names of the shipped models (their scenes), for ``pretrained:<name>``."""
+    return sorted(p.stem.removeprefix("ppo_") for p in PRETRAINED.glob("ppo_*.zip"))
+
+
+def model_path(text: str) -> Path:
+    """A ``--models`` value as a path: ``pretrained:<name>`` is the shipped model of that
+    name, wherever the package is installed; anything else is a path as given.
+    ``ValueError`` naming the bad name and the shipped ones."""
+    if not text.startswith(PRETRAINED_PREFIX):
+        return Path(text)
+    name = text.removeprefix(PRETRAINED_PREFIX)
+    names = pretrained_names()
+    if name not in names:
+        raise ValueError(f"no pretrained model {name!r}; shipped: "
+                         f"{', '.join(PRETRAINED_PREFIX + n for n in names)}")
+    return PRETRAINED / f"ppo_{name}.zip"

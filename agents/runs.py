@@ -24,8 +24,6 @@ from .rollouts import TrainedController
 
 #: The checkout holding ``agents/``: paths a run records are relative to it when inside it.
 REPO_ROOT = Path(__file__).resolve().parents[1]
-
-
 def portable_path(path: Path) -> str:
     """``path`` as a run config records it: relative to the repository (or else to the
     working folder) when it lies inside, so a config committed or copied to another

@@ -112,12 +112,18 @@ def load_models(paths: list[Path]) -> dict[Path, tuple[TrainedController, dict]]
     return loaded
 
 
+#: Settings of a run's ``env_kwargs`` that shape its training episodes only: the runs are
+#: scored on the scene's own episodes (``fricenv evaluate --max-steps`` sets another length).
+TRAINING_ONLY = ("max_episode_steps",)
+
+
 def trained_entries(paths: list[Path], scene: str,
                     loaded: dict[Path, tuple[TrainedController, dict]] | None = None,
                     ) -> tuple[list[Entry], dict]:
     """Group run folders of ``scene`` by algorithm (model files stay on their own rows);
-    also return the runs' common env kwargs. ``ValueError`` for a model that does not fit
-    the scene. ``loaded``: what ``load_models`` returned, to load nothing twice."""
+    also return the runs' common env kwargs, less the ``TRAINING_ONLY`` ones. ``ValueError``
+    for a model that does not fit the scene. ``loaded``: what ``load_models`` returned, to
+    load nothing twice."""
     from .baselines import ActionMap
 
     loaded = loaded if loaded is not None else load_models(paths)
@@ -127,7 +133,8 @@ def trained_entries(paths: list[Path], scene: str,
         ctrl, cfg = loaded[p]
         if cfg.get("scene", scene) != scene:
             continue
-        kw = cfg.get("env_kwargs") or {}
+        kw = {k: v for k, v in (cfg.get("env_kwargs") or {}).items()
+              if k not in TRAINING_ONLY}
         if env_kwargs is None:
             env_kwargs = kw
         elif kw != env_kwargs:
@@ -449,13 +456,15 @@ def evaluate_scene(scene: str, args: argparse.Namespace,
     """Evaluate and write ``scene``'s outputs; ``trained``: its entry of ``prepare``'s
     result (else the models are loaded here); ``stage``: called with a line per stage
     (and a progress bar over the episodes shows unless ``args.quiet``)."""
-    from tqdm.auto import tqdm
+    from fricenv.progress import tqdm  # (its rate leaves out compile time)
 
     stage = stage or (lambda message: None)
     t0 = time.perf_counter()
     out: Path = args.out
     out.mkdir(parents=True, exist_ok=True)
     trained_list, env_kwargs = trained or trained_entries([*args.runs, *args.models], scene)
+    if getattr(args, "max_steps", None) is not None:
+        env_kwargs = {**env_kwargs, "max_episode_steps": args.max_steps}
     names = [n for n in BASELINES if n in args.controllers]
     search = {"n_u0": args.grid, "n_nu": args.grid, "episodes": args.search_episodes}
     if "best_constant" in names:

@@ -4,7 +4,7 @@
 
 Hyperparameters come from ``agents/hyperparams/<algo>.yml`` (rl-baselines3-zoo style, one
 entry per environment id, i.e. per scene); ``-params key:value`` overrides single entries.
-Each run writes its own folder, by default ``runs/<algo>_<scene>_s<seed>_<timestamp>/``:
+Each run writes its own folder, by default ``out/runs/<algo>_<scene>_s<seed>_<timestamp>/``:
 
 - ``config.yml``: everything needed to repeat the run (resolved hyperparameters, seeds,
   versions, command line) and the measured training wall time;
@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import argparse
 import platform
+import shlex
 import shutil
 import sys
 import time
@@ -67,10 +68,11 @@ def build_parser(prog: str | None = None) -> argparse.ArgumentParser:
     p.add_argument("-n", "--n-timesteps", type=int, default=None,
                    help="training steps (default: the hyperparameter file's n_timesteps)")
     p.add_argument("--hyperparams", type=Path, default=None,
-                   help="hyperparameter yml (default: agents/hyperparams/<algo>.yml)")
+                   help="hyperparameter yml (default: the <algo>.yml shipped in "
+                        "fricenv_agents/hyperparams)")
     p.add_argument("-params", "--params", nargs="+", default=[], metavar="KEY:VALUE",
                    help="override hyperparameters, e.g. -params n_envs:8 gamma:0.98")
-    p.add_argument("-f", "--log-folder", type=Path, default=Path("runs"),
+    p.add_argument("-f", "--log-folder", type=Path, default=Path("out/runs"),
                    help="parent folder of the run folder")
     p.add_argument("--run-dir", type=Path, default=None,
                    help="exact run folder (default: <log-folder>/<algo>_<scene>_s<seed>_<time>)")
@@ -236,7 +238,7 @@ def train(args: argparse.Namespace, prepared: tuple | None = None,
         "eval_callback_seeds": [callback_env_seed(seed),
                                 callback_env_seed(seed) + args.eval_episodes - 1],
         "eval_freq": args.eval_freq, "eval_episodes": args.eval_episodes,
-        "command": " ".join(["python -m fricenv_agents.train", *sys.argv[1:]]),
+        "command": getattr(args, "command_line", None) or command_line(None, None),
         "versions": _versions(), "started": datetime.now().isoformat(timespec="seconds"),
         "torch_threads": torch.get_num_threads(),
     }
@@ -318,9 +320,18 @@ def _warm_start(model: Any, env: Any, args: argparse.Namespace, spec: RunSpec,
     return {**summary, "seconds": round(time.perf_counter() - t0, 2)}
 
 
+def command_line(argv: Sequence[str] | None, prog: str | None) -> str:
+    """The shell command that repeats this run, for config.yml: the program as it was
+    started (``fricenv train`` or ``python -m fricenv_agents.train``) and its arguments,
+    quoted, without the ``fricenv`` command's own ``train``."""
+    words = list(sys.argv[1:] if argv is None else argv)
+    return shlex.join([*(prog or "python -m fricenv_agents.train").split(), *words])
+
+
 def main(argv: Sequence[str] | None = None, prog: str | None = None) -> Path:
     parser = build_parser(prog)
     args = parser.parse_args(argv)
+    args.command_line = command_line(argv, prog)
     stage = Stages(parser.prog, args.quiet)
     stage("checking the hyperparameters (loads torch and stable-baselines3)")
     try:

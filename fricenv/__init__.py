@@ -128,14 +128,16 @@ sys.modules[__name__].__class__ = _Package
 # plain module by its name; the subclass needs saying so
 _copyreg.pickle(_Package, _reduce_package)
 
-# The package logs (the compile notice of fricenv.compile_notice) through the "fricenv"
-# logger; as a library it adds only a NullHandler: the application decides what is shown.
 # Intel TBB where numba will look for it, before any parallel kernel chooses the threading
 # layer (fricenv._tbb): the user's own kernels get the thread-safe layer too
 _preload_tbb()
 
+# The package logs through the "fricenv" logger and adds only a NullHandler. The compile
+# notice goes to that logger where the application configured logging, else to stderr
+# (fricenv.compile_notice); importing it hooks it to numba's compile event, which
+# fricenv.jit listens to (it imports neither numba nor a kernel).
 _logging.getLogger(__name__).addHandler(_logging.NullHandler())
-
+from . import compile_notice as _compile_notice  # noqa: E402, F401
 from .envs import register_envs as _register_envs  # noqa: E402
 
 _register_envs()  # gymnasium.make("fricenv/StickSlip-v0") works after `import fricenv`

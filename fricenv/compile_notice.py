@@ -5,24 +5,46 @@ numba compiles a kernel on its first call and keeps the machine code in its on-d
 source, the first call of a workload stalls for tens of seconds with nothing on the
 screen. This module tells, without compiling or loading anything, whether a workload's
 entry kernels are already in the cache (it reads the index file numba keeps beside each
-cached function), and logs one line through the ``fricenv`` logger when they are not:
-what compiles, about how long it takes, and where the cache is. The package adds a
-``NullHandler`` only, so the Python API stays quiet unless the application configures
-logging; the ``fricenv`` command prints these lines to stderr.
+cached function), and tells in one line when they are not: what compiles, about how
+long it takes, and where the cache is.
+
+The commands announce their workloads before they start (:mod:`fricenv.cli._notice`). A
+call from Python is announced as it starts compiling: :mod:`fricenv._compile_listener`
+(installed when :mod:`fricenv.jit` is imported) hears numba's ``numba:compile`` event,
+which fires only on a cache miss, and :func:`compile_starting` names the workload that
+compiles, once per workload and process. Where the line goes:
+
+- ``FRICENV_QUIET=1`` in the environment: nowhere;
+- if the application (or the ``fricenv`` command) has configured logging, a handler on the
+  ``fricenv`` logger or the root logger: to that logger, at INFO, so that logging's
+  own levels and handlers decide (``logging.getLogger("fricenv").setLevel("WARNING")``
+  silences it);
+- otherwise: printed to stderr, ``fricenv: compiling ...``, so that a REPL or notebook
+  user sees why the first call takes tens of seconds.
+
+The listener (:mod:`fricenv._compile_listener`) also sums the seconds spent compiling,
+which :mod:`fricenv.progress` leaves out of its bars' rates.
 """
 
 from __future__ import annotations
 
+import contextlib
 import importlib
 import logging
 import os
-from collections.abc import Iterable
+import sys
+import threading
+from collections.abc import Iterable, Iterator
 from pathlib import Path
 from typing import Any
 
+from . import _compile_listener
 from ._numba_cache import cache_dir_for
 
 logger = logging.getLogger(__name__)
+
+#: The environment variable that silences the notice (any value but "", "0", "false", "no").
+QUIET_ENV = "FRICENV_QUIET"
 
 #: Each workload's entry kernels (the dispatchers Python calls first, which compile
 #: everything they call), per core method: ``"exact"`` (the closed form), ``"event"``,
@@ -204,14 +226,158 @@ def describe(needs: Iterable[tuple[str, str]]) -> str | None:
             f"once; cached in {cache_location()} (fricenv warmup compiles ahead)")
 
 
+def quiet() -> bool:
+    """Whether ``FRICENV_QUIET`` asks for no notice."""
+    return os.environ.get(QUIET_ENV, "").strip().lower() not in ("", "0", "false", "no")
+
+
+def _logging_configured() -> bool:
+    """Whether a handler other than the package's ``NullHandler`` would see a record of the
+    ``fricenv`` loggers (the application's ``basicConfig``, the command's stderr handler)."""
+    log: logging.Logger | None = logger
+    while log is not None:
+        if any(not isinstance(h, logging.NullHandler) for h in log.handlers):
+            return True
+        if not log.propagate:
+            return False
+        log = log.parent
+    return False
+
+
+def emit(message: str) -> bool:
+    """Show ``message`` as the module docstring says (logger, stderr or nowhere); whether
+    it went anywhere."""
+    if quiet():
+        return False
+    if _logging_configured():
+        logger.info(message)
+        return logger.isEnabledFor(logging.INFO)
+    if logging.getLogger("fricenv").level > logging.INFO:  # silenced by its level alone
+        return False
+    print(f"fricenv: {message}", file=sys.stderr, flush=True)
+    return True
+
+
 def announce(needs: Iterable[tuple[str, str]]) -> bool:
-    """Log :func:`describe`'s notice at INFO on the ``fricenv`` logger, if anything will
-    compile; whether it did."""
-    message = describe(needs)
+    """Show :func:`describe`'s notice (:func:`emit`), if anything will compile; whether
+    there was one to show. Its workloads count as announced: the compile they start adds
+    no second line."""
+    pairs = list(dict.fromkeys(needs))
+    message = describe(pairs)
     if message is None:
         return False
-    logger.info(message)
+    _announced.update(x for w, m in pairs for x in (w, f"{w} ({m})"))
+    emit(message)
     return True
+
+
+# -- the notice of calls from Python ----------------------------------------------------------
+#: Workloads already announced in this process (by a command or by the listener).
+_announced: set[str] = set()
+_lock = threading.Lock()
+
+
+def compile_starting(dispatcher: Any) -> None:
+    """Announce the workload that the compile of ``dispatcher`` (a fricenv kernel, its
+    outermost compile) belongs to, unless it has been (:mod:`fricenv._compile_listener`
+    calls this). Once per workload and method: a workload's first compile names the
+    workload (its helpers compile first, before its method is known), a later compile of
+    another method's entry kernel (the event method's sweep after the closed form's)
+    names that method."""
+    workload, method = entry_of(dispatcher)
+    if workload is None and _in_command:
+        return  # (the command announced what it runs; a helper kernel adds nothing)
+    if workload is None:
+        caller = _api_module()
+        workload = next((w for prefix, w in MODULE_WORKLOADS if caller == prefix
+                         or caller.startswith(prefix + ".")), None)
+        if workload is None:  # (a kernel of no known workload: named by its module)
+            workload = caller or dispatcher.py_func.__module__
+    pair = f"{workload} ({method})"
+    with _lock:
+        if method is None:
+            if workload in _announced:
+                return
+        elif pair in _announced:
+            return
+        elif workload in _announced and not any(
+                k.startswith(f"{workload} (") for k in _announced):
+            _announced.add(pair)  # (the workload's first line covered its first method)
+            return
+        _announced.update((workload, pair) if method else (workload,))
+    name = workload if method is None else pair
+    seconds = METHOD_SECONDS.get((workload, method or ""), COMPILE_SECONDS.get(workload))
+    how_long = "up to a minute" if seconds is None else f"about {_duration(seconds)}"
+    emit(f"compiling numba kernels for {name}: {how_long} on 2 cores, once; cached in "
+         f"{cache_location()} ({QUIET_ENV}=1 silences this; fricenv warmup compiles ahead)")
+
+
+_compile_listener.on_compile = compile_starting  # (on import: ``import fricenv`` does)
+
+
+#: The workload a call from Python compiles for, by the module that was called (the first
+#: prefix that matches), when the first kernel that compiles is a helper rather than one of
+#: ``ENTRY_KERNELS`` (``simulate`` compiles its start-state kernels first).
+MODULE_WORKLOADS: tuple[tuple[str, str], ...] = (
+    ("fricenv.simulate", "simulate"),
+    ("fricenv.sweep", "sweep"),
+    ("fricenv.cells", "sweep"),
+    ("fricenv.maps", "sweep"),
+    ("fricenv.envs.vector", "vector_env"),
+    ("fricenv.envs.sb3", "vector_env"),
+    ("fricenv.envs.batch", "vector_env"),
+    ("fricenv.envs", "env"),
+)
+
+#: Whether a ``fricenv`` command runs (it announces its own workloads: :func:`in_command`).
+_in_command = False
+
+
+@contextlib.contextmanager
+def in_command() -> Iterator[None]:
+    """While a ``fricenv`` command runs: the listener announces only entry kernels the
+    command's own notice did not name."""
+    global _in_command
+    before, _in_command = _in_command, True
+    try:
+        yield
+    finally:
+        _in_command = before
+
+
+def entry_of(dispatcher: Any) -> tuple[str | None, str | None]:
+    """``(workload, method)`` of which ``dispatcher`` is an entry kernel; the method is
+    None for a kernel that several methods share, and both for a kernel of no workload.
+    Modules not imported yet are not imported for this: none of their kernels is the one
+    compiling."""
+    owner: str | None = None
+    hits: list[str] = []
+    for workload, methods in ENTRY_KERNELS.items():
+        for method, names in methods.items():
+            for name in names:
+                if name.partition(":")[0] not in sys.modules:
+                    continue
+                try:
+                    hit = resolve(name) is dispatcher
+                except (ImportError, AttributeError, KeyError):
+                    continue
+                if hit and owner in (None, workload):
+                    owner = workload
+                    hits.append(method)
+    return owner, hits[0] if len(hits) == 1 else None
+
+
+def _api_module() -> str:
+    """The module of the outermost fricenv frame on this thread's stack: the fricenv call
+    the application made ("" if none)."""
+    frame: Any = sys._getframe(1)
+    outer = ""
+    while frame is not None:
+        module = frame.f_globals.get("__name__", "")
+        if module == "fricenv" or module.startswith("fricenv."):
+            outer = module
+        frame = frame.f_back
+    return outer
 
 
 def _duration(seconds: float) -> str:

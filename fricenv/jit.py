@@ -101,18 +101,20 @@ def _tbb_loads() -> bool:
 # On import, in this order: TBB is loaded before numba is imported here (numba itself
 # looks for it only when it starts a threading layer), numba's cache is keyed on the
 # package's source before any kernel is decorated (every kernel passes through ``kernel``
-# below), and the threading layer is chosen before any parallel kernel can run. Every
-# fricenv module that imports numba imports this module at its top as well
-# (tests/test_import_graph.py); ``import fricenv`` imports neither.
+# below), the compile notice listens before any kernel can compile, and the threading
+# layer is chosen before any parallel kernel can run. Every fricenv module that imports
+# numba imports this module at its top as well (tests/test_import_graph.py); ``import
+# fricenv`` imports neither.
 TBB_PATH = preload_tbb()
 
 import numba  # noqa: E402
 from numba import njit  # noqa: E402
-from numba.core import types  # noqa: E402
+from numba.core import event, types  # noqa: E402
 
-from . import _numba_cache  # noqa: E402
+from . import _compile_listener, _numba_cache  # noqa: E402
 
 _numba_cache.install(Path(__file__).parent)
+_compile_listener.listen(event)  # a call from Python that compiles says so (fricenv.compile_notice)
 TBB_LOADS = _tbb_loads()
 
 

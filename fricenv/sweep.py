@@ -228,7 +228,7 @@ def _fill_map(params: OscillatorParams, u0: np.ndarray, nu: np.ndarray,
     show = (rmap.done.size > 2000) if progress is None else bool(progress)
     bar = None
     if show:
-        from tqdm.auto import tqdm
+        from .progress import tqdm  # (its rate leaves out compile time)
 
         bar = tqdm(total=rmap.done.size, initial=int(rmap.done.sum()), unit="cell",
                    desc=f"regime map eta={params.eta:.4g} {params.law}", smoothing=0.1)

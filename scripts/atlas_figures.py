@@ -27,7 +27,7 @@ SLICES = (1 / 9, 1 / 5, 5 / 3, 7 / 3)  # Fig. 8's eta values (nearest grid value
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--out", type=Path, default=ROOT / "docs" / "figures")
+    ap.add_argument("--out", type=Path, default=ROOT / "out" / "atlas-figures")
     ap.add_argument("--store", type=Path, default=ROOT / "out" / "atlas_coulomb.zarr")
     ap.add_argument("--scheduler", default=None)
     args = ap.parse_args(argv)

@@ -2,7 +2,7 @@
 
     python scripts/estimator_benchmark.py [--scenes paper self_excited stribeck viscous]
         [--seeds 2] [--episodes 10] [--max-steps N] [--particles 1000]
-        [--plan-from posterior] [--json docs/results/estimator_benchmark.json]
+        [--plan-from posterior] [--json out/estimator_benchmark.json]
 
 On each scene, plants drawn from the scene's randomisation ranges (``randomize=True``)
 and the control benchmark's evaluation episodes: the stick cut against zero excitation

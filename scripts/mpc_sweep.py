@@ -1,7 +1,7 @@
 """Return against compute for the MPC's settings: the sweep behind its defaults.
 
     python scripts/mpc_sweep.py [--scenes stribeck self_excited] [--episodes 8]
-                                [--out docs/results]
+                                [--out out/mpc-sweep]
 
 One setting at a time is varied around the defaults (horizon, samples, iterations,
 temperature, perturbation size), on tuning episodes of their own (plant seeds from
@@ -162,7 +162,7 @@ def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--scenes", nargs="+", default=["stribeck", "self_excited"])
     p.add_argument("--episodes", type=int, default=8)
-    p.add_argument("--out", type=Path, default=Path("docs/results"))
+    p.add_argument("--out", type=Path, default=Path("out/mpc-sweep"))
     p.add_argument("--replot", type=Path, default=None,
                    help="write the table and figure from this mpc_sweep.json, running nothing")
     args = p.parse_args()

@@ -17,7 +17,7 @@ to ``<root>/logs``. Runs use one torch thread each (``--threads 1``).
 The default root is the folder of run folders the package ships and the benchmark reads
 by default, so that from a clean clone this command has nothing to do and ``python -m
 fricenv_agents.benchmark`` evaluates the shipped models; the folder's ``.gitignore`` keeps
-the training logs out of the repository. Train elsewhere (``--root runs/control``) and
+the training logs out of the repository. Train elsewhere (``--root out/runs/control``) and
 pass ``--runs`` to the benchmark to compare fresh runs.
 """
 

@@ -52,7 +52,12 @@ def test_simulate_csv(capsys, tmp_path):
     rows = np.loadtxt(tmp_path / "trajectory.csv", delimiter=",", skiprows=1)
     assert rows.shape[1] == 4
     assert rows[-1, 0] == 10.0
-    assert (tmp_path / "trajectory_events.csv").exists()
+    events = (tmp_path / "trajectory_events.csv").read_text().splitlines()
+    assert events[0] == "t,kind,name,x" and len(events) > 1
+    names = {"1": "stick", "2": "slip", "3": "reversal"}
+    for line in events[1:]:
+        t, kind, name, x = line.split(",")
+        assert names[kind] == name and float(t) >= 0 and float(x) == float(x)
 
 
 @pytest.mark.parametrize(("argv", "message"), [
@@ -133,3 +138,34 @@ def test_atlas_shares_the_plant_options(capsys, tmp_path):
     assert code == 2
     assert "lam must be >= 0, got -1.0" in err
     assert not (tmp_path / "a.zarr").exists()
+
+
+def test_the_simulate_figure_has_one_title_per_fact(capsys, tmp_path, monkeypatch):
+    """The panel names the law and parameters; the figure's title adds the method, span
+    and stick fraction instead of repeating them."""
+    from fricenv import plotting
+
+    figures = []
+    save = plotting.save
+
+    def keep(fig, path, *args, **kwargs):
+        figures.append(fig)
+        return save(fig, path, *args, **kwargs)
+
+    monkeypatch.setattr(plotting, "save", keep)
+    code, _, _ = run(capsys, "simulate", "--method", "rk4", "--t-end", "2", "--out",
+                     str(tmp_path))
+    assert code == 0
+    [fig] = figures
+    title, panel = fig._suptitle.get_text(), fig.axes[0].get_title()
+    assert "η = 0.6" in panel and "η" not in title, (title, panel)
+    assert title.startswith("rk4 method, τ from 0 to 2, stick-time fraction ")
+
+
+def test_the_report_shows_fig2(tmp_path):
+    from fricenv.reproduce import run as reproduce
+
+    report = reproduce(tmp_path, quick=True, progress=False, only=["2"])
+    text = report.read_text()
+    assert "## Fig. 2: the friction laws" in text and "(fig2_friction_laws.png)" in text
+    assert (tmp_path / "fig2_friction_laws.png").is_file()

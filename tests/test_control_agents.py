@@ -141,12 +141,15 @@ def test_benchmark_writes_its_tables_with_a_tiny_robust_run(tmp_path):
                    "IQM of each training seed", "retention, held out (worst side)",
                    "control_profiles.png", "control_benchmark_episodes.csv"):
         assert needle in text, needle
-    # every cell of the main tables is "IQM [lo, hi]" with lo <= IQM <= hi
+    # every cell of the main tables is "IQM [lo, hi]" with lo <= IQM <= hi, on one line
+    # (no-break spaces)
     main = text[:text.index("### Learned controllers")]
-    cells = re.findall(r"\| (-?[\d.]+) \[(-?[\d.]+), (-?[\d.]+)\]", main)
+    cells = re.findall(r"\| (-?[\d.]+)\u00a0\[(-?[\d.]+),\u00a0(-?[\d.]+)\]", main)
     assert len(cells) == 2 * 7
     assert all(float(lo) <= float(est) <= float(hi) for est, lo, hi in cells)
-    assert re.search(r"\| [-+]?[\d.]+ % \[[-\d.]+, [-\d.]+\] \| (yes|no) \|", text)
+    assert re.search(r"\| [-+]?[\d.]+\u00a0%\u00a0\[[-\d.]+,\u00a0[-\d.]+\] \| (yes|no) \|",
+                     text)
+    assert "Stick cut against zero excitation on the same episodes, per condition" in text
     res = json.loads((out / "control_benchmark.json").read_text())
     assert set(res["scenes"]["self_excited"]) == {"zero", "random", "best_constant",
                                                   "feedback", "mpc", "ppo", "ppo_robust"}

@@ -3,8 +3,12 @@
 For each page, the ```python fenced blocks run in order in one namespace, in a temporary
 working directory (files they write land there) with ``MPLBACKEND=Agg``. Conventions:
 
-- a block whose previous non-blank line is ``<!-- skip -->`` is not run (kept for commands
-  that need minutes or a trained run folder; the page says why);
+- a block whose previous non-blank line is ``<!-- skip: REASON -->`` is not run (kept for
+  commands that need minutes or a trained run folder); a mark without a reason fails;
+- a block that starts a Dask ``LocalCluster`` keeps its work under ``if __name__ ==
+  "__main__":`` (spawned workers import the script again), so in the page's namespace it
+  only defines; it is also run as a script in a subprocess, its ``n = ...`` line (the grid
+  size) set to 2;
 - a ```text block that directly follows a ```python block (only blank lines between) is
   that block's expected standard output, compared line by line (trailing spaces ignored).
 
@@ -19,7 +23,10 @@ from __future__ import annotations
 import contextlib
 import difflib
 import io
+import os
 import re
+import subprocess
+import sys
 import unicodedata
 from dataclasses import dataclass
 from pathlib import Path
@@ -28,7 +35,7 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 PAGES = sorted([ROOT / "README.md", *(ROOT / "docs").rglob("*.md")])
-SKIP_MARK = "<!-- skip -->"
+SKIP_MARK = re.compile(r"^<!-- skip(?::\s*(?P<reason>.*?))?\s*-->$")
 _FENCE = re.compile(r"^(?P<indent>[ \t]*)(?P<fence>`{3,}|~{3,})[ \t]*(?P<info>[^`\s]*)")
 
 
@@ -39,6 +46,7 @@ class Block:
     code: str
     skip: bool
     expected: str | None = None  # the following ```text block, for a python block
+    skip_reason: str = ""  # what the skip mark says
 
 
 def fenced_blocks(text: str, name: str) -> list[Block]:
@@ -65,7 +73,9 @@ def fenced_blocks(text: str, name: str) -> list[Block]:
             raise ValueError(f"{name}:{i + 1}: fenced block is never closed")
         code = "\n".join(line[indent:] if not line[:indent].strip() else line
                          for line in lines[start:j])  # the fence's indent removed
-        block = Block(lang, start + 1, code + "\n", prev == SKIP_MARK)
+        mark = SKIP_MARK.match(prev)
+        block = Block(lang, start + 1, code + "\n", mark is not None,
+                      skip_reason=(mark["reason"] or "") if mark else "")
         if (lang == "text" and after_block and blocks and blocks[-1].lang == "python"
                 and blocks[-1].expected is None):
             blocks[-1].expected = block.code
@@ -176,16 +186,69 @@ def test_files_named_in_pages_exist(page: Path) -> None:
     assert not missing, f"{_rel(page)} names files the repository does not have: {missing}"
 
 
+@pytest.mark.parametrize("page", PAGES, ids=_rel)
+def test_skipped_blocks_say_why(page: Path) -> None:
+    unexplained = [b.line for b in fenced_blocks(page.read_text(encoding="utf-8"), _rel(page))
+                   if b.skip and not b.skip_reason]
+    assert not unexplained, (f"{_rel(page)}: blocks at lines {unexplained} are skipped "
+                             "without a reason (<!-- skip: why -->)")
+
+
+def cluster_blocks() -> list[tuple[Path, Block]]:
+    """The Python blocks of the pages that start a Dask cluster."""
+    return [(page, b) for page in PAGES
+            for b in fenced_blocks(page.read_text(encoding="utf-8"), _rel(page))
+            if b.lang == "python" and "LocalCluster(" in b.code]
+
+
+def test_the_cluster_snippets_are_found_and_guarded() -> None:
+    found = cluster_blocks()
+    assert found, "no docs snippet starts a LocalCluster"
+    for page, block in found:
+        assert 'if __name__ == "__main__":' in block.code, f"{_rel(page)}:{block.line}"
+        assert re.search(r"^n = \d+", block.code, re.M), f"{_rel(page)}:{block.line}"
+        assert not block.skip, f"{_rel(page)}:{block.line}"
+
+
+@pytest.mark.parametrize(("page", "block"), cluster_blocks(),
+                         ids=lambda x: _rel(x) if isinstance(x, Path) else str(x.line))
+def test_cluster_snippets_run_as_scripts(page: Path, block: Block, tmp_path: Path) -> None:
+    """Pasted into a file and run with ``python``, on a 2 x 2 grid: the workers spawn,
+    import the script again and do not rerun it."""
+    script = tmp_path / "snippet.py"
+    script.write_text(re.sub(r"^n = \d+", "n = 2", block.code, count=1, flags=re.M))
+    env = {**os.environ, "MPLBACKEND": "Agg",
+           "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")])}
+    res = subprocess.run([sys.executable, str(script)], cwd=tmp_path, env=env,
+                         capture_output=True, text=True, timeout=900)
+    assert res.returncode == 0, f"{_rel(page)}:{block.line}\n{res.stderr[-3000:]}"
+    assert "Traceback" not in res.stderr, res.stderr[-3000:]
+
+
 def test_block_parser() -> None:
     page = "\n".join([
         "text", "```python", "print(1)", "```", "", "```text", "1", "```",
-        SKIP_MARK, "```python", "raise SystemExit", "```",
+        "<!-- skip: slow -->", "```python", "raise SystemExit", "```",
         "- item", "  ```bash", "  echo hi", "  ```",
     ])
     blocks = fenced_blocks(page, "t.md")
     assert [(b.lang, b.skip, b.line) for b in blocks] == [
         ("python", False, 3), ("text", False, 7), ("python", True, 11), ("bash", False, 15)]
     assert blocks[0].expected == "1\n" and blocks[0].code == "print(1)\n"
+    assert blocks[2].skip_reason == "slow"
+    assert fenced_blocks("<!-- skip -->\n```python\n1\n```\n", "t.md")[0].skip
     assert blocks[3].code == "echo hi\n"
     with pytest.raises(ValueError, match="never closed"):
         fenced_blocks("```python\nprint(1)\n", "t.md")
+
+
+def test_one_documented_command_writes_into_docs_results() -> None:
+    """The shipped results are regenerated on purpose only: of all the shell commands the
+    pages show, one names ``docs/results``, the command that regenerates the published
+    benchmark page."""
+    hits = [(_rel(page), line.strip()) for page in PAGES
+            for b in fenced_blocks(page.read_text(encoding="utf-8"), _rel(page))
+            if b.lang in ("bash", "sh", "shell", "console")
+            for line in b.code.splitlines() if "docs/results" in line]
+    assert hits == [("docs/control.md",
+                     "python -m fricenv_agents.benchmark --out docs/results --jobs 2")]

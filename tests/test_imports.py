@@ -33,10 +33,12 @@ _REPORT = ("import json, sys; print(json.dumps({'heavy': [m for m in HEAVY if m 
 
 
 def test_import_fricenv_loads_no_numba() -> None:
-    """The package and the environments' ids, nothing of the kernels."""
+    """The package, the environments' ids and the compile notice (standard library only),
+    nothing of the kernels."""
     got = _fresh("import fricenv; " + _REPORT)
-    assert got == {"heavy": [], "fricenv": ["fricenv", "fricenv._tbb", "fricenv._version",
-                                            "fricenv.envs", "fricenv.envs.ids"]}
+    assert got == {"heavy": [], "fricenv": [
+        "fricenv", "fricenv._compile_listener", "fricenv._numba_cache", "fricenv._tbb",
+        "fricenv._version", "fricenv.compile_notice", "fricenv.envs", "fricenv.envs.ids"]}
 
 
 def test_import_fricenv_is_quick() -> None:
@@ -131,3 +133,19 @@ def test_a_users_own_parallel_kernel_gets_tbb_after_import_fricenv() -> None:
                  "    for i in numba.prange(a.size): a[i] = i\n"
                  "f(np.zeros(4)); print(json.dumps({'layer': numba.threading_layer()}))")
     assert got["layer"] == "tbb"
+
+
+def test_the_main_job_needs_no_torch(tmp_path: Path) -> None:
+    """README's command 1 installs fricenv without the ``rl`` extra: the reproduction and
+    every module it imports run with torch and stable-baselines3 unimportable."""
+    readme = (ROOT / "README.md").read_text()
+    assert "pip install -e . && fricenv reproduce --quick" in readme
+    code = ("import sys, json\n"
+            "sys.modules['torch'] = None; sys.modules['stable_baselines3'] = None\n"
+            "import importlib, pkgutil, fricenv.reproduce as R\n"
+            "for m in pkgutil.iter_modules(R.__path__):\n"
+            "    importlib.import_module(f'fricenv.reproduce.{m.name}')\n"
+            f"R.main(['--quick', '--only', '2', '--quiet', '--out', {str(tmp_path)!r}])\n"
+            "print(json.dumps(sorted(p.name for p in __import__('pathlib').Path("
+            f"{str(tmp_path)!r}).iterdir())))")
+    assert _fresh(code) == ["fig2_friction_laws.png", "report.md"]

@@ -3,6 +3,7 @@ that compiles nothing, and one line on stderr before a command compiles."""
 
 from __future__ import annotations
 
+import json
 import logging
 import os
 import re
@@ -187,19 +188,105 @@ def test_commands_with_parsers_of_their_own_are_announced(monkeypatch, caplog):
     assert "vector_env (event)" in caplog.records[0].getMessage()
 
 
-def test_the_python_api_stays_quiet(tmp_path):
-    """A notice is logged (a handler the application adds sees it), but nothing is printed
-    unless the application configures logging."""
+#: A cold call from Python, timed from the call's start to the first line on stderr.
+API_CALL = """
+import json, sys, time
+import fricenv
+
+class Tap:
+    def __init__(self, stream):
+        self.stream, self.first = stream, None
+    def write(self, text):
+        if self.first is None and text.strip():
+            self.first = time.monotonic() - t0
+        return self.stream.write(text)
+    def flush(self):
+        self.stream.flush()
+
+sys.stderr = Tap(sys.stderr)
+p = fricenv.OscillatorParams(nu=0.1, u0=1.15)
+t0 = time.monotonic()
+fricenv.simulate(p, 1.0, method="rk4")
+print(json.dumps({"first": sys.stderr.first, "call": time.monotonic() - t0}))
+"""
+
+
+def test_a_python_call_says_once_that_it_compiles(tmp_path):
+    """From an empty cache, a call from Python prints one line to stderr within 2 s of its
+    start; FRICENV_QUIET=1 silences it; with the kernels cached there is none. (RK4: the
+    cheapest kernels to compile.)"""
+    cache = tmp_path / "cache"
+    cold = python(API_CALL, cache)
+    assert cold.stderr.count(NOTICE) == 1, cold.stderr
+    line = cold.stderr.strip()
+    assert line.startswith("fricenv: compiling numba kernels for simulate: about ")
+    assert str(cache) in line and "FRICENV_QUIET=1" in line and "fricenv warmup" in line
+    timing = json.loads(cold.stdout)
+    assert timing["first"] is not None and timing["first"] < 2.0, timing
+    warm = python(API_CALL, cache)
+    assert warm.stderr == "" and json.loads(warm.stdout)["first"] is None
+    quiet = subprocess.run(
+        [sys.executable, "-c", API_CALL], capture_output=True, text=True, check=True,
+        timeout=600, cwd=tmp_path, env={**os.environ, "PYTHONPATH": str(ROOT),
+                                        "NUMBA_CACHE_DIR": str(tmp_path / "other"),
+                                        "FRICENV_QUIET": "1"})
+    assert quiet.stderr == "", quiet.stderr
+
+
+def test_configured_logging_decides_where_the_notice_goes(tmp_path):
+    """Without logging configured the notice is printed; with it, it is a record of the
+    ``fricenv`` logger that the application's handlers and levels judge."""
     cache = tmp_path / "cache"
     code = ("import logging, fricenv\n"
             "from fricenv import compile_notice\n"
-            "log = logging.getLogger('fricenv')\n"
-            "assert any(isinstance(h, logging.NullHandler) for h in log.handlers)\n"
             "print(compile_notice.announce([('simulate', 'rk4')]))\n"
             "logging.basicConfig(level=logging.INFO, format='%(name)s %(message)s')\n"
+            "compile_notice.announce([('simulate', 'rk4')])\n"
+            "logging.getLogger('fricenv').setLevel(logging.WARNING)\n"
             "compile_notice.announce([('simulate', 'rk4')])\n")
-    quiet = python(code.replace("logging.basicConfig", "pass  #"), cache)
-    assert quiet.stdout.split() == ["True"] and quiet.stderr == ""
-    configured = python(code, cache)
-    assert configured.stderr.count(NOTICE) == 1
-    assert configured.stderr.startswith("fricenv.compile_notice ")
+    out = python(code, cache)
+    assert out.stdout.split() == ["True"]
+    lines = out.stderr.splitlines()
+    assert len(lines) == 2 and all(NOTICE in line for line in lines), lines
+    assert lines[0].startswith("fricenv: ") and lines[1].startswith("fricenv.compile_notice ")
+
+
+def test_each_workload_and_method_is_announced_once(monkeypatch):
+    """A workload's helpers and its first method's entry kernel make one line; a second
+    method's entry kernel one more; a shared kernel or a helper of an announced workload
+    none; inside a command, only entry kernels the command did not name."""
+    said: list[str] = []
+    monkeypatch.setattr(compile_notice, "_announced", set())
+    monkeypatch.setattr(compile_notice, "emit", said.append)
+    monkeypatch.setattr(compile_notice, "cache_location", lambda: "CACHE")
+    entries: dict[str, tuple[str | None, str | None]] = {
+        "helper": (None, None), "record_exact": ("simulate", "exact"),
+        "cell_exact": ("sweep", "exact"), "cell_event": ("sweep", "event"),
+        "start_episode": ("env", None), "step_event": ("env", "event")}
+    monkeypatch.setattr(compile_notice, "entry_of", lambda d: entries[d.name])
+    monkeypatch.setattr(compile_notice, "_api_module", lambda: "fricenv.simulate")
+
+    class Kernel:
+        def __init__(self, name: str) -> None:
+            self.name = name
+            self.py_func = self  # (named by its module when no workload matches)
+            self.__module__ = "fricenv.somewhere"
+
+    for name in ("helper", "record_exact", "helper", "cell_exact", "cell_event",
+                 "cell_event", "start_episode", "step_event"):
+        compile_notice.compile_starting(Kernel(name))
+    assert [line.split(":")[0] for line in said] == [
+        "compiling numba kernels for simulate", "compiling numba kernels for sweep (exact)",
+        "compiling numba kernels for sweep (event)", "compiling numba kernels for env"]
+    assert "about 20 s" in said[0] and "CACHE" in said[0] and "FRICENV_QUIET=1" in said[0]
+    said.clear()
+    # (the command's own notice, ``announce``, marks its pairs as announced)
+    compile_notice._announced.update({"vector_env", "vector_env (event)"})
+    with compile_notice.in_command():
+        compile_notice.compile_starting(Kernel("helper"))
+        entries["step_batch"] = ("vector_env", "event")
+        compile_notice.compile_starting(Kernel("step_batch"))
+        entries["step_exact"] = ("env", "exact")
+        compile_notice.compile_starting(Kernel("step_exact"))
+    assert [line.split(":")[0] for line in said] == [
+        "compiling numba kernels for env (exact)"]

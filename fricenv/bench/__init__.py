@@ -35,3 +35,47 @@ def stage(text: str) -> None:
 def show_progress() -> bool:
     """Whether progress bars should be drawn: when stage lines are shown."""
     return LOGGER.isEnabledFor(logging.INFO)
+
+
+#: The option of the benchmarks that check bounds: report the numbers, judge nothing.
+REPORT_ONLY_HELP = ("report the measurements and which bounds they miss, but exit 0: for "
+                    "a busy machine, where timing bounds say more about the load than the "
+                    "code")
+
+
+def machine_load() -> str:
+    """The machine's load as the verdict states it: the load averages over 1, 5 and 15
+    minutes (``os.getloadavg``, where the system has it) and the number of cores."""
+    import os
+
+    cores = os.cpu_count() or 1
+    try:
+        one, five, fifteen = os.getloadavg()
+    except (AttributeError, OSError):  # (Windows)
+        return f"load average unavailable, {cores} cores"
+    return (f"load average {one:.2f}, {five:.2f}, {fifteen:.2f} over 1, 5, 15 min on "
+            f"{cores} cores")
+
+
+def verdict(failures: list[str], report_only: bool) -> int:
+    """Print the verdict of a benchmark that checks bounds and return its exit status.
+
+    ``failures``: one line per bound that does not hold, naming the bound and the value
+    measured (e.g. ``"bound 2 (single / vector >= 20), fricenv/StickSlip-v0: measured
+    14.31"``). The verdict names each, with the machine's load at the end of the run, since
+    a loaded machine fails timing bounds that an idle one meets. ``report_only``: the same
+    lines, as a report, and status 0."""
+    load = machine_load()
+    if not failures:
+        print(f"PASS: every bound holds ({load})")
+        return 0
+    head = ("NOT JUDGED (--report-only): these bounds are missed" if report_only
+            else "FAIL: these bounds do not hold")
+    print(f"{head}, with the machine at {load}:")
+    for line in failures:
+        print(f"  - {line}")
+    if report_only:
+        return 0
+    print("  Timing bounds depend on the load: rerun on an idle machine, or pass "
+          "--report-only to report without judging.")
+    return 1

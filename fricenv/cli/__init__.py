@@ -153,9 +153,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     why = None if argv[0] in COMMANDS else _unavailable(argv[0])
     if why is not None:
         parser.error(f"fricenv {argv[0]} {why}: {PLUGIN_INSTALL}")
+    from fricenv import compile_notice
     from fricenv.cli import _notice
 
-    with _notice.log_to_stderr(quiet="--quiet" in argv[1:]):
+    with _notice.log_to_stderr(quiet="--quiet" in argv[1:]), compile_notice.in_command():
         _notice.announce_command(argv[0], argv[1:])
         status = command_main(argv[0])(argv[1:], prog=f"fricenv {argv[0]}")
     return status if isinstance(status, int) else 0

@@ -42,7 +42,8 @@ def build_parser(prog: str | None = None) -> argparse.ArgumentParser:
 
 def write_data(tr: Trajectory, path: Path, fmt: str) -> Path:
     """The trajectory's samples (t, x, v, mode) and events, as npz or CSV (events in a
-    second file ``<stem>_events.csv``)."""
+    second file ``<stem>_events.csv``, whose ``kind`` codes come with their names, so that
+    the file reads without the package: 1 stick, 2 slip, 3 reversal)."""
     if fmt == "npz":
         path = path.with_suffix(".npz")
         np.savez(path, t=tr.t, x=tr.x, v=tr.v, mode=tr.mode, event_t=tr.event_t,
@@ -51,9 +52,12 @@ def write_data(tr: Trajectory, path: Path, fmt: str) -> Path:
     path = path.with_suffix(".csv")
     np.savetxt(path, np.column_stack([tr.t, tr.x, tr.v, tr.mode]), delimiter=",",
                header="t,x,v,mode", comments="", fmt=["%.17g", "%.17g", "%.17g", "%d"])
-    np.savetxt(path.with_name(path.stem + "_events.csv"),
-               np.column_stack([tr.event_t, tr.event_kind, tr.event_x]), delimiter=",",
-               header="t,kind,x", comments="", fmt=["%.17g", "%d", "%.17g"])
+    from fricenv.simulate import EVENT_NAMES
+
+    lines = ["t,kind,name,x"] + [
+        f"{t:.17g},{int(k)},{EVENT_NAMES.get(int(k), 'unknown')},{x:.17g}"
+        for t, k, x in zip(tr.event_t, tr.event_kind, tr.event_x, strict=True)]
+    path.with_name(path.stem + "_events.csv").write_text("\n".join(lines) + "\n")
     return path
 
 
@@ -74,7 +78,9 @@ def main(argv: Sequence[str] | None = None, prog: str | None = None) -> int:
         parser.exit(1, f"{parser.prog}: error: {e}\n")
     args.out.mkdir(parents=True, exist_ok=True)
     data = write_data(tr, args.out / "trajectory", args.format)
-    title = f"{params.law}, η = {params.eta:.4g}, ν = {params.nu:.4g}, u0 = {params.u0:.4g}"
+    # (the panel's title names the law and the parameters; the figure's adds the run's facts)
+    title = (f"{tr.method} method, τ from 0 to {args.t_end:g}, stick-time fraction "
+             f"{tr.stick_fraction:.3f}")
     png = plotting.save(plotting.time_history_figure([tr], suptitle=title),
                         args.out / "time_history.png")
     for key, value in tr.summary().items():

@@ -13,6 +13,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import multiprocessing
+import os
 import sys
 import time
 from collections.abc import Callable, Iterator, Sequence
@@ -77,11 +78,19 @@ def _in_workers(todo: list[Part], parallel: bool,
     interpreter, whatever threads or numba threading layer this process has started."""
     context = multiprocessing.get_context("spawn")
     run = importlib.import_module("fricenv.warmup").run_part  # (what the workers import)
-    with ProcessPoolExecutor(max_workers=min(n_jobs, len(todo)), mp_context=context) as pool:
+    with ProcessPoolExecutor(max_workers=min(n_jobs, len(todo)), mp_context=context,
+                             initializer=_quiet_worker) as pool:
         futures: dict[Future[float], str] = {
             pool.submit(run, part, parallel): part.name for part in todo}
         for future in as_completed(futures):
             yield futures[future], future.result()
+
+
+def _quiet_worker() -> None:
+    """A worker's compile adds no notice of its own: this process announced them all."""
+    from fricenv.compile_notice import QUIET_ENV
+
+    os.environ[QUIET_ENV] = "1"
 
 
 def table(took: dict[str, float], cached: dict[str, bool], wall: float) -> str:

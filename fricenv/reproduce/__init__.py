@@ -117,6 +117,11 @@ def run(out: str | os.PathLike, quick: bool = False, docs: str | os.PathLike | N
             from .. import plotting
 
             plotting.save(plotting.friction_laws_figure(), out / "fig2_friction_laws.png")
+            rep.add("## Fig. 2: the friction laws", "", "![Fig. 2](fig2_friction_laws.png)",
+                    "", "The friction force against the relative velocity for each "
+                    "named friction law of fricenv, with "
+                    "the stick interval [-x_fs, x_fs] at v_r = 0. The paper states no "
+                    "observation on this figure to check.", "")
         elif part == "3":
             fig3(rep, out, res, settings, n_threads, timings)
         elif part == "4-7":
