@@ -76,9 +76,9 @@ def resolve_law(name: str) -> str:
 
 
 #: Fastest relaxation of slip, |dv'/dv| near the belt speed (``FrictionLaw.stiffness``),
-#: that the event method runs: its Taylor steps are about 2.5 / |dv'/dv| long, and a recorded run takes
-#: Taylor steps only, so past this a unit of time needs over 4e4 steps. Measured on
-#: ``OscillatorParams(b1=b, u0=5, nu=1)`` over 100 units: ``run_stats`` and ``simulate``
+#: that the event method runs: its Taylor steps are about 2.5 / |dv'/dv| long, and a
+#: recorded run takes Taylor steps only, so past this a unit of time needs over 4e4 steps.
+#: Measured on ``OscillatorParams(b1=b, u0=5, nu=1)`` over 100 units: ``run_stats`` and ``simulate``
 #: agreed to 2e-5 in the stick fraction up to b = -1e5 (1.1 s); at b = -1e6 ``simulate``
 #: ran out of its step budget, and from b = -1e7 both did, or blamed chattering.
 SLIP_STIFFNESS_LIMIT = 1e5
