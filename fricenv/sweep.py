@@ -76,6 +76,7 @@ from .checks import (
     got,
 )
 from .layout import N_STATS
+from .regimes import check_periodicity_settings
 from .maps import (
     _RESERVED_META,
     ALGORITHM,
@@ -173,6 +174,7 @@ def regime_map(params: OscillatorParams | str, u0: object, nu: object, *,
         raise ValueError(f"a grid of u0 ({u0.size} values) x nu ({nu.size} values) has "
                          f"{u0.size * nu.size} cells, more than MAX_CELLS = {MAX_CELLS}")
     settings = settings_with(settings, overrides)
+    check_periodicity_settings(settings.q_max, settings.m_max, settings.n_strobe)
     settings.method_code(params)  # ValueError for 'exact' on another law than Coulomb
     resume = check_bool("resume", resume)
     if progress is not None:
@@ -311,6 +313,7 @@ def cell_statistics(params: list[OscillatorParams], settings: SweepSettings | No
                 f"params[{i}] must be an OscillatorParams, {got(p)}"
             )
     settings = settings_with(settings, overrides)
+    check_periodicity_settings(settings.q_max, settings.m_max, settings.n_strobe)
     if settings.method == "exact":
         for i, p in enumerate(params):  # the method must suit every entry
             try:

@@ -147,7 +147,7 @@ def _sweep(law: str, parallel: bool) -> None:
     from .sweep import cell_statistics
 
     p = OscillatorParams.preset(law, u0=1.0, nu=0.5)
-    cell_statistics([p], transient_min=1.0, window_min=1.0, n_strobe=2)
+    cell_statistics([p], transient_min=1.0, window_min=1.0, q_max=0, n_strobe=2)
 
 
 def _env(scene: str, parallel: bool) -> None:

@@ -35,6 +35,7 @@ from ..cells import (
     settings_with,
 )
 from ..checks import check_int, got, real_array
+from ..regimes import check_periodicity_settings
 from ..layout import (
     ST_DURATION,
     ST_N_REVERSAL,
@@ -308,6 +309,7 @@ def make_spec(base: object, axes: object, settings: Any, chunks: object,
     base = _check_base(base)
     axes = _check_axes(axes, base)
     settings = settings_with(settings, {})
+    check_periodicity_settings(settings.q_max, settings.m_max, settings.n_strobe)
     shape = tuple(a.size for a in axes.values())
     _check_cells(axes, base, settings)
     return AtlasSpec(base, axes, settings, check_chunks(chunks, list(axes), shape, n_threads))
