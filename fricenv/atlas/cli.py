@@ -24,7 +24,7 @@ from typing import Any
 import numpy as np
 
 from ..cli import _notice
-from ..cli._args import add_plant_arguments, grid, parser, plant
+from ..cli._args import add_plant_arguments, grid, parser, plant, positive_int, unique_axes
 
 #: The command's description and examples (``--help``).
 DESCRIPTION = ("Compute the regime of every cell of a grid over any parameters into a "
@@ -81,7 +81,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     where.add_argument("--scheduler", default=None, metavar="ADDRESS",
                        help="a running Dask scheduler (tcp://host:8786); default: "
                             "this machine's threads")
-    where.add_argument("--local-workers", type=int, default=None, metavar="N",
+    where.add_argument("--local-workers", type=positive_int, default=None, metavar="N",
                        help="start a local Dask cluster of N single-threaded workers")
     parser.add_argument("--no-progress", action="store_true",
                         help="no progress bar (the stage line stays)")
@@ -95,9 +95,7 @@ def run(args: argparse.Namespace) -> int:
     from .api import atlas
 
     try:
-        axes = dict(parse_axis(a) for a in args.axis)
-        if len(axes) != len(args.axis):
-            raise ValueError("--axis: a parameter is given twice")
+        axes = unique_axes([parse_axis(a) for a in args.axis])
         base = plant(args)
         settings = SweepSettings(**parse_settings(args.settings))
     except (TypeError, ValueError) as exc:

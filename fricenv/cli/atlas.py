@@ -6,6 +6,7 @@ import argparse
 from collections.abc import Sequence
 
 from fricenv.cli import _notice
+from fricenv.cli._args import interrupted
 from fricenv.compile_notice import method_for_law
 
 
@@ -18,4 +19,7 @@ def main(argv: Sequence[str] | None = None, prog: str | None = None) -> int:
     p = cli.build_parser(prog)
     args = p.parse_args(argv)
     _notice.announce(lambda: [("sweep", method_for_law(args.law or "coulomb"))])
-    return cli.run(args)
+    try:
+        return cli.run(args)
+    except KeyboardInterrupt as e:  # (SweepInterrupted: the finished chunks are stored)
+        return interrupted(p.prog, e, f"finished chunks are in {args.out} (rerun to resume)")
