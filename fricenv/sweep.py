@@ -76,7 +76,6 @@ from .checks import (
     got,
 )
 from .layout import N_STATS
-from .regimes import check_periodicity_settings
 from .maps import (
     _RESERVED_META,
     ALGORITHM,
@@ -93,6 +92,7 @@ from .params import (
     OscillatorParams,
     resolve_law,
 )
+from .regimes import check_periodicity_settings
 
 #: Most cells a regime map may have: its arrays take about 100 bytes a cell (10 GB at the
 #: cap), allocated before the first cell runs; a larger grid is refused naming its size.

@@ -35,7 +35,6 @@ from ..cells import (
     settings_with,
 )
 from ..checks import check_int, got, real_array
-from ..regimes import check_periodicity_settings
 from ..layout import (
     ST_DURATION,
     ST_N_REVERSAL,
@@ -49,6 +48,7 @@ from ..params import (
     OscillatorParams,
     resolve_law,
 )
+from ..regimes import check_periodicity_settings
 
 #: Parameters an atlas may sweep: every numeric field of OscillatorParams that sets a cell
 #: (u1 and u2 are not: both tones get amplitude u0, as in a regime map).

@@ -213,7 +213,8 @@ def main(argv: Sequence[str] | None = None, prog: str | None = None) -> int:
     except KeyboardInterrupt as e:
         from fricenv.cli._args import interrupted
 
-        return interrupted(ap.prog, e, f"finished maps and cells are kept in {out} (rerun to resume)")
+        return interrupted(ap.prog, e,
+                           f"finished maps and cells are kept in {out} (rerun to resume)")
     print(f"wrote {path} and figures in {out} ({time.perf_counter() - t0:.1f} s)")
     return 0
 
