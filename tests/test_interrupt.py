@@ -293,3 +293,62 @@ def _signalled_run(run_stoppable, signalled: type[Exception], main: int, delay: 
         time.sleep(1.0)  # (not reached: the signal comes first)
     timer.join()
     return began.is_set(), returned.is_set()
+
+
+def test_a_dask_stop_never_waits_for_chunks_no_worker_runs() -> None:
+    """``distributed.wait`` raises on its timeout: a stop with chunks queued and no worker
+    to run them (a cluster of none, or workers killed by the terminal's Ctrl-C) ended in a
+    bare TimeoutError after 10 s, having cancelled nothing."""
+    from distributed import Client, LocalCluster
+
+    from fricenv.atlas import core
+    from fricenv.atlas import distributed as D
+
+    with LocalCluster(n_workers=0, processes=False, dashboard_address=None) as cluster, \
+            Client(cluster) as client:
+        spec = core.make_spec("coulomb", {"u0": [1.0, 2.0, 3.0]}, None, 1, 1)
+        run = D.DistributedRun(client, core.chunk_tasks(spec))
+        for task in core.chunk_tasks(spec):
+            run._submit(task)
+        start = time.monotonic()
+        kept = run.stop()
+        assert time.monotonic() - start < 2.0
+        assert kept == [] and not run.pending
+
+
+def test_a_worker_process_under_a_nanny_ignores_the_terminals_ctrl_c():
+    """Ctrl-C in a terminal reached a local cluster's worker processes and ended them with
+    the chunks they held; their warm-up now shields those a nanny manages, not a worker
+    that is its own program (no nanny) or a thread of another."""
+    from distributed import Client, LocalCluster
+
+    from fricenv.atlas.distributed import shield_from_terminal_ctrl_c
+
+    before = signal.getsignal(signal.SIGINT)
+    try:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+        assert not shield_from_terminal_ctrl_c(has_nanny=False)
+        assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+        out: list[bool] = []
+        t = threading.Thread(target=lambda: out.append(shield_from_terminal_ctrl_c(True)))
+        t.start()
+        t.join()
+        assert out == [False] and signal.getsignal(signal.SIGINT) is signal.default_int_handler
+        assert shield_from_terminal_ctrl_c(has_nanny=True)
+        assert signal.getsignal(signal.SIGINT) is signal.SIG_IGN
+    finally:
+        signal.signal(signal.SIGINT, before)
+
+    def handler() -> str:  # (in the worker process)
+        return str(signal.getsignal(signal.SIGINT))
+
+    def shield(dask_worker) -> bool:  # (as WarmKernels.setup does, in the worker process)
+        from fricenv.atlas.distributed import shield_from_terminal_ctrl_c
+
+        return shield_from_terminal_ctrl_c(bool(getattr(dask_worker, "nanny", None)))
+
+    with LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
+                      dashboard_address=None) as cluster, Client(cluster) as client:
+        assert list(client.run(handler).values()) != [str(signal.SIG_IGN)]
+        assert list(client.run(shield).values()) == [True]
+        assert list(client.run(handler).values()) == [str(signal.SIG_IGN)]

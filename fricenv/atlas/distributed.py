@@ -55,18 +55,17 @@ def warm_kernels() -> None:
         compute_chunk(task, 1)
 
 
-def shield_from_terminal_ctrl_c() -> bool:
-    """Ignore SIGINT in this worker process if it has Python's default handler, and say
-    whether it did.
+def shield_from_terminal_ctrl_c(has_nanny: bool) -> bool:
+    """Ignore SIGINT in this worker process if a nanny manages it, and say whether it did.
 
     Ctrl-C in a terminal reaches every process of the foreground group: a local cluster's
-    worker processes too, where the KeyboardInterrupt killed the worker with the chunks it
-    held, finished or not, while the client waited for them to hand back their cells. A
-    worker stops on the run's stop event instead, and its nanny (or the cluster) ends it.
-    A handler of someone else's (a ``dask worker --no-nanny`` process's own) is left
-    alone, and so is a worker that is a thread of the client's process."""
-    if (threading.current_thread() is not threading.main_thread()
-            or signal.getsignal(signal.SIGINT) is not signal.default_int_handler):
+    worker processes too, where it ended the worker (its ``asyncio`` runner's handler
+    cancels the worker) with the chunks it held, finished or not, while the client waited
+    for them to hand back their cells. A worker stops on the run's stop event instead,
+    and its nanny, which keeps its own handling of signals, ends it. A worker without a
+    nanny (``dask worker --no-nanny``: its own process, its own Ctrl-C) is left alone,
+    and so is a worker that is a thread of another program."""
+    if not has_nanny or threading.current_thread() is not threading.main_thread():
         return False
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     return True
@@ -80,7 +79,7 @@ class WarmKernels(WorkerPlugin):
     setups = 0  # (per worker process: how often it warmed, for tests)
 
     def setup(self, worker: object) -> None:
-        shield_from_terminal_ctrl_c()
+        shield_from_terminal_ctrl_c(bool(getattr(worker, "nanny", None)))
         warm_kernels()
         self.setups += 1
 
