@@ -356,12 +356,13 @@ def install(package_dir: str | Path) -> bool:
                 return None  # not ours: numba's own locators take it
             own = None
             if folder is not None and not _numba_cache_dir():
-                own = cls(py_func, py_file, str(folder.joinpath(*rel.parent.parts)), None)
+                own_path = str(folder.joinpath(*rel.parent.parts))
+                own = cls(py_func, py_file, own_path, None)
                 try:
                     caching._CacheLocator.ensure_cache_path(own)  # (numba's: raises)
                     return own
                 except OSError:
-                    if os.path.isdir(own._path):
+                    if os.path.isdir(own_path):
                         return own  # a warm cache that cannot be written: read it
             for locator_class in numba_locators:
                 inner = locator_class.from_function(py_func, py_file)
@@ -384,7 +385,7 @@ def install(package_dir: str | Path) -> bool:
 
         def get_cache_path(self):
             path = self._path if self._inner is None else self._inner.get_cache_path()
-            _OURS.add(path)
+            _OURS.add(str(path))  # (the folders whose files are sealed and checked)
             return path
 
         def get_source_stamp(self):
