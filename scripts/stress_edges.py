@@ -160,8 +160,8 @@ _STATISTICS = """
     x = np.arange(8.0).reshape(2, 4)
     case("axis out of range", lambda: S.iqm(x, axis=5), "axis")
     case("string confidence", lambda: S.iqm_ci(x, confidence="0.9", n_boot=10), "confidence")
-    case("n_boot 1e9", lambda: S.iqm_ci(x, n_boot=10**9), "n_boot")
     case("empty tau_grid", lambda: S.tau_grid([]), "cell")
+    case("n_boot 1e9", lambda: S.iqm_ci(x, n_boot=10**9), "n_boot")  # (last: 37 GiB)
 """
 
 
@@ -396,6 +396,9 @@ def _signalled(code: str, args: list[str], env: dict, cwd: Path, ready: str, aft
         if line.strip() == ready:
             break
     time.sleep(after)
+    if proc.poll() is not None:  # (ended before the signal: nothing to judge)
+        out, err = proc.communicate()
+        return None, proc.returncode, "".join(lines) + out + "\nENDED-BEFORE", err, 0.0
     sent = time.perf_counter()
     (os.killpg if group else os.kill)(proc.pid, sig)
     try:
@@ -521,7 +524,7 @@ _SMALLER = """
     case("warmup(parallel='no')", lambda: W.warmup(workloads=["sweep"], parallel="no"),
          "parallel", accepted)
     case("warmup(laws='coulomb')", lambda: W.warmup(laws="coulomb", workloads=["sweep"]),
-         "'coulomb'", lambda r: [] if list(r) == ["sweep:coulomb"] else [f"ran {list(r)}"])
+         "laws", lambda r: [] if list(r) == ["sweep:coulomb"] else [f"ran {list(r)}"])
     (tmp / "file").write_text("x")
     case("simulate --out under a file",
          lambda: cli("simulate", "--t-end", "50", "--out", str(tmp / "file" / "run")),
@@ -533,15 +536,25 @@ _SMALLER = """
     import shutil
     for suffix in (".zip", "_vecnormalize.pkl", ".yml"):
         shutil.copy(src / f"ppo_paper{suffix}", tmp / f"ppo_paper{suffix}")
-    (tmp / "ppo_paper.zip").write_bytes((tmp / "ppo_paper.zip").read_bytes()[:300])
-    case("damaged model file", lambda: load_controller(tmp / "ppo_paper.zip"), "ppo_paper.zip",
-         accepted)
+    model, norm = tmp / "ppo_paper.zip", tmp / "ppo_paper_vecnormalize.pkl"
+    good_model, good_norm = model.read_bytes(), norm.read_bytes()
+    flipped = bytearray(good_model)
+    for k in range(len(flipped) // 3, len(flipped) // 3 + 64):  # (inside a member's data)
+        flipped[k] ^= 0x5A
+    model.write_bytes(bytes(flipped))
+    case("damaged model file", lambda: load_controller(model), "ppo_paper.zip", accepted)
+    model.write_bytes(good_model)
+    norm.write_bytes(good_norm[:len(good_norm) // 2])
+    case("damaged normalisation file", lambda: load_controller(model),
+         "ppo_paper_vecnormalize.pkl", accepted)
 """
 
+#: Commands that run well past the signal (Stribeck cells: tens of seconds on 2 cores).
 _CTRL_C = {
-    "map": ["map", "--u0", "geom:0.5:50:40", "--nu", "lin:0.1:3:40", "--no-progress"],
-    "atlas": ["atlas", "--axis", "u0=geom:0.5:50:40", "--axis", "nu=lin:0.1:3:40",
-              "--no-progress"],
+    "map": ["map", "--law", "stribeck", "--u0", "geom:0.5:50:150", "--nu", "lin:0.1:3:150",
+            "--no-progress"],
+    "atlas": ["atlas", "--law", "stribeck", "--axis", "u0=geom:0.5:50:150", "--axis",
+              "nu=lin:0.1:3:150", "--no-progress"],
     "reproduce": ["reproduce", "--quick", "--no-progress"],
 }
 
@@ -553,9 +566,11 @@ def ctrl_c_probe(command: list[str], pythonpath: str | None) -> Outcome:
             "print('go', flush=True)\nfrom fricenv.cli import main\nsys.exit(main())\n")
     with tempfile.TemporaryDirectory() as tmpdir:
         tmp = Path(tmpdir)
-        latency, rc, _, err, _ = _signalled(code, [*command, "--out", str(tmp / "out")],
-                                            _env(pythonpath, tmp), tmp, "go", 3.0, False,
-                                            signal.SIGINT)
+        latency, rc, out, err, _ = _signalled(code, [*command, "--out", str(tmp / "out")],
+                                              _env(pythonpath, tmp), tmp, "go", 3.0, False,
+                                              signal.SIGINT)
+    if out.endswith("ENDED-BEFORE"):
+        return Outcome("returned", 0.0, error=f"exit {rc} before the signal: not judged")
     if latency is None:
         return Outcome("hang", 30.0, error="no exit within 2 s of Ctrl-C")
     if rc == 130 and "Traceback" not in err:
