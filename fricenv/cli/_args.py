@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import argparse
 import math
+import signal
+import sys
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -183,9 +185,6 @@ def interrupted(prog: str, exc: KeyboardInterrupt, where: str = "") -> int:
     """Report a Ctrl-C (or a SIGTERM that stopped a sweep) in one line and return the
     shell's status for it, ``128 + signal`` (130 for Ctrl-C), as ``fricenv train`` does:
     a traceback there says nothing the user does not know. ``where``: what was kept."""
-    import signal
-    import sys
-
     signum = int(getattr(exc, "signum", signal.SIGINT))
     print(f"{prog}: interrupted ({signal.Signals(signum).name})"
           + (f"; {where}" if where else ""), file=sys.stderr, flush=True)
