@@ -456,9 +456,9 @@ def dask_probe(group: bool, pythonpath: str | None) -> Outcome:
 _TRAIN = """
     import os, sys, threading, time
     from fricenv_agents import train
-    config = sys.argv[1] + "/run/config.yml"
-    def ready():  # (config.yml is written just before learning starts)
-        while not os.path.exists(config):
+    progress = sys.argv[1] + "/run/progress.csv"
+    def ready():  # (a first row of progress.csv: learning runs, its kernels compiled)
+        while not (os.path.exists(progress) and len(open(progress).readlines()) >= 2):
             time.sleep(0.05)
         print("go", flush=True)
     threading.Thread(target=ready, daemon=True).start()
@@ -473,7 +473,7 @@ def train_probe(pythonpath: str | None) -> Outcome:
     with tempfile.TemporaryDirectory() as tmpdir:
         tmp = Path(tmpdir)
         latency, rc, out, err, _ = _signalled(textwrap.dedent(_TRAIN), [str(tmp)],
-                                              _env(pythonpath, tmp), tmp, "go", 2.0, False,
+                                              _env(pythonpath, tmp), tmp, "go", 1.0, False,
                                               signal.SIGTERM)
         run = tmp / "run"
         saved = (run / "model.zip").exists()
