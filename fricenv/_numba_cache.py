@@ -226,6 +226,19 @@ class _Damaged(OSError):
     numba's ``IndexDataCacheFile.load`` turns into a cache miss)."""
 
 
+def _stale_index(raw: bytes, version: str, stamp: str) -> bool:
+    """Whether an index that fails its seal is one numba wrote for another numba version
+    or source (in a ``NUMBA_CACHE_DIR`` or ``__pycache__`` folder that an older fricenv
+    filled): a plain miss, not damage to report."""
+    try:
+        stream = io.BytesIO(raw)
+        if pickle.load(stream) != version:
+            return True
+        return bool(pickle.loads(stream.read())[0] != stamp)
+    except Exception:  # (unreadable: damage)
+        return False
+
+
 def _guard_cache_files(caching: Any) -> None:
     """For the package's kernels (folders in ``_OURS``): seal each index and data file
     numba writes (:func:`seal`, in the same atomic write, so concurrent writers never
@@ -254,7 +267,8 @@ def _guard_cache_files(caching: Any) -> None:
             if not isinstance(overloads, dict):
                 raise _Damaged(f"{self._index_name} holds no index")
         except Exception as exc:  # (EOFError, UnpicklingError, UnicodeDecodeError, ...)
-            _report_damage(self._cache_path, self._index_name, exc)
+            if not _stale_index(raw, self._version, self._source_stamp):
+                _report_damage(self._cache_path, self._index_name, exc)
             return {}
         return overloads if stamp == self._source_stamp else {}
 

@@ -278,3 +278,17 @@ def test_a_warm_read_only_cache_is_used_and_none_compiles_in_memory(tmp_path):
     lines = [line for line in err.splitlines() if "NumbaCacheWarning" in line]
     assert len(lines) == 1 and "no writable numba cache" in lines[0], err
     assert sorted(p for p in tmp_path.rglob("*")) == before  # nothing written anywhere
+
+
+def test_an_unsealed_index_of_another_source_is_a_silent_miss(tmp_path):
+    """An index that an older fricenv left in a shared folder (``NUMBA_CACHE_DIR``, or
+    ``__pycache__``) has no seal, but is stale, not damaged: nothing is said about it."""
+    import pickle
+
+    _toy_package(tmp_path)
+    assert _toy_run(tmp_path)[:2] == ("2", "False")
+    folder = next((tmp_path / "xdg" / "cachepkg" / "numba").iterdir())
+    (index,) = folder.glob("user.twice-*.nbi")
+    index.write_bytes(pickle.dumps(numba.__version__) + pickle.dumps(("another source", {})))
+    assert _toy_run(tmp_path) == ("2", "False", "")
+    assert _toy_run(tmp_path) == ("2", "True", "")
