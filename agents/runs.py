@@ -44,6 +44,20 @@ def find_vecnormalize(model_path: Path) -> Path | None:
     return None
 
 
+def _read_config(cfg_file: Path) -> dict:
+    """A run's config as a dict; ``ValueError`` naming the file when it is damaged (YAML's
+    or the decoder's own error named no file)."""
+    try:
+        config = yaml.safe_load(cfg_file.read_text()) or {}
+    except (yaml.YAMLError, UnicodeDecodeError) as e:
+        raise ValueError(f"{cfg_file}: cannot read the run config ({type(e).__name__}: "
+                         f"{e})") from None
+    if not isinstance(config, dict):
+        raise ValueError(f"{cfg_file}: a run config must be a mapping, got a "
+                         f"{type(config).__name__}")
+    return config
+
+
 def locate_model(path: str | Path, algo: str | None = None) -> tuple[Path, dict, str]:
     """(model file, run config, algorithm) of a run folder (``config.yml`` + ``model.zip``)
     or a model file, without loading it; ``ValueError`` saying what is missing.
@@ -65,7 +79,7 @@ def locate_model(path: str | Path, algo: str | None = None) -> tuple[Path, dict,
         if not cfg_file.exists():
             cfg_file = path.parent / "config.yml"
     if cfg_file.exists():
-        config = yaml.safe_load(cfg_file.read_text()) or {}
+        config = _read_config(cfg_file)
     if not model_path.exists():
         raise ValueError(f"no model at {model_path}" + (
             " (an unfinished training run?)" if path.is_dir() else ""))
@@ -82,13 +96,23 @@ def load_controller(path: str | Path, algo: str | None = None) -> tuple[TrainedC
     """Load a run folder or a model file (see ``locate_model``); returns the controller
     and the run config (empty for a bare file)."""
     model_path, config, algo = locate_model(path, algo)
-    model = algo_class(algo).load(model_path, device="cpu")
+    # SB3, zipfile, torch and pickle each raise their own error for a damaged file (a
+    # BadZipFile, an EOFError, an UnpicklingError), and none names the file
+    try:
+        model = algo_class(algo).load(model_path, device="cpu")
+    except Exception as e:
+        raise ValueError(f"{model_path}: cannot load the {algo} model ({type(e).__name__}: "
+                         f"{e})") from e
     vn = None
     vn_path = find_vecnormalize(model_path)
     if vn_path is not None:
-        with open(vn_path, "rb") as fh:
-            vn = pickle.load(fh)
-        vn.training = False
+        try:
+            with open(vn_path, "rb") as fh:
+                vn = pickle.load(fh)
+            vn.training = False
+        except Exception as e:
+            raise ValueError(f"{vn_path}: cannot load the observation normalisation "
+                             f"({type(e).__name__}: {e})") from e
     return TrainedController(model, vn, name=algo), config
 
 

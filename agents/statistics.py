@@ -45,6 +45,9 @@ CONFIDENCE = 0.95
 TRIM = 0.25
 
 Strata = int | Sequence[int] | np.ndarray | None
+#: The largest bootstrap an interval may allocate: its index arrays and replicates, in
+#: bytes. ``n_boot=10**9`` on a benchmark cell asked for 37 GiB and died in numpy.
+MAX_BOOT_BYTES = 2 * 1024**3
 
 
 @dataclass(frozen=True)
@@ -78,16 +81,40 @@ class Profile:
 
 
 # -- the aggregate ----------------------------------------------------------------------------
+def _no_nan(a: np.ndarray, name: str) -> None:
+    """Refuse NaN, naming its first index: sorting puts NaN last, so the IQM would trim it
+    as the best score and an interval would look finite around a failed measurement."""
+    bad = np.argwhere(np.isnan(a))
+    if bad.size:
+        where = tuple(int(i) for i in bad[0])
+        raise ValueError(f"{name} holds NaN ({bad.shape[0]} of {a.size} values), first at "
+                         f"index {where[0] if len(where) == 1 else where}")
+
+
+def _values(values: np.ndarray, axis: int | None, name: str = "values"
+            ) -> tuple[np.ndarray, int]:
+    """``values`` as floats free of NaN, raveled for ``axis=None``, and ``axis`` checked
+    against their dimensions (an out-of-range axis was a bare ``IndexError``)."""
+    a = np.asarray(values, dtype=float)
+    _no_nan(a, name)
+    if axis is None:
+        return a.ravel(), 0
+    if isinstance(axis, bool) or not isinstance(axis, (int, np.integer)):
+        raise ValueError(f"axis must be an integer or None, got {axis!r}")
+    if not -a.ndim <= axis < a.ndim:
+        raise ValueError(f"axis={axis} is out of range for {name} of shape {a.shape}")
+    return a, int(axis) % a.ndim
+
+
 def iqm(values: np.ndarray, axis: int | None = None) -> np.ndarray | float:
     """Interquartile mean: the mean of the values left after dropping ``int(n / 4)`` from
     each end (``axis=None``: all values; else along ``axis``).
 
     Robust to a few failed runs or episodes, unlike the mean, and uses half the data,
-    unlike the median, so its interval is narrower for few runs.
+    unlike the median, so its interval is narrower for few runs. NaN is refused
+    (``ValueError`` naming its index): no order puts a missing score where it belongs.
     """
-    a = np.asarray(values, dtype=float)
-    if axis is None:
-        a, axis = a.ravel(), 0
+    a, axis = _values(values, axis)
     n = a.shape[axis]
     if n == 0:
         raise ValueError("iqm needs at least one value, got an empty array")
@@ -98,9 +125,12 @@ def iqm(values: np.ndarray, axis: int | None = None) -> np.ndarray | float:
 
 
 def mean(values: np.ndarray, axis: int | None = None) -> np.ndarray | float:
-    """The plain mean, with :func:`iqm`'s signature (for statistics that want totals, such
-    as the share of stuck time a controller removes)."""
-    out = np.asarray(values, dtype=float).mean(axis=axis)
+    """The plain mean, with :func:`iqm`'s signature and checks (for statistics that want
+    totals, such as the share of stuck time a controller removes)."""
+    a, axis = _values(values, axis)
+    if a.shape[axis] == 0:
+        raise ValueError("mean needs at least one value, got an empty array")
+    out = a.mean(axis=axis)
     return float(out) if np.ndim(out) == 0 else out
 
 
@@ -112,6 +142,7 @@ def _matrix(scores: np.ndarray, name: str = "scores") -> np.ndarray:
     if a.ndim != 2 or a.shape[0] < 1 or a.shape[1] < 1:
         raise ValueError(f"{name} must be a non-empty (runs x episodes) matrix, got shape "
                          f"{np.shape(scores)}")
+    _no_nan(a, name)
     return a
 
 
@@ -129,14 +160,30 @@ def stratum_labels(strata: Strata, n_cols: int) -> np.ndarray:
     if labels.shape != (n_cols,):
         raise ValueError(f"strata must hold one label per episode ({n_cols}), got shape "
                          f"{labels.shape}")
+    if labels.dtype.kind == "f":
+        # NaN is unequal to itself: its columns joined no stratum and kept the
+        # uninitialised indices of np.empty.
+        _no_nan(labels, "strata")
     return labels
 
 
-def _check_boot(n_boot: int, confidence: float) -> None:
+def _check_boot(n_boot: int, confidence: float, per_replicate: int = 1,
+                shape: tuple[int, int] = (1, 1)) -> None:
+    """Refuse a bootstrap that cannot mean anything or cannot fit in memory:
+    ``per_replicate`` is how many float64 values one replicate holds at once (indices,
+    resampled cells, their sorted copies), ``shape`` the cell's ``(runs, episodes)``
+    for the message."""
     if isinstance(n_boot, bool) or not isinstance(n_boot, (int, np.integer)) or n_boot < 1:
         raise ValueError(f"n_boot must be an integer >= 1, got {n_boot!r}")
-    if not 0.0 < confidence < 1.0:
-        raise ValueError(f"confidence must lie in (0, 1), got {confidence!r}")
+    if (isinstance(confidence, bool) or not isinstance(confidence, (int, float, np.number))
+            or not 0.0 < confidence < 1.0):
+        raise ValueError(f"confidence must be a number in (0, 1), got {confidence!r}")
+    runs, episodes = shape
+    need = 8 * int(n_boot) * int(per_replicate)
+    if need > MAX_BOOT_BYTES:
+        raise ValueError(f"n_boot={n_boot} on a {runs} x {episodes} cell needs "
+                         f"{need / 1024**3:.1f} GiB, over the {MAX_BOOT_BYTES / 1024**3:.0f} "
+                         f"GiB limit (MAX_BOOT_BYTES); use fewer replicates")
 
 
 def bootstrap_indices(n_rows: int, strata: Strata, n_cols: int, n_boot: int,
@@ -183,8 +230,8 @@ def iqm_ci(scores: np.ndarray, strata: Strata = None, n_boot: int = N_BOOT,
     """``aggregate`` (the IQM) of all of a cell's scores with its stratified bootstrap
     interval. ``scores``: a ``(runs, episodes)`` matrix (a 1-D array is one run);
     ``strata``: the episodes' evaluation seeds (see :func:`stratum_labels`)."""
-    _check_boot(n_boot, confidence)
     cell = _matrix(scores)
+    _check_boot(n_boot, confidence, sum(cell.shape) + 2 * cell.size, cell.shape)
     rows, cols = bootstrap_indices(cell.shape[0], strata, cell.shape[1], n_boot,
                                    np.random.default_rng(seed))
     reps = np.asarray(aggregate(_take(cell, rows, cols).reshape(n_boot, -1), axis=1))
@@ -206,10 +253,11 @@ def paired_ci(statistic: Callable[..., np.ndarray | float], cells: Sequence[np.n
     replicates at once, with a leading replicate axis), e.g.
     ``lambda c, z: 1 - stat(c) / stat(z)`` with ``stat = x.mean(axis=(-2, -1))``.
     """
-    _check_boot(n_boot, confidence)
     mats = [_matrix(c, f"cells[{i}]") for i, c in enumerate(cells)]
     if not mats:
         raise ValueError("paired_ci needs at least one cell")
+    _check_boot(n_boot, confidence, sum(mats[0].shape) + 2 * sum(m.size for m in mats),
+                mats[0].shape)
     n_cols = mats[0].shape[1]
     if any(m.shape[1] != n_cols for m in mats):
         raise ValueError(f"the cells must share their episodes, got {[m.shape for m in mats]}")
@@ -246,9 +294,12 @@ def tau_grid(costs: Sequence[np.ndarray], n: int = 100) -> np.ndarray:
     """``n`` log-spaced thresholds spanning all the given costs (from half the smallest
     positive one to twice the largest), so the profiles of every controller of a scene
     share one axis."""
-    if n < 2:
-        raise ValueError(f"n must be >= 2, got {n}")
-    flat = np.concatenate([np.asarray(c, dtype=float).ravel() for c in costs])
+    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 2:
+        raise ValueError(f"n must be an integer >= 2, got {n!r}")
+    arrays = [np.asarray(c, dtype=float).ravel() for c in costs]
+    if not arrays:
+        raise ValueError("tau_grid needs the costs of at least one cell, got none")
+    flat = np.concatenate(arrays)
     pos = flat[np.isfinite(flat) & (flat > 0)]
     if pos.size == 0:
         return np.geomspace(1e-3, 1.0, n)
@@ -265,12 +316,12 @@ def performance_profile(costs: np.ndarray, taus: np.ndarray, strata: Strata = No
     A replicate weights original episode ``(i, j)`` by how often row ``i`` and column ``j``
     were drawn, so the band is one matrix product, not a sort per replicate.
     """
-    _check_boot(n_boot, confidence)
     cell = _matrix(costs, "costs")
     taus = np.asarray(taus, dtype=float)
-    if taus.ndim != 1 or taus.size < 1 or np.any(np.diff(taus) < 0):
-        raise ValueError(f"taus must be a non-empty increasing 1-D array, got {taus!r}")
     r, c = cell.shape
+    _check_boot(n_boot, confidence, 2 * (r + c) + (r + 1) * taus.size, (r, c))
+    if taus.ndim != 1 or taus.size < 1 or np.isnan(taus).any() or np.any(np.diff(taus) < 0):
+        raise ValueError(f"taus must be a non-empty increasing 1-D array, got {taus!r}")
     below = (cell[:, :, None] <= taus).astype(float)  # (runs, episodes, taus)
     rows, cols = bootstrap_indices(r, strata, c, n_boot, np.random.default_rng(seed))
     per_row = np.einsum("bj,ijt->bit", _counts(cols, c), below)  # (n_boot, runs, taus)

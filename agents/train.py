@@ -23,12 +23,15 @@ episode was ever trained on.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import platform
 import shlex
 import shutil
+import signal
 import sys
+import threading
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from datetime import datetime
 from pathlib import Path
 from typing import Any
@@ -184,10 +187,48 @@ def prepare(args: argparse.Namespace) -> tuple[RunSpec, dict[str, Any], Path]:
     return split_hyperparams(args.algo, raw), raw, hp_file
 
 
+class TrainingInterrupted(KeyboardInterrupt):
+    """Ctrl-C or SIGTERM stopped a training; ``signum`` is the signal. A
+    ``KeyboardInterrupt``, so that whatever stops on Ctrl-C stops on it too."""
+
+    def __init__(self, message: str = "", signum: int = signal.SIGINT) -> None:
+        super().__init__(message)
+        self.signum = signum
+
+
+def _raise_on_sigterm(signum: int, frame: object) -> None:
+    raise TrainingInterrupted(f"stopped by {signal.Signals(signum).name}", signum)
+
+
+@contextlib.contextmanager
+def sigterm_as_ctrl_c() -> Iterator[None]:
+    """Within this block SIGTERM stops a training as Ctrl-C does (the model so far saved,
+    config.yml marked interrupted). SIGTERM is what ``timeout``, SLURM, ``docker stop``
+    and Kubernetes send; Python's default action ends the process at once, with no model.
+    Only in the main thread, and only where SIGTERM has its default action (a handler of
+    the caller's own is left alone), as ``fricenv.calls.sweep_signals`` does for sweeps."""
+    if (threading.current_thread() is not threading.main_thread()
+            or signal.getsignal(signal.SIGTERM) is not signal.SIG_DFL):
+        yield
+        return
+    signal.signal(signal.SIGTERM, _raise_on_sigterm)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, signal.SIG_DFL)
+
+
 def train(args: argparse.Namespace, prepared: tuple | None = None,
           stage: Callable[[str], None] | None = None) -> Path:
     """Run one training; returns the run folder. ``stage``: called with a line per stage
-    (building, training, saving)."""
+    (building, training, saving). Ctrl-C, or SIGTERM, during training saves the model so
+    far and raises :class:`TrainingInterrupted` (a ``KeyboardInterrupt``)."""
+    with sigterm_as_ctrl_c():
+        return _train(args, prepared, stage)
+
+
+def _train(args: argparse.Namespace, prepared: tuple | None,
+           stage: Callable[[str], None] | None) -> Path:
     stage = stage or (lambda message: None)
     spec, raw, hp_file = prepared or prepare(args)
     stage(f"building {spec.n_envs} environment{'s' if spec.n_envs > 1 else ''} of scene "
@@ -261,13 +302,13 @@ def train(args: argparse.Namespace, prepared: tuple | None = None,
     stage(f"training {spec.n_timesteps} steps into {run_dir}; evaluating on "
           f"{args.eval_episodes} episodes {when}")
     t0 = time.perf_counter()
-    interrupted = False
+    stopped_by: int | None = None
     try:
         model.learn(spec.n_timesteps, callback=[evaluator, bar])
-    except KeyboardInterrupt:
-        # Ctrl-C, the usual way to end a long run early: keep what was trained (as
-        # rl-baselines3-zoo does); config.yml records the stop and the steps done.
-        interrupted = True
+    except KeyboardInterrupt as e:
+        # Ctrl-C (or SIGTERM), the usual way to end a long run early: keep what was
+        # trained (as rl-baselines3-zoo does); config.yml records the stop and the steps.
+        stopped_by = int(getattr(e, "signum", signal.SIGINT))
         if bar.bar is not None:
             bar.bar.close()
     except Exception as e:  # (as a failed setup: a half-written folder would block a rerun)
@@ -278,6 +319,36 @@ def train(args: argparse.Namespace, prepared: tuple | None = None,
                             f"({type(e).__name__}: {e}); removed the unfinished run folder "
                             f"{run_dir}") from e
     train_seconds = time.perf_counter() - t0
+    with _deferred_sigterm():  # a second SIGTERM must not cut the save short
+        _save(model, env, run_dir, spec, config, cfg_path, evaluator, train_seconds,
+              stopped_by, stage)
+    if stopped_by is not None:
+        raise TrainingInterrupted(f"training interrupted after {model.num_timesteps} steps "
+                                  f"by {signal.Signals(stopped_by).name}; the model trained "
+                                  f"so far is saved in {run_dir}", stopped_by)
+    return run_dir
+
+
+@contextlib.contextmanager
+def _deferred_sigterm() -> Iterator[None]:
+    """SIGTERM ignored within the block where it was our own handler's: the model being
+    saved is what the first signal asked for."""
+    if (threading.current_thread() is not threading.main_thread()
+            or signal.getsignal(signal.SIGTERM) is not _raise_on_sigterm):
+        yield
+        return
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, _raise_on_sigterm)
+
+
+def _save(model: Any, env: Any, run_dir: Path, spec: RunSpec, config: dict, cfg_path: Path,
+          evaluator: Any, train_seconds: float, stopped_by: int | None,
+          stage: Callable[[str], None]) -> None:
+    """Save the model, its normalisation and the finished config (``stopped_by``: the
+    signal that ended the training early, recorded as ``interrupted``)."""
     stage("saving the model")
     model.save(run_dir / "model.zip")
     if spec.normalize is not None:
@@ -292,17 +363,14 @@ def train(args: argparse.Namespace, prepared: tuple | None = None,
         "final_eval": None if last is None else {
             k: last[k] for k in ("return_mean", "stick_fraction", "effort")},
     })
-    if interrupted:
+    if stopped_by is not None:
         config["interrupted"] = True
+        config["stopped_by"] = signal.Signals(stopped_by).name
     cfg_path.write_text(yaml.safe_dump(config, sort_keys=False))
     print(f"run folder: {run_dir}\ntraining wall time: {train_seconds:.1f} s "
           f"({model.num_timesteps} of {spec.n_timesteps} steps)" + (
               "" if last is None else f"; last eval return {last['return_mean']:.3f}, "
               f"stick fraction {last['stick_fraction']:.4f}"))
-    if interrupted:
-        raise KeyboardInterrupt(f"training interrupted after {model.num_timesteps} steps; "
-                                f"the model trained so far is saved in {run_dir}")
-    return run_dir
 
 
 def _warm_start(model: Any, env: Any, args: argparse.Namespace, spec: RunSpec,
@@ -344,8 +412,9 @@ def main(argv: Sequence[str] | None = None, prog: str | None = None) -> Path:
         parser.error(str(e))
     except TrainingError as e:  # not a usage error, but no traceback of SB3's insides
         parser.exit(1, f"{parser.prog}: error: {e}\n")
-    except KeyboardInterrupt as e:  # (the shell's status for a Ctrl-C: 128 + SIGINT)
-        parser.exit(130, f"{parser.prog}: {e or 'interrupted'}\n")
+    except KeyboardInterrupt as e:  # (the shell's status for a signal: 128 + its number)
+        parser.exit(128 + int(getattr(e, "signum", signal.SIGINT)),
+                    f"{parser.prog}: {e or 'interrupted'}\n")
 
 
 if __name__ == "__main__":

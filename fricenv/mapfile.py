@@ -9,7 +9,8 @@ zip's CRC check, and turns any failure into ``ValueError: <file> is not a fricen
 map (<cause>)`` with the cause chained. A path that cannot be opened (missing, a folder,
 no permission) keeps its own ``OSError``: it is a path to fix, not a file to distrust.
 
-Writing. A sweep holds an exclusive lock on ``<map>.lock`` while it runs, and
+Writing. A sweep holds an exclusive lock on ``<map>.lock`` (beside the map's resolved
+path, so symlinks to one map share its lock) while it runs, and
 :meth:`RegimeMap.save` takes it for the moment of its write, so a second sweep (or a save
 from another process) on the same map is refused with :class:`MapInUseError` instead of
 silently overwriting the first one's work. The lock is the operating system's
@@ -171,7 +172,12 @@ def _acquire(lock: Path, map_path: Path) -> int:
 @contextlib.contextmanager
 def writer_lock(path: Path) -> Iterator[None]:
     """Hold the writer lock of the map at ``path`` for the ``with`` block (at once, or
-    :class:`MapInUseError`). Nested holders in this process share the one lock."""
+    :class:`MapInUseError`). Nested holders in this process share the one lock.
+
+    The lock is the one of the resolved path (symlinks followed): two writers reaching one
+    map through a symlink and its target, or through two symlinks, take the same lock
+    (the lock of the path as given let each believe it was alone)."""
+    path = Path(os.path.realpath(path))
     lock = lock_path(path)
     key = _key(lock)
     if key in _HELD:

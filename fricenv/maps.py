@@ -35,7 +35,7 @@ from .layout import (
     STATUS_OK,
 )
 from .params import PARAM_LIMIT, OscillatorParams
-from .regimes import Regime
+from .regimes import Regime, classify_stats
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
@@ -152,17 +152,22 @@ class RegimeMap:
 
     def save(self, path: str | os.PathLike) -> Path:
         """Write atomically to ``path`` (``.npz`` appended if missing; arrays plus a JSON
-        ``meta`` entry). ``TypeError`` / ``ValueError`` naming ``path`` before anything is
+        ``meta`` entry; a symlink there keeps pointing to the file, which is replaced).
+        ``TypeError`` / ``ValueError`` naming ``path`` before anything is
         written if it is not a file name or cannot be one (:func:`_map_path`);
         :class:`~fricenv.mapfile.MapInUseError` if a sweep in another process (or thread)
         is writing the map there."""
         path = _map_path(path)
         path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_name(path.name + f".tmp{os.getpid()}")
+        # A symlink stays one: the file it points to is the one replaced (replacing the
+        # link itself turned it into a regular file, and the target went stale).
+        target = Path(os.path.realpath(path))
+        target.parent.mkdir(parents=True, exist_ok=True)  # (a link to a folder not made)
+        tmp = target.with_name(target.name + f".tmp{os.getpid()}")
         plan = {} if self.plan is None else {
             f"plan_{f.name}": getattr(self.plan, f.name) for f in fields(CellPlan)}
-        with mapfile.writer_lock(path):  # (a sweep's own saves share its lock)
-            self._write(path, tmp, plan)
+        with mapfile.writer_lock(target):  # (a sweep's own saves share its lock)
+            self._write(target, tmp, plan)
         return path
 
     def _write(self, path: Path, tmp: Path, plan: dict) -> None:
@@ -211,6 +216,8 @@ class RegimeMap:
             elapsed = check_finite_real("elapsed_s", meta["elapsed_s"])
             algorithm = check_int("algorithm", meta.get("algorithm", 0))
             _check_map_arrays(arrays, plan)
+            if algorithm == ALGORITHM:  # (older maps were labelled by older rules)
+                _check_labels(arrays)
         except (KeyError, TypeError, ValueError) as exc:
             what = f"no {exc}" if isinstance(exc, KeyError) else str(exc)
             raise mapfile.not_a_map(path, what) from exc
@@ -295,6 +302,28 @@ def _check_cell_values(arrays: dict[str, np.ndarray]) -> None:
     bad = ok[..., None] & measured & ~np.isfinite(stats)
     if bad.any():
         refuse("stats", bad, stats, "a cell computed with status OK has finite statistics")
+
+
+def _check_labels(arrays: dict[str, np.ndarray]) -> None:
+    """``ValueError`` naming the first cell whose label is not the one its own statistics,
+    period and status give (:func:`~fricenv.regimes.classify_stats`, the rule every sweep
+    labels by): the checksums cover the bytes, not their sense, and a resume keeps every
+    done cell's label as it is."""
+    done = arrays["done"]
+    if not done.any():
+        return
+    cols = np.broadcast_to(np.arange(done.shape[1]), done.shape)[done]
+    want = classify_stats(arrays["stats"][done], arrays["nu"][cols], arrays["q"][cols],
+                          arrays["period"][done], arrays["status"][done])
+    have = arrays["labels"][done]
+    bad = np.flatnonzero(want != have)
+    if bad.size:
+        k = int(bad[0])
+        i, j = (int(v) for v in np.argwhere(done)[k])
+        raise ValueError(
+            f"labels holds {Regime(int(have[k])).name} at cell ({i}, {j}) (u0 = "
+            f"{float(arrays['u0'][i])!r}, nu = {float(arrays['nu'][j])!r}), where the cell's "
+            f"statistics give {Regime(int(want[k])).name} ({bad.size} cells disagree)")
 
 
 def _with_npz(p: Path) -> Path:

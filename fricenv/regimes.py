@@ -282,6 +282,31 @@ def strobe_period(xs: np.ndarray, vs: np.ndarray, m_max: int = M_MAX,
                               min(m_max, xs.size), tol))
 
 
+def check_periodicity_settings(q_max: int, m_max: int, n_strobe: int) -> None:
+    """Refuse periodicity settings that contradict each other (``ValueError`` naming the
+    values).
+
+    :func:`strobe_period` accepts a period ``m`` only when the samples cover it twice
+    (``n - m >= m``) and the sweeps take ``n_strobe`` samples, so any ``n_strobe <
+    2 m_max + 1`` cannot confirm every period ``<= m_max`` and the sweeps used to switch
+    the whole test off: every integer-nu cell lost its PERIODIC label, in silence
+    (``n_strobe=8``, or ``m_max=6`` with the default ``n_strobe=12``). ``q_max=0`` is the
+    way to switch the test off; it takes no samples and needs no period.
+    """
+    if q_max < 1:
+        return
+    if m_max < 1:
+        raise ValueError(f"m_max={m_max} tests no period while q_max={q_max} asks for the "
+                         "periodicity test; set m_max >= 1, or q_max=0 to switch it off")
+    need = 2 * m_max + 1
+    if n_strobe < need:
+        raise ValueError(
+            f"n_strobe={n_strobe} is too few stroboscopic samples for m_max={m_max}: a "
+            f"period of m_max samples is only confirmed by 2*m_max+1 = {need} samples. Raise "
+            f"n_strobe to {need}, lower m_max to {max((n_strobe - 1) // 2, 0)}, or set "
+            "q_max=0 to switch the periodicity test off")
+
+
 def _int_array(name: str, value: object) -> np.ndarray:
     """``value`` as an int64 array: ``TypeError`` naming ``name`` unless made of integers
     (a float 1.0 or a string '0' would otherwise compare as a code)."""

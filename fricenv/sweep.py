@@ -92,6 +92,7 @@ from .params import (
     OscillatorParams,
     resolve_law,
 )
+from .regimes import check_periodicity_settings
 
 #: Most cells a regime map may have: its arrays take about 100 bytes a cell (10 GB at the
 #: cap), allocated before the first cell runs; a larger grid is refused naming its size.
@@ -173,6 +174,7 @@ def regime_map(params: OscillatorParams | str, u0: object, nu: object, *,
         raise ValueError(f"a grid of u0 ({u0.size} values) x nu ({nu.size} values) has "
                          f"{u0.size * nu.size} cells, more than MAX_CELLS = {MAX_CELLS}")
     settings = settings_with(settings, overrides)
+    check_periodicity_settings(settings.q_max, settings.m_max, settings.n_strobe)
     settings.method_code(params)  # ValueError for 'exact' on another law than Coulomb
     resume = check_bool("resume", resume)
     if progress is not None:
@@ -316,6 +318,7 @@ def cell_statistics(params: list[OscillatorParams], settings: SweepSettings | No
                              f"{params[0].friction!r}: measure each friction law in its own "
                              "call")
     settings = settings_with(settings, overrides)
+    check_periodicity_settings(settings.q_max, settings.m_max, settings.n_strobe)
     if settings.method == "exact":
         for i, p in enumerate(params):  # the method must suit every entry
             try:

@@ -24,6 +24,7 @@ from typing import NamedTuple
 
 from . import compile_notice
 from ._numba_cache import source_digest
+from .checks import check_bool, got
 from .params import FRICTION_LAWS, OscillatorParams
 
 #: What :func:`warmup` can prepare.
@@ -59,16 +60,27 @@ def _default_scenes() -> list[str]:
     return list(ENV_IDS.values())
 
 
+def _names(what: str, names: object) -> list:
+    """``names`` as a list: a single str is one name, not its letters; anything else
+    must be an iterable of names (``TypeError`` naming ``what`` otherwise)."""
+    if isinstance(names, str):
+        return [names]
+    if not isinstance(names, Iterable):
+        raise TypeError(f"{what} must be a name or an iterable of names, {got(names)}")
+    return list(names)
+
+
 def parts(laws: Iterable[str] = ("coulomb",), workloads: Iterable[str] = WORKLOADS,
           scenes: Iterable[str] | None = None) -> list[Part]:
     """The parts :func:`warmup` runs for these arguments, in its order; ``ValueError``
-    naming an unknown law, workload or scene before anything runs."""
-    laws = [str(law).lower() for law in laws]
+    naming an unknown law, workload or scene before anything runs. A single name is taken
+    as one (``laws="coulomb"`` ran the law names ``'c'``, ``'o'``, ... one letter each)."""
+    laws = [str(law).lower() for law in _names("laws", laws)]
     for law in laws:
         if law not in FRICTION_LAWS:
             raise ValueError(f"unknown friction law {law!r}; expected some of "
                              f"{sorted(FRICTION_LAWS)}")
-    workloads = list(workloads)
+    workloads = _names("workloads", workloads)
     for w in workloads:
         if w not in WORKLOADS:
             raise ValueError(f"unknown workload {w!r}; expected some of {WORKLOADS}")
@@ -76,7 +88,8 @@ def parts(laws: Iterable[str] = ("coulomb",), workloads: Iterable[str] = WORKLOA
     if any(w in workloads for w in SCENE_WORKLOADS):
         from .envs.scenes import SCENES
 
-        chosen = _default_scenes() if scenes is None else [str(s) for s in scenes]
+        chosen = (_default_scenes() if scenes is None
+                  else [str(s) for s in _names("scenes", scenes)])
         for scene in chosen:
             if scene not in SCENES:
                 raise ValueError(f"unknown scene {scene!r}; expected some of "
@@ -128,6 +141,7 @@ def warmup(laws: Iterable[str] = ("coulomb",), workloads: Iterable[str] = WORKLO
     an empty cache, milliseconds once cached. Results of later calls do not depend on it.
     When something will compile, says so first on the ``fricenv`` logger (INFO).
     """
+    parallel = check_bool("parallel", parallel)  # ('no' is a true value)
     todo = parts(laws, workloads, scenes)
     compile_notice.announce(pair for part in todo for pair in needs(part, parallel))
     return {part.name: run_part(part, parallel) for part in todo}
@@ -147,7 +161,7 @@ def _sweep(law: str, parallel: bool) -> None:
     from .sweep import cell_statistics
 
     p = OscillatorParams.preset(law, u0=1.0, nu=0.5)
-    cell_statistics([p], transient_min=1.0, window_min=1.0, n_strobe=2)
+    cell_statistics([p], transient_min=1.0, window_min=1.0, q_max=0, n_strobe=2)
 
 
 def _env(scene: str, parallel: bool) -> None:

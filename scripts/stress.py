@@ -55,7 +55,17 @@ each judged through the public API and its observable effects only:
   statistics, a negative period, an unknown status or label, loaded and resumed (wrong:
   loaded, or the tampered values kept);
 * ``unclear``: one bad argument each (a short state array, a NaN mode, a ``.npy`` file
-  as a map, ``render_mode=5``): bare if the error does not name it.
+  as a map, ``render_mode=5``): bare if the error does not name it;
+
+and the edge classes (``stress_edges.py``: each case in a fresh interpreter of the tree
+under test): ``statistics`` (NaN scores and strata, bad arguments of the agents'
+statistics), ``settings`` (a periodicity test its settings switch off), ``stored``
+(atlas chunks out of place, a map's labels against its statistics, symlinked maps),
+``cache`` (each kind of damage to numba's cache files; no writable cache location),
+``stops`` (Ctrl-C on a Dask atlas to the client and to the process group, SIGTERM into
+``fricenv train``, worker counts below 1) and ``smaller`` (NaN in ``set_state``'s delay
+line and noise, ``simulate --out`` under a file, Ctrl-C on ``map`` / ``atlas`` /
+``reproduce``, a damaged model file, ``warmup``'s arguments, a repeated ``--axis``).
 
 Usage: ``python scripts/stress.py [--budget 10] [--cases 250] [--seed 0] [--classes a,b]
 [--json out]``; ``PYTHONPATH`` picks the fricenv under test (e.g.
@@ -80,6 +90,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
 
+import stress_edges as edges  # noqa: E402
 import stress_probes as probes  # noqa: E402
 from callcheck import WARM_UP, Outcome, Worker  # noqa: E402
 
@@ -225,7 +236,7 @@ def two_writers(pythonpath: str | None, budget: float) -> Outcome:
 
 #: The classes of calls, in the order they run (``--classes`` picks some).
 CLASSES = ("reproducers", "random", "map files", "writers", "threads", "signals", "damage",
-           "huge", "set_state", "points", "tampered", "unclear")
+           "huge", "set_state", "points", "tampered", "unclear", *edges.EDGE_CLASSES)
 ENTRIES_PLUGIN = Path(__file__).resolve().parent / "stress_entries.py"
 #: Warm-up calls of the later classes (Dask, Zarr and xarray; the Stribeck env's kernels).
 LATER_WARM_UP = [("atlas_warm", {}),
@@ -263,6 +274,9 @@ def process_probes(classes: list[str], pythonpath: str | None,
         out += [("signals", *r) for r in probes.signal_class(pythonpath)]
     if "damage" in classes:
         out.append(("damage", "atlas_writers", {}, probes.atlas_writers(pythonpath, budget)))
+    for cls, probe in edges.EDGE_CLASSES.items():
+        if cls in classes:
+            out += [(cls, name, {}, outcome) for name, outcome in probe(pythonpath, budget)]
     return out
 
 
@@ -286,16 +300,17 @@ def main() -> None:
     t0 = time.monotonic()
     with tempfile.TemporaryDirectory() as tmp:
         calls = worker_calls(classes, args, np.random.default_rng(args.seed), Path(tmp))
-        later = any(c in classes for c in CLASSES[4:])
-        worker = Worker(pythonpath, WARM_UP + (LATER_WARM_UP if later else []),
-                        plugins=[ENTRIES_PLUGIN])
-        try:
-            for i, (cls, entry, kwargs) in enumerate(calls):
-                out = worker.call(entry, kwargs, args.budget)
-                results.append((cls, entry, kwargs, out))
-                _show(i, entry, kwargs, out)
-        finally:
-            worker.close()
+        later = any(c in classes for c in CLASSES[4:12])
+        if calls:  # (the edge classes run in processes of their own only)
+            worker = Worker(pythonpath, WARM_UP + (LATER_WARM_UP if later else []),
+                            plugins=[ENTRIES_PLUGIN])
+            try:
+                for i, (cls, entry, kwargs) in enumerate(calls):
+                    out = worker.call(entry, kwargs, args.budget)
+                    results.append((cls, entry, kwargs, out))
+                    _show(i, entry, kwargs, out)
+            finally:
+                worker.close()
         for cls, entry, kwargs, out in process_probes(classes, pythonpath, args.budget):
             results.append((cls, entry, kwargs, out))
             _show(len(results) - 1, entry, kwargs, out)
@@ -350,6 +365,10 @@ def _report(results: list, seconds: float, json_path: Path | None) -> None:
     for cls in CLASSES:
         if cls in per_class:
             print(f"{cls:12s}" + "".join(f"{per_class[cls][k]:13d}" for k in KINDS))
+    for cls, entry, _, out in results:  # (the edge classes' cases, one line each)
+        if cls in edges.EDGE_CLASSES:
+            print(f"  {cls:10s} {entry:36s} {_kind(out):13s} "
+                  f"{'; '.join(out.wrong) or out.error}"[:200])
     if json_path is not None:
         json_path.write_text(json.dumps([
             {"class": c, "entry": e, "call": _short(k), "kind": o.kind, "seconds": o.seconds,

@@ -140,6 +140,57 @@ def test_chunks_cut_off_by_a_kill_read_as_not_computed(fresh, monkeypatch):
     assert ran == [(1, 2)]
 
 
+def _swap(a: Path, b: Path) -> None:
+    data = a.read_bytes()
+    a.write_bytes(b.read_bytes())
+    b.write_bytes(data)
+
+
+def test_chunk_files_out_of_place_are_refused_then_recomputed(fresh, reference, tmp_path,
+                                                               monkeypatch):
+    """Chunk files swapped between positions or variables, or copied from another atlas of
+    the same shape, matched their own checksums and loaded as this atlas's cells."""
+    other = tmp_path / "other.zarr"
+    fricenv.atlas("coulomb", {"u0": AXES["u0"] * 1.5, "nu": AXES["nu"]}, path=other,
+                  chunks=CHUNKS, progress=False)
+    cases = [  # (files to swap or copy, the chunks that must be computed again)
+        ("swap", fresh / "label" / "c" / "0" / "0", fresh / "label" / "c" / "1" / "1"),
+        ("swap", fresh / "v_min" / "c" / "0" / "1", fresh / "v_max" / "c" / "0" / "1"),
+        ("copy", other / "label" / "c" / "1" / "0", fresh / "label" / "c" / "1" / "0"),
+        ("copy", other / "label" / "records" / "1.0.json",  # a record from elsewhere too
+         fresh / "label" / "records" / "1.0.json"),
+    ]
+    before = {f: f.read_bytes() for f in fresh.rglob("*") if f.is_file()}
+    for kind, a, b in cases:
+        _swap(a, b) if kind == "swap" else shutil.copy(a, b)
+    changed = {f for f in before if f.read_bytes() != before[f]}
+    # (the chunks the damage touched: a record is named i.j.json, a chunk file .../c/i/j)
+    expected = sorted({tuple(int(x) for x in f.name.split(".")[:2]) if f.suffix == ".json"
+                       else (int(f.parent.name), int(f.name)) for f in changed})
+    assert len(expected) >= 3  # (the swaps and copies change bytes: the test tests)
+    assert not np.array_equal(
+        xr.open_zarr(fresh, consolidated=False).label.values, reference[0].label.values)
+    with pytest.raises(ValueError, match=r"chunk \(\d, \d\) of variable '\w+' .* is not the "
+                                         r"file written there .*more damaged chunk files"):
+        fricenv.open_atlas(fresh)
+    ran = _counting_compute(monkeypatch)
+    with pytest.warns(UserWarning, match=rf"{len(expected)} damaged chunks are computed again"):
+        ds = _run(fresh)
+    assert sorted(ran) == expected
+    xr.testing.assert_identical(ds.load(), reference[0])
+
+
+def test_a_chunk_without_its_record_is_refused_then_recomputed(fresh, reference, monkeypatch):
+    (fresh / "label" / "records" / "1.2.json").unlink()  # (a kill before the record)
+    with pytest.raises(ValueError, match=r"chunk \(1, 2\) .* is not the file written"):
+        fricenv.open_atlas(fresh)
+    ran = _counting_compute(monkeypatch)
+    with pytest.warns(UserWarning, match="1 damaged chunks"):
+        ds = _run(fresh)
+    assert ran == [(1, 2)]
+    xr.testing.assert_identical(ds.load(), reference[0])
+
+
 def _set_json(file: Path, edit) -> None:
     meta = json.loads(file.read_text())
     edit(meta)
@@ -166,6 +217,14 @@ def test_damaged_metadata_is_refused_by_name(fresh, name, damage):
             call()
         if damage != "valid json":
             assert err.value.__cause__ is not None
+
+
+def test_store_of_format_2_is_refused(fresh):
+    _set_json(fresh / "zarr.json", lambda m: m["attributes"].update(format_version=2))
+    for call in (lambda: fricenv.open_atlas(fresh), lambda: _run(fresh)):
+        with pytest.raises(ValueError, match="format version 2, whose chunks are not bound "
+                                             "to their place.*remove it"):
+            call()
 
 
 def test_store_of_format_1_is_refused(fresh):

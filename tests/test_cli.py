@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -169,3 +170,102 @@ def test_the_report_shows_fig2(tmp_path):
     text = report.read_text()
     assert "## Fig. 2: the friction laws" in text and "(fig2_friction_laws.png)" in text
     assert (tmp_path / "fig2_friction_laws.png").is_file()
+
+
+def test_simulate_refuses_an_out_folder_it_cannot_make_before_the_run(capsys, tmp_path,
+                                                                      monkeypatch):
+    """``--out`` under a file ran the whole simulation, then died writing it."""
+    runs = []
+    monkeypatch.setattr(fricenv, "simulate", lambda *a, **k: runs.append(a))
+    f = tmp_path / "file"
+    f.write_text("x")
+    code, _, err = run(capsys, "simulate", "--out", str(f / "sub" / "run"))
+    assert code == 2
+    assert f"{str(f)!r} is a file, not a folder" in err
+    long_name = tmp_path / ("x" * 300)  # (no file system takes a 300-byte name)
+    code, _, err = run(capsys, "simulate", "--out", str(long_name))
+    assert code == 2
+    assert "cannot be a folder: File name too long" in err
+    if Path("/proc/self").is_dir():  # a folder where even root cannot make one
+        code, _, err = run(capsys, "simulate", "--out", "/proc/fricenv-out")
+        assert code == 2
+        assert "--out '/proc/fricenv-out' cannot be made" in err
+    assert runs == [] and f.read_text() == "x"
+
+
+def test_atlas_names_a_repeated_axis_and_refuses_worker_counts_below_one(capsys, tmp_path):
+    store = tmp_path / "a.zarr"
+    code, _, err = run(capsys, "atlas", "--axis", "u0=1,2", "--axis", "nu=1",
+                       "--axis", "u0=3", "--out", str(store))
+    assert code == 2
+    assert "parameter 'u0' is given twice" in err
+    for n in ("0", "-2", "two"):  # -2 started no worker and hung, 0 ran without Dask
+        code, _, err = run(capsys, "atlas", "--axis", "u0=1,2", "--local-workers", n,
+                           "--out", str(store))
+        assert code == 2
+        assert f"--local-workers: expected an integer >= 1, got {n!r}" in err
+    assert not store.exists()
+
+
+def test_an_interrupted_command_exits_130_in_one_line(capsys, tmp_path, monkeypatch):
+    """Ctrl-C on map, atlas and reproduce printed a traceback with status -2 or 1."""
+    import signal
+
+    from fricenv import reproduce
+    from fricenv.atlas import api
+    from fricenv.calls import SweepInterrupted
+
+    def stop(*a, **k):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(reproduce, "run", stop)
+    code, _, err = run(capsys, "reproduce", "--quick", "--out", str(tmp_path / "r"))
+    assert code == 130
+    assert err.splitlines()[-1] == ("fricenv reproduce: interrupted (SIGINT); finished maps "
+                                    f"and cells are kept in {tmp_path / 'r'} (rerun to resume)")
+
+    def term(*a, **k):
+        raise SweepInterrupted(signum=signal.SIGTERM)
+
+    monkeypatch.setattr(api, "atlas", term)
+    code, _, err = run(capsys, "atlas", "--axis", "u0=1,2", "--out", str(tmp_path / "a"))
+    assert code == 128 + signal.SIGTERM
+    assert err.strip().endswith(f"fricenv atlas: interrupted (SIGTERM); finished chunks are "
+                                f"in {tmp_path / 'a'} (rerun to resume)")
+    monkeypatch.setattr(fricenv, "simulate", stop)  # (simulate has no handler of its own)
+    code, _, err = run(capsys, "simulate", "--out", str(tmp_path / "s"))
+    assert (code, err.splitlines()[-1]) == (130, "fricenv simulate: interrupted (SIGINT)")
+    assert "Traceback" not in err
+
+
+@pytest.mark.parametrize("command", [
+    ["map", "--u0", "geom:0.5:50:40", "--nu", "lin:0.1:3:40", "--no-progress"],
+    ["atlas", "--axis", "u0=geom:0.5:50:40", "--axis", "nu=lin:0.1:3:40", "--no-progress"],
+    ["reproduce", "--quick", "--no-progress"],
+])
+def test_ctrl_c_on_a_real_command_exits_130_without_a_traceback(tmp_path, command):
+    """SIGINT once the command has announced its work (while it imports, compiles or
+    computes, wherever it lands): status 130 and no traceback."""
+    import os
+    import signal
+    import time
+
+    out = tmp_path / ("a.zarr" if command[0] == "atlas" else "out")
+    env = {**os.environ, "PYTHONUNBUFFERED": "1"}
+    proc = subprocess.Popen([sys.executable, "-c", "import signal, sys; "
+                             "signal.signal(signal.SIGINT, signal.default_int_handler); "
+                             "from fricenv.cli import main; sys.exit(main())",
+                             *command, "--out", str(out)],
+                            stderr=subprocess.PIPE, text=True, env=env)
+    assert proc.stderr is not None
+    first = proc.stderr.readline()  # the stage line (or the compile notice)
+    assert first, "the command printed nothing"
+    time.sleep(0.5)
+    proc.send_signal(signal.SIGINT)
+    t0 = time.monotonic()
+    rest = proc.stderr.read()
+    code = proc.wait(timeout=60)
+    assert code == 130, first + rest
+    assert "Traceback" not in rest, rest
+    assert "interrupted (SIGINT)" in rest
+    assert time.monotonic() - t0 < 30

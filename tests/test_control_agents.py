@@ -395,3 +395,30 @@ def test_a_model_runs_only_where_its_channels_are_the_environments(tmp_path):
     with pytest.raises(ValueError, match=r"channel 5 is '\(none\)' for the model"):
         check_observation({"observation": names[:5]}, names, "m.zip")
     check_observation({}, names, "m.zip")  # (a bare model file: its shape is checked)
+
+
+def test_a_damaged_model_file_is_named_in_the_error(tmp_path):
+    """A truncated model, a garbled normalisation pickle or config gave SB3's, pickle's or
+    YAML's error without the file's name."""
+    import shutil
+    from pathlib import Path
+
+    from fricenv_agents.runs import load_controller
+
+    src = Path(__file__).resolve().parents[1] / "agents" / "pretrained"
+    for suffix in (".zip", "_vecnormalize.pkl", ".yml"):
+        shutil.copy(src / f"ppo_paper{suffix}", tmp_path / f"ppo_paper{suffix}")
+    model = tmp_path / "ppo_paper.zip"
+    load_controller(model)  # the copy loads
+    damage = [(model, model.read_bytes()[:200], r"ppo_paper\.zip: cannot load the ppo model"),
+              (tmp_path / "ppo_paper_vecnormalize.pkl", b"\x80\x04garbage",
+               r"ppo_paper_vecnormalize\.pkl: cannot load the observation normalisation"),
+              (tmp_path / "ppo_paper.yml", b"scene: [paper\n",
+               r"ppo_paper\.yml: cannot read the run config"),
+              (tmp_path / "ppo_paper.yml", b"- a list\n", r"ppo_paper\.yml: .* a mapping")]
+    for path, data, match in damage:
+        good = path.read_bytes()
+        path.write_bytes(data)
+        with pytest.raises(ValueError, match=match):
+            load_controller(model)
+        path.write_bytes(good)

@@ -324,6 +324,34 @@ def test_set_state_refuses_what_does_not_fit():
 
 
 @pytest.mark.parametrize("vector", [False, True])
+def test_set_state_refuses_a_nan_delay_line_or_noise_stream(vector):
+    """A NaN reading in the delay line or a NaN unread normal was restored, and reached
+    the agent's observation steps later."""
+    from dataclasses import replace
+
+    kw = {"scene": "viscous", **ALL_OPTIONS}
+    env = StickSlipVectorEnv(num_envs=2, **kw) if vector else StickSlipEnv(**kw)
+    env.reset(seed=0)
+    state = env.get_state(0) if vector else env.get_state()
+    put = (lambda s: env.set_state(1, s)) if vector else env.set_state
+    assert state.delay is not None and state.noise is not None
+    delay = state.delay.copy()
+    delay[-1, 2] = np.nan
+    with pytest.raises(ValueError, match=r"state\.delay holds a non-finite reading "
+                                         r"\(nan at row \d+, column 2\)"):
+        put(replace(state, delay=delay))
+    gen, rows = state.noise
+    rows = np.vstack([rows, np.zeros((1, rows.shape[1]))]) if rows.shape[0] == 0 else rows.copy()
+    rows[0, 4] = np.inf
+    with pytest.raises(ValueError, match=r"state\.noise: unread normals hold a non-finite "
+                                         r"value \(inf at row 0, column 4\)"):
+        put(replace(state, noise=(gen, rows)))
+    put(state)  # the env is unharmed and takes the state as it was
+    after = env.get_state(1) if vector else env.get_state()
+    assert np.array_equal(after.delay, state.delay)
+
+
+@pytest.mark.parametrize("vector", [False, True])
 def test_set_state_refuses_what_run_stats_refuses(vector):
     """A state is held to run_stats' own check: a stuck plant off the belt speed (it stepped
     as stuck while reporting v - V = 4), magnitudes beyond 1e12 (v = 1e300, xfs = 1e300,

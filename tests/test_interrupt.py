@@ -62,7 +62,7 @@ try:
     elif kind == "atlas":
         fricenv.atlas("stribeck", {{"u0": u0, "nu": nu}}, path=path, settings=settings,
                       chunks=u0.size * nu.size, progress=False)
-    elif kind == "dask":
+    elif kind.startswith("dask"):
         from distributed import Client, LocalCluster
 
         cluster = LocalCluster(n_workers=1, threads_per_worker=2, processes=True,
@@ -72,7 +72,7 @@ try:
                       settings=settings, progress=False)  # the worker's kernels warm
         print("cluster", flush=True)
         fricenv.atlas("stribeck", {{"u0": u0, "nu": nu}}, path=path, settings=settings,
-                      chunks=u0.size * nu.size // 2, client=client, progress=False)
+                      chunks=u0.size * nu.size // 8, client=client, progress=False)
     else:
         base = fricenv.OscillatorParams.preset("stribeck")
         cells = [base.replace(u0=float(a), nu=float(b)) for a in u0 for b in nu]
@@ -97,17 +97,20 @@ def full() -> fricenv.RegimeMap:
 
 
 def _interrupted_child(kind: str, path: Path, signum: int, full: fricenv.RegimeMap,
-                       ignoring: bool = False) -> tuple[float, int]:
+                       ignoring: bool = False) -> tuple[float, int, str]:
     """Run the sweep ``kind`` in a child, send it ``signum`` once it is sweeping; the
     seconds from the signal until the exception reached the child's own code (the sweep
-    stopped and its cells saved), and the child's return code. ``ignoring``: the child
-    starts with SIGINT ignored, as the children of a background job do."""
+    stopped and its cells saved), the child's return code and its stderr. ``ignoring``:
+    the child starts with SIGINT ignored, as the children of a background job do. Kind
+    ``dask-terminal`` sends the signal to the child's whole process group, its Dask
+    workers too, as Ctrl-C in a terminal does."""
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
     previous = signal.signal(signal.SIGINT, signal.SIG_IGN) if ignoring else None
     try:  # (an ignored signal stays ignored in a child, across exec)
         child = subprocess.Popen([sys.executable, "-c", _CHILD.format(n=N), kind, str(path)],
                                  stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                                 env=env, cwd=ROOT)
+                                 env=env, cwd=ROOT,
+                                 start_new_session=kind == "dask-terminal")
     finally:
         if previous is not None:
             signal.signal(signal.SIGINT, previous)
@@ -115,12 +118,15 @@ def _interrupted_child(kind: str, path: Path, signum: int, full: fricenv.RegimeM
         assert child.stdout is not None and child.stderr is not None
         line = child.stdout.readline().strip()
         assert line == "ready", child.stderr.read()
-        if kind == "dask":
+        if kind.startswith("dask"):
             line = child.stdout.readline().strip()
             assert line == "cluster", child.stderr.read()
         time.sleep(SIGNAL_AT * full.meta["seconds"])
         sent = time.perf_counter()
-        child.send_signal(signum)
+        if kind == "dask-terminal":
+            os.killpg(child.pid, signum)
+        else:
+            child.send_signal(signum)
         child.wait(timeout=CHILD_TIMEOUT_S)
         out, err = child.stdout.read(), child.stderr.read()
     finally:
@@ -129,13 +135,13 @@ def _interrupted_child(kind: str, path: Path, signum: int, full: fricenv.RegimeM
     latency = float(out.split()[1]) - sent  # perf_counter is system-wide on Linux
     assert "KeyboardInterrupt" in err or "SweepInterrupted" in err, err[-2000:]
     print(f"\n[{kind}, {signal.Signals(signum).name}] stopped in {latency:.3f} s")
-    return latency, child.returncode
+    return latency, child.returncode, err
 
 
 @pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM])
 def test_a_stopped_regime_map_keeps_its_finished_cells(tmp_path, full, signum) -> None:
     path = tmp_path / "m.npz"
-    latency, code = _interrupted_child("map", path, signum, full)
+    latency, code, _ = _interrupted_child("map", path, signum, full)
     assert latency <= STOP_S and code != 0
     kept = fricenv.RegimeMap.load(path)
     assert 0 < kept.done.sum() < N * N, "the signal came before any cell or after all"
@@ -156,14 +162,14 @@ def test_a_sweep_started_with_ctrl_c_ignored_still_stops_on_it(tmp_path, full) -
     its children inherit that; the sweep child restores Python's Ctrl-C, so these tests
     and the stress script's signal probes judge the sweep, not how the run was started."""
     path = tmp_path / "m.npz"
-    latency, code = _interrupted_child("map", path, signal.SIGINT, full, ignoring=True)
+    latency, code, _ = _interrupted_child("map", path, signal.SIGINT, full, ignoring=True)
     assert latency <= STOP_S and code != 0
     assert 0 < fricenv.RegimeMap.load(path).done.sum() < N * N
 
 
 def test_stopped_cell_statistics_hand_back_their_finished_cells(tmp_path, full) -> None:
     path = tmp_path / "cells.npz"
-    latency, _ = _interrupted_child("cells", path, signal.SIGINT, full)
+    latency, _, _ = _interrupted_child("cells", path, signal.SIGINT, full)
     assert latency <= STOP_S
     with np.load(path) as f:
         labels, stats, period, status = (f[f"arr_{i}"] for i in range(4))
@@ -201,16 +207,20 @@ def test_stop_requested_returns_the_finished_cells_and_marks_the_rest() -> None:
     np.testing.assert_array_equal(again[0], stats)
 
 
-@pytest.mark.parametrize("kind", ["atlas", "dask"])
+@pytest.mark.parametrize("kind", ["atlas", "dask", "dask-terminal"])
 def test_a_stopped_atlas_keeps_its_finished_cells(tmp_path, monkeypatch, full, kind) -> None:
     """Local and Dask atlases: the chunks running at the signal store what they finished
     (label stored), the rest of them stays not computed, and a resumed run computes the
-    rest only and equals an uninterrupted atlas."""
+    rest only and equals an uninterrupted atlas. On Dask, Ctrl-C to the client alone
+    raised a plain KeyboardInterrupt, and Ctrl-C in a terminal (to the workers too) a
+    bare TimeoutError after 10 s with the finished chunks dropped."""
     from fricenv.atlas import regime_map_dataset
 
     path = tmp_path / "a.zarr"
-    latency, code = _interrupted_child(kind, path, signal.SIGINT, full)
+    latency, code, err = _interrupted_child(kind, path, signal.SIGINT, full)
     assert latency <= STOP_S and code != 0
+    assert "fricenv.calls.SweepInterrupted: sweep stopped by SIGINT" in err, err[-2000:]
+    assert "TimeoutError" not in err, err[-2000:]
     kept = fricenv.open_atlas(path).load()
     done = kept.label.values != NOT_COMPUTED
     assert 0 < done.sum() < N * N, "the signal came before any cell or after all"
@@ -283,3 +293,62 @@ def _signalled_run(run_stoppable, signalled: type[Exception], main: int, delay: 
         time.sleep(1.0)  # (not reached: the signal comes first)
     timer.join()
     return began.is_set(), returned.is_set()
+
+
+def test_a_dask_stop_never_waits_for_chunks_no_worker_runs() -> None:
+    """``distributed.wait`` raises on its timeout: a stop with chunks queued and no worker
+    to run them (a cluster of none, or workers killed by the terminal's Ctrl-C) ended in a
+    bare TimeoutError after 10 s, having cancelled nothing."""
+    from distributed import Client, LocalCluster
+
+    from fricenv.atlas import core
+    from fricenv.atlas import distributed as D
+
+    with LocalCluster(n_workers=0, processes=False, dashboard_address=None) as cluster, \
+            Client(cluster) as client:
+        spec = core.make_spec("coulomb", {"u0": [1.0, 2.0, 3.0]}, None, 1, 1)
+        run = D.DistributedRun(client, core.chunk_tasks(spec))
+        for task in core.chunk_tasks(spec):
+            run._submit(task)
+        start = time.monotonic()
+        kept = run.stop()
+        assert time.monotonic() - start < 2.0
+        assert kept == [] and not run.pending
+
+
+def test_a_worker_process_under_a_nanny_ignores_the_terminals_ctrl_c():
+    """Ctrl-C in a terminal reached a local cluster's worker processes and ended them with
+    the chunks they held; their warm-up now shields those a nanny manages, not a worker
+    that is its own program (no nanny) or a thread of another."""
+    from distributed import Client, LocalCluster
+
+    from fricenv.atlas.distributed import shield_from_terminal_ctrl_c
+
+    before = signal.getsignal(signal.SIGINT)
+    try:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+        assert not shield_from_terminal_ctrl_c(has_nanny=False)
+        assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+        out: list[bool] = []
+        t = threading.Thread(target=lambda: out.append(shield_from_terminal_ctrl_c(True)))
+        t.start()
+        t.join()
+        assert out == [False] and signal.getsignal(signal.SIGINT) is signal.default_int_handler
+        assert shield_from_terminal_ctrl_c(has_nanny=True)
+        assert signal.getsignal(signal.SIGINT) is signal.SIG_IGN
+    finally:
+        signal.signal(signal.SIGINT, before)
+
+    def handler() -> str:  # (in the worker process)
+        return str(signal.getsignal(signal.SIGINT))
+
+    def shield(dask_worker) -> bool:  # (as WarmKernels.setup does, in the worker process)
+        from fricenv.atlas.distributed import shield_from_terminal_ctrl_c
+
+        return shield_from_terminal_ctrl_c(bool(getattr(dask_worker, "nanny", None)))
+
+    with LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
+                      dashboard_address=None) as cluster, Client(cluster) as client:
+        assert list(client.run(handler).values()) != [str(signal.SIG_IGN)]
+        assert list(client.run(shield).values()) == [True]
+        assert list(client.run(handler).values()) == [str(signal.SIG_IGN)]

@@ -273,3 +273,61 @@ def test_a_map_named_with_another_suffix_is_read_as_named(tmp_path, small_map) -
     small_map.save(tmp_path / "both.map")  # both.map.npz: the name save gives it wins
     (tmp_path / "both.map").write_bytes(b"not a map")
     _same(small_map, RegimeMap.load(tmp_path / "both.map"))
+
+
+def test_labels_that_contradict_the_statistics_are_refused(tmp_path, small_map) -> None:
+    """A well-formed map whose label says another regime than its own statistics loaded,
+    and a resume kept the label."""
+    from fricenv.regimes import Regime
+
+    good = small_map.save(tmp_path / "good.npz")
+    i, j = (int(k) for k in np.argwhere(small_map.done)[-1])
+    was = Regime(int(small_map.labels[i, j]))
+    other = Regime.WM2 if was != Regime.WM2 else Regime.SSM1
+
+    def relabel(a):
+        a[i, j] = int(other)
+
+    path = _rewritten(good, tmp_path / "relabelled.npz", ("labels",), relabel)
+    match = (rf"relabelled\.npz is not a fricenv regime map \(labels holds {other.name} at "
+             rf"cell \({i}, {j}\) .* statistics give {was.name} \(1 cells disagree\)")
+    with pytest.raises(ValueError, match=match):
+        RegimeMap.load(path)
+    with pytest.raises(ValueError, match=match):
+        regime_map(PARAMS, small_map.u0, small_map.nu, path=path, progress=False)
+    _same(small_map, RegimeMap.load(good))
+
+
+def test_a_symlinked_map_keeps_its_link_and_shares_its_targets_lock(tmp_path,
+                                                                    small_map) -> None:
+    """The lock was taken on the path as given, so a writer through a symlink ran beside
+    one through the target; a save replaced the symlink with a regular file."""
+    (tmp_path / "data").mkdir()
+    target = tmp_path / "data" / "m.npz"
+    link = tmp_path / "link.npz"
+    link.symlink_to(target)
+    small_map.save(link)
+    assert link.is_symlink() and os.readlink(link) == str(target) and target.is_file()
+    regime_map(PARAMS, [0.5, 3.0, 9.0], [0.5, 1.3], path=link, resume=False, progress=False)
+    assert link.is_symlink() and RegimeMap.load(target).shape == (3, 2)
+    assert not list(tmp_path.glob("link.npz.*")) and not list(target.parent.glob("*.tmp*"))
+    held, release = threading.Event(), threading.Event()
+
+    def hold() -> None:
+        with mapfile.writer_lock(target):
+            held.set()
+            release.wait(60)
+
+    t = threading.Thread(target=hold)
+    t.start()
+    try:
+        assert held.wait(60)
+        with pytest.raises(MapInUseError, match=r"m\.npz is being written"):
+            small_map.save(link)
+        with pytest.raises(MapInUseError):
+            regime_map(PARAMS, [0.5], [0.5], path=link, resume=False, progress=False)
+    finally:
+        release.set()
+        t.join()
+    small_map.save(link)  # free again
+    assert link.is_symlink()

@@ -371,3 +371,26 @@ def test_run_stats_stick_time_is_at_most_the_duration() -> None:
     assert s.stick_time <= s.duration and s.stick_fraction <= 1.0
     tr = simulate(STILL, 251.32741228718348)
     assert tr.stats.stick_time <= tr.stats.duration
+
+
+def test_periodicity_settings_that_contradict_each_other_are_refused(tmp_path) -> None:
+    """n_strobe < 2 m_max + 1 switched the periodicity test off for every cell, silently."""
+    from fricenv import SweepSettings, atlas
+    from fricenv.regimes import check_periodicity_settings
+
+    check_periodicity_settings(4, 4, 9)  # enough samples
+    check_periodicity_settings(0, 4, 2)  # the test switched off on purpose
+    with pytest.raises(ValueError, match=r"n_strobe=8 .* m_max=4.* 9 samples.*q_max=0"):
+        check_periodicity_settings(4, 4, 8)
+    with pytest.raises(ValueError, match=r"m_max=0 tests no period while q_max=4"):
+        check_periodicity_settings(4, 0, 12)
+    p = OscillatorParams.preset("coulomb")
+    calls = [lambda: regime_map(p, [1.0], [1.0], n_strobe=8),
+             lambda: regime_map(p, [1.0], [1.0], m_max=6),  # with the default n_strobe=12
+             lambda: cell_statistics([p], n_strobe=8),
+             lambda: atlas(p, {"u0": [1.0]}, path=tmp_path / "a.zarr",
+                           settings=SweepSettings(n_strobe=8))]
+    for call in calls:
+        with pytest.raises(ValueError, match=r"n_strobe=(8|12) is too few .* m_max=(4|6)"):
+            call()
+    assert not (tmp_path / "a.zarr").exists()  # refused before anything was written

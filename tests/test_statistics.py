@@ -157,3 +157,49 @@ def test_interval_format():
     assert S.Interval(-1.234, -2.0, -1.0).format() == "-1.23 [-2.00, -1.00]"
     assert S.Interval(0.05, -0.01, 0.1).format(1, 100, " %", signed=True) == "+5.0 % [-1.0, 10.0]"
     assert S.Interval(float("nan"), 0, 1).format() == "n/a"
+
+
+def test_nan_scores_are_refused_naming_the_index():
+    with pytest.raises(ValueError, match=r"NaN .*index 3"):
+        S.iqm([1.0, 2.0, 3.0, np.nan])
+    with pytest.raises(ValueError, match=r"NaN .*index 2"):
+        S.mean([1.0, 2.0, np.nan])
+    cell = np.arange(12.0).reshape(2, 6)
+    cell[1, 4] = np.nan
+    with pytest.raises(ValueError, match=r"scores holds NaN .*\(1, 4\)"):
+        S.iqm_ci(cell, strata=2, n_boot=50)
+    with pytest.raises(ValueError, match=r"cells\[1\] holds NaN"):
+        S.paired_ci(lambda a, b: a.mean(axis=(-2, -1)) - b.mean(axis=(-2, -1)),
+                    [np.ones((2, 6)), cell], n_boot=50)
+    with pytest.raises(ValueError, match=r"costs holds NaN"):
+        S.performance_profile(cell, np.linspace(0, 12, 5), n_boot=50)
+
+
+def test_nan_strata_labels_are_refused_not_read_as_garbage():
+    labels = np.array([0.0, 0.0, 1.0, np.nan, 1.0, 1.0])
+    for _ in range(3):  # the unchecked bootstrap answered differently call to call
+        with pytest.raises(ValueError, match=r"strata holds NaN .*index 3"):
+            S.iqm_ci(np.arange(6.0), strata=labels, n_boot=50, seed=1)
+
+
+def test_bad_arguments_get_named_errors():
+    x = np.arange(8.0).reshape(2, 4)
+    for axis in (2, -3, "1", 1.0):
+        with pytest.raises(ValueError, match=r"axis"):
+            S.iqm(x, axis=axis)
+    np.testing.assert_allclose(S.iqm(x, axis=-1), S.iqm(x, axis=1))
+    for conf in ("0.9", 1.0, 0.0, None, True):
+        with pytest.raises(ValueError, match=r"confidence must be a number in \(0, 1\)"):
+            S.iqm_ci(x, confidence=conf, n_boot=10)
+    with pytest.raises(ValueError, match=r"n_boot=1000000000 on a 2 x 4 cell needs .* GiB"):
+        S.iqm_ci(x, n_boot=10**9)
+    with pytest.raises(ValueError, match=r"n_boot=1000000000"):
+        S.paired_ci(lambda a: a.mean(axis=(-2, -1)), [x], n_boot=10**9)
+    with pytest.raises(ValueError, match=r"n_boot=1000000000"):
+        S.performance_profile(x, np.linspace(0, 8, 4), n_boot=10**9)
+    with pytest.raises(ValueError, match=r"at least one cell, got none"):
+        S.tau_grid([])
+    with pytest.raises(ValueError, match=r"n must be an integer >= 2, got 2.5"):
+        S.tau_grid([x], n=2.5)  # type: ignore[arg-type]
+    with pytest.raises(ValueError, match=r"taus must be"):
+        S.performance_profile(x, np.array([1.0, np.nan]), n_boot=10)

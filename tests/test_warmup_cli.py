@@ -73,6 +73,24 @@ def test_parts_are_one_per_law_and_workload_and_per_scene():
         parts(scenes=["moon"])
 
 
+def test_a_single_name_is_one_name_and_parallel_must_be_a_bool(monkeypatch):
+    """``laws='coulomb'`` ran the letters as law names; ``parallel='no'`` ran in parallel."""
+    assert parts("stribeck", "sweep") == parts(["stribeck"], ["sweep"])
+    assert [p.name for p in parts("coulomb", "env", "paper")] == ["env:paper"]
+    with pytest.raises(TypeError, match=r"laws must be a name or an iterable of names, got 5"):
+        parts(laws=5)  # type: ignore[arg-type]
+    import importlib
+
+    module = importlib.import_module("fricenv.warmup")  # (fricenv.warmup is the function)
+    ran = []
+    monkeypatch.setattr(module, "run_part", lambda *a: ran.append(a) or 0.0)
+    for flag in ("no", 0, None):
+        with pytest.raises(TypeError, match=r"parallel must be a bool \(True or False\)"):
+            module.warmup(parallel=flag)  # type: ignore[arg-type]
+    assert ran == []
+    assert module.warmup(laws="coulomb", workloads="sweep") == {"sweep:coulomb": 0.0}
+
+
 def test_print_digest_is_the_cache_stamp(capsys):
     code, out, _ = run(capsys, "warmup", "--print-digest")
     assert code == 0

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import signal
 from collections.abc import Iterable, Mapping
 from dataclasses import replace
 from typing import Any
@@ -82,6 +83,11 @@ def atlas(base: OscillatorParams | str, axes: Mapping[str, object],
     ``q``, the tested denominator of nu, as a coordinate); read lazily from the store when
     ``path`` is given. Everything is checked before any cell runs (``TypeError`` /
     ``ValueError`` naming the field and the value).
+
+    Ctrl-C (or SIGTERM) stops the run within about a second, locally or on Dask, and
+    raises :class:`~fricenv.SweepInterrupted` once every cell finished is kept: in the
+    store with ``path`` (``results`` is None; the same call resumes), else in
+    ``results``, the Dataset so far (cells not run hold the fill values).
     """
     progress = check_bool("progress", progress)
     _check_client(client)
@@ -89,19 +95,28 @@ def atlas(base: OscillatorParams | str, axes: Mapping[str, object],
     spec = make_spec(base, axes, settings, chunks, _executor_threads(client))
     if store is None:
         arrays = empty_variables(spec.shape)
-        with sweep_signals():
-            _compute(spec, client, _ChunkWriter(spec, None, arrays, {}), None, progress)
+        try:
+            with sweep_signals():
+                _compute(spec, client, _ChunkWriter(spec, None, arrays, {}), None, progress)
+        except SweepInterrupted as stop:
+            stop.results = to_dataset(spec, arrays)  # (the cells finished, the rest not)
+            raise
         return to_dataset(spec, arrays)
-    with writer_lock(store), sweep_signals():  # one writer per store (MapInUseError)
-        if store.exists():
-            group, stored_chunks, todo, part_done = open_for_resume(store, spec,
-                                                                    chunks is not None)
-            spec = replace(spec, chunks=stored_chunks)
-        else:
-            create_store(store, spec)
-            group, todo, part_done = open_for_resume(store, spec, True)[0], None, {}
-        _compute(spec, client, _ChunkWriter(spec, ZarrSink(store, group), None, part_done),
-                 todo, progress)
+    try:
+        with writer_lock(store), sweep_signals():  # one writer per store (MapInUseError)
+            if store.exists():
+                group, stored_chunks, todo, part_done = open_for_resume(store, spec,
+                                                                        chunks is not None)
+                spec = replace(spec, chunks=stored_chunks)
+            else:
+                create_store(store, spec)
+                group, todo, part_done = open_for_resume(store, spec, True)[0], None, {}
+            _compute(spec, client,
+                     _ChunkWriter(spec, ZarrSink(store, group), None, part_done), todo,
+                     progress)
+    except SweepInterrupted as stop:
+        stop.results = None  # (the store holds the cells finished: open_atlas reads them)
+        raise
     return open_atlas(store)
 
 
@@ -168,17 +183,24 @@ def _drain(spec: AtlasSpec, results: Iterable, put: _ChunkWriter, progress: bool
         bar = tqdm(total=spec.n_cells, initial=spec.n_cells - n_todo, unit="cell",
                    desc=f"atlas {spec.base.law} {'x'.join(map(str, spec.shape))}",
                    smoothing=0.1)
+    storing = None  # (a chunk whose store a Ctrl-C may cut short: stored again)
     try:
         for index, values in results:
+            storing = index, values
             n = put(index, values)
+            storing = None
             if bar is not None:
                 bar.update(n)
     except KeyboardInterrupt as stop:
         kept = [stop.results] if isinstance(stop, SweepInterrupted) and stop.results else []
         stop_run = getattr(results, "stop", None)  # (a cluster's run: its running chunks)
+        kept += [storing] if storing is not None else []
         for index, values in kept + (stop_run() if stop_run is not None else []):
             put(index, values)
-        raise
+        if isinstance(stop, SweepInterrupted):
+            raise
+        # (Ctrl-C reached the client's own wait, not a kernel's: the same promise)
+        raise SweepInterrupted(signum=signal.SIGINT) from None
     finally:
         if bar is not None:
             bar.close()

@@ -48,6 +48,7 @@ from ..params import (
     OscillatorParams,
     resolve_law,
 )
+from ..regimes import check_periodicity_settings
 
 #: Parameters an atlas may sweep: every numeric field of OscillatorParams that sets a cell
 #: (u1 and u2 are not: both tones get amplitude u0, as in a regime map).
@@ -308,6 +309,7 @@ def make_spec(base: object, axes: object, settings: Any, chunks: object,
     base = _check_base(base)
     axes = _check_axes(axes, base)
     settings = settings_with(settings, {})
+    check_periodicity_settings(settings.q_max, settings.m_max, settings.n_strobe)
     shape = tuple(a.size for a in axes.values())
     _check_cells(axes, base, settings)
     return AtlasSpec(base, axes, settings, check_chunks(chunks, list(axes), shape, n_threads))

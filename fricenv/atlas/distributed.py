@@ -19,6 +19,8 @@ within about a second with the cells it finished.
 
 from __future__ import annotations
 
+import signal
+import threading
 import uuid
 from collections.abc import Iterator, Sequence
 
@@ -53,13 +55,31 @@ def warm_kernels() -> None:
         compute_chunk(task, 1)
 
 
+def shield_from_terminal_ctrl_c(has_nanny: bool) -> bool:
+    """Ignore SIGINT in this worker process if a nanny manages it, and say whether it did.
+
+    Ctrl-C in a terminal reaches every process of the foreground group: a local cluster's
+    worker processes too, where it ended the worker (its ``asyncio`` runner's handler
+    cancels the worker) with the chunks it held, finished or not, while the client waited
+    for them to hand back their cells. A worker stops on the run's stop event instead,
+    and its nanny, which keeps its own handling of signals, ends it. A worker without a
+    nanny (``dask worker --no-nanny``: its own process, its own Ctrl-C) is left alone,
+    and so is a worker that is a thread of another program."""
+    if not has_nanny or threading.current_thread() is not threading.main_thread():
+        return False
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    return True
+
+
 class WarmKernels(WorkerPlugin):
-    """Warms each worker's numba kernels once, when it starts or joins."""
+    """Warms each worker's numba kernels once, when it starts or joins, and shields its
+    process from a terminal's Ctrl-C (:func:`shield_from_terminal_ctrl_c`)."""
 
     name = PLUGIN_NAME
     setups = 0  # (per worker process: how often it warmed, for tests)
 
     def setup(self, worker: object) -> None:
+        shield_from_terminal_ctrl_c(bool(getattr(worker, "nanny", None)))
         warm_kernels()
         self.setups += 1
 
@@ -165,21 +185,42 @@ class DistributedRun:
 
     def stop(self) -> list[tuple[tuple[int, ...], dict[str, np.ndarray]]]:
         """Stop the run: no new chunk starts, the running ones stop within about a
-        second and their finished cells come back (chunks that have not started are
-        cancelled). Waits at most ``STOP_WAIT_S`` for them."""
+        second, and the results of every chunk finished (before or now) come back;
+        chunks that no worker runs are cancelled at once. Waits at most ``STOP_WAIT_S``
+        for the running ones (``distributed.wait`` raises on its timeout: the stop then
+        cancelled nothing and lost the finished chunks)."""
         from distributed import Event, wait
 
         self.todo = iter(())
-        running = list(self.pending)
-        if not running:
+        held = list(self.pending)
+        if not held:
             return []
         event = Event(self.stop_event, client=self.client)
         event.set()
-        done, _ = wait(running, timeout=STOP_WAIT_S)
-        results = [f.result() for f in done if f.status == "finished"]
+        running = [f for f in held if f.key in self._processing()]
+        if running:
+            try:
+                wait(running, timeout=STOP_WAIT_S)
+            except TimeoutError:
+                pass  # (the chunks still running are cancelled with the rest)
+        results = []
+        for f in held:
+            if f.status == "finished":
+                try:
+                    results.append(f.result(timeout=STOP_WAIT_S))
+                except Exception:  # noqa: BLE001  (lost with its worker: recomputed later)
+                    continue
         self.cancel()
         event.clear()
         return results
+
+    def _processing(self) -> set:
+        """Keys of the tasks the workers are running now (a task queued with no worker
+        to run it, as with a cluster of none, never finishes: it is not waited for)."""
+        try:
+            return {k for keys in self.client.processing().values() for k in keys}
+        except Exception:  # noqa: BLE001  (a scheduler gone: nothing runs)
+            return set()
 
     def cancel(self) -> None:
         if self.pending:  # stopped early (an error, Ctrl-C, the caller closed us)

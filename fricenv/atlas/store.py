@@ -20,20 +20,28 @@ chunks not complete.
 
 Integrity: each chunk file ends in a CRC-32C of its compressed bytes (Zarr's ``crc32c``
 codec), and the group's attributes hold a CRC-32C of every metadata document (the group's
-own covers its consolidated copies of the others). Opening or
+own covers its consolidated copies of the others). Those checksums bind a file to its
+bytes, not to its place: a chunk file moved to another index or variable, or copied from
+another atlas of the same shape, still matches its own. So each chunk also has a record,
+``label/records/<i>.<j>...json`` (inside the label array's folder, where Zarr never
+looks), holding for every variable a digest of the file's bytes keyed by the store's
+random id, the variable's name and the chunk's index, written after the chunk's files. Opening or
 resuming a store checks all of them first (reading each file once, without decompressing
-it), so that damage is a ``ValueError`` naming the store and the array or chunk, or, when
-resuming, a chunk computed again: a flipped bit never reads as a changed value. One run
-writes a store at a time: it holds the OS lock of ``<store>.lock``, beside the store
+it), so that damage or a misplaced file is a ``ValueError`` naming the store and the array
+or chunk, or, when resuming, a chunk computed again: a flipped bit never reads as a
+changed value, a chunk file never as another cell's. One run writes a store at a time: it
+holds the OS lock of ``<store>.lock``, beside the store, on the store's resolved path
 (:func:`fricenv.mapfile.writer_lock`).
 """
 
 from __future__ import annotations
 
+import hashlib
 import json
 import os
 import re
 import shutil
+import uuid
 import warnings
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, fields, replace
@@ -58,7 +66,13 @@ from .core import STATUS_NOT_RUN, VARIABLES, AtlasSpec, chunk_slices, variables_
 FORMAT = "fricenv.atlas"
 #: Version 2: chunks carry checksums, metadata documents have theirs in the group's
 #: attributes, and every chunk file is written (fill values included).
-FORMAT_VERSION = 2
+FORMAT_VERSION = 3
+#: Version 3: each chunk has a record binding its files to the store, variable and index.
+#: Group attribute holding the store's random id, which the records' checksums cover.
+_STORE_ID = "store_id"
+#: Folder of the chunk records, inside the label array's folder (Zarr lists no such
+#: folder as a node of the hierarchy, so plain xarray and Zarr read the store as before).
+_RECORDS = "records"
 #: Where the chunk files of an array live in a format-3 store (default chunk key encoding).
 _CHUNK_DIR = "c"
 #: A Zarr node's metadata document.
@@ -74,6 +88,8 @@ _WRITE_EMPTY = ArrayConfig(order="C", write_empty_chunks=True)
 #: States of a chunk file (see _chunk_state).
 _MISSING = "is missing"
 _BAD_SUM = "does not match its checksum"
+_MISPLACED = ("is not the file written there (moved from another chunk or variable, copied "
+              "from another store, or its write was cut off)")
 
 _DESCRIPTIONS = {
     "stick_fraction": "share of the measurement window spent stuck",
@@ -190,7 +206,8 @@ def create_store(path: Path, spec: AtlasSpec) -> None:
     shutil.rmtree(tmp, ignore_errors=True)
     kw: dict[str, Any] = {"compressors": _COMPRESSORS, "config": _WRITE_EMPTY}
     try:
-        group = zarr.open_group(tmp, mode="w-", zarr_format=3, attributes=dataset_attrs(spec))
+        group = zarr.open_group(tmp, mode="w-", zarr_format=3,
+                                attributes={**dataset_attrs(spec), _STORE_ID: uuid.uuid4().hex})
         for name, grid in spec.axes.items():
             a = group.create_array(name, shape=grid.shape, dtype="float64", chunks=grid.shape,
                                    dimension_names=[name], **kw)
@@ -258,6 +275,12 @@ def _check_format(path: Path, attrs: dict) -> None:
                          f"carry no checksums; this fricenv reads version {FORMAT_VERSION} "
                          "only: remove it and run the atlas again (xarray.open_zarr still "
                          "reads it, unchecked)")
+    if version == 2:
+        raise ValueError(f"{path} is a fricenv atlas store of format version 2, whose chunks "
+                         "are not bound to their place (a chunk moved or copied from another "
+                         f"atlas read as this one's); this fricenv reads version "
+                         f"{FORMAT_VERSION} only: remove it and run the atlas again "
+                         "(xarray.open_zarr still reads it)")
     if version != FORMAT_VERSION:
         raise ValueError(f"{path} is a fricenv atlas store of format version {version!r}; "
                          f"this fricenv reads version {FORMAT_VERSION}")
@@ -313,6 +336,61 @@ def _chunk_state(path: Path, name: str, index: tuple[int, ...]) -> str:
         return f"cannot be read ({exc})"
     if len(data) < 4 or google_crc32c.value(data[:-4]) != int.from_bytes(data[-4:], "little"):
         return _BAD_SUM
+    return ""
+
+
+def _record_file(path: Path, index: tuple[int, ...]) -> Path:
+    """Where chunk ``index``'s record lives (see the module's docstring)."""
+    return path / "label" / _RECORDS / (".".join(str(i) for i in index) + ".json")
+
+
+def _bound_sum(store_id: str, name: str, index: tuple[int, ...], data: bytes) -> str:
+    """A BLAKE2b digest (64 bits) of a chunk file's place (its store, variable and index)
+    and bytes: the same bytes at another place give another sum. Not a CRC: a chunk file
+    ends in the CRC-32C of its other bytes, and the CRC-32C of any such file after a fixed
+    prefix is one and the same constant, whatever the file holds."""
+    h = hashlib.blake2b(digest_size=8, person=b"fricenv-chunk")
+    h.update(f"{store_id}/{name}/{'.'.join(str(i) for i in index)}\n".encode())
+    h.update(data)
+    return h.hexdigest()
+
+
+def _read_record(path: Path, index: tuple[int, ...]) -> dict:
+    """Chunk ``index``'s record (empty when missing or unreadable: then no file of the
+    chunk is bound, and the chunk counts as damaged, or in flight without its label)."""
+    try:
+        record = json.loads(_record_file(path, index).read_bytes())
+    except (OSError, ValueError):
+        return {}
+    return record if isinstance(record, dict) else {}
+
+
+def write_record(path: Path, store_id: str, index: tuple[int, ...]) -> None:
+    """Bind chunk ``index``'s files, as they are now, to their place: the record is
+    written to a temporary file and renamed, so it is whole or absent."""
+    sums = {k: _bound_sum(store_id, k, index, _chunk_file(path, k, index).read_bytes())
+            for k in VARIABLES}
+    file = _record_file(path, index)
+    file.parent.mkdir(exist_ok=True)
+    tmp = file.with_name(file.name + ".partial")
+    tmp.write_text(json.dumps(sums, sort_keys=True))
+    os.replace(tmp, file)
+
+
+def _variable_state(path: Path, store_id: str, name: str, index: tuple[int, ...],
+                    record: dict) -> str:
+    """As :func:`_chunk_state`, and for an intact file whether it is the one its chunk's
+    record binds to this store, variable and index (``_MISPLACED`` otherwise)."""
+    try:
+        data = _chunk_file(path, name, index).read_bytes()
+    except FileNotFoundError:
+        return _MISSING
+    except OSError as exc:
+        return f"cannot be read ({exc})"
+    if len(data) < 4 or google_crc32c.value(data[:-4]) != int.from_bytes(data[-4:], "little"):
+        return _BAD_SUM
+    if record.get(name) != _bound_sum(store_id, name, index, data):
+        return _MISPLACED
     return ""
 
 
@@ -378,25 +456,32 @@ def check_store(path: Path, mode: Literal["r", "r+"] = "r") -> StoreCheck:
             raise _damaged(path, f"variable {k!r} has shape {tuple(a.shape)}, its axes "
                                  f"{shape}")
     spec = AtlasSpec(base, axes, settings, tuple(arrays["label"].chunks))
-    complete, damaged = _check_chunks(path, spec)
+    store_id = attrs.get(_STORE_ID)
+    if not isinstance(store_id, str) or not store_id:
+        raise _damaged(path, f"its attribute {_STORE_ID!r} is missing")
+    complete, damaged = _check_chunks(path, store_id, spec)
     return StoreCheck(path, group, spec, complete, damaged)
 
 
-def _check_chunks(path: Path, spec: AtlasSpec
+def _check_chunks(path: Path, store_id: str, spec: AtlasSpec
                   ) -> tuple[set[tuple[int, ...]], list[tuple[tuple[int, ...], str, str]]]:
-    """The complete chunks (each variable's file there and intact), and the damaged chunk
-    files: those failing their checksum, and the files missing from a chunk whose label,
-    written last, is there."""
+    """The complete chunks (each variable's file there, intact and bound to its place by
+    the chunk's record), and the damaged chunk files: those failing their checksum or
+    their record, and the files missing from a chunk whose label, written last, is
+    there."""
     complete: set[tuple[int, ...]] = set()
     damaged = []
     for index in np.ndindex(*spec.chunk_grid):
-        states = {k: _chunk_state(path, k, index) for k in VARIABLES}
+        record = _read_record(path, index)
+        states = {k: _variable_state(path, store_id, k, index, record) for k in VARIABLES}
         if not any(states.values()):
             complete.add(index)
             continue
         label_written = states["label"] != _MISSING
         for k, why in states.items():
-            if why and (why != _MISSING or label_written):
+            # (without its label a chunk was in flight: files written before the label
+            # are not bound yet, and its cells read as not computed)
+            if why and (why not in (_MISSING, _MISPLACED) or label_written):
                 damaged.append((index, k, why))
     return complete, damaged
 
@@ -505,15 +590,21 @@ def remove_partial_writes(path: Path) -> None:
 
 class ZarrSink:
     """Writes chunks into an open store: the label last, so that a label file whose chunk
-    lacks another variable's file is known to be damage, not a write cut off."""
+    lacks another variable's file is known to be damage, not a write cut off; then the
+    chunk's record, which binds its files to their place."""
 
     def __init__(self, path: Path, group: zarr.Group) -> None:
+        self.path = path
+        self.store_id = str(group.attrs[_STORE_ID])
         self.arrays = {k: _array(path, group, k).with_config(_WRITE_EMPTY)
                        for k in VARIABLES}  # (VARIABLES ends with label)
+        self.chunks = tuple(self.arrays["label"].chunks)
 
     def __call__(self, slices: tuple[slice, ...], values: dict[str, np.ndarray]) -> None:
         for k, arr in self.arrays.items():
             arr[slices] = values[k]
+        index = tuple(s.start // c for s, c in zip(slices, self.chunks, strict=True))
+        write_record(self.path, self.store_id, index)
 
 
 def open_atlas(path: str | os.PathLike, chunks: Any = None) -> xr.Dataset:
@@ -537,4 +628,5 @@ def open_atlas(path: str | os.PathLike, chunks: Any = None) -> xr.Dataset:
                       decode_times=False)
     ds = ds[list(VARIABLES)]  # (the documented order, also for a store not consolidated)
     ds.attrs.pop(_CHECKSUMS, None)
+    ds.attrs.pop(_STORE_ID, None)
     return ds

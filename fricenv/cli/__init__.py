@@ -156,9 +156,15 @@ def main(argv: Sequence[str] | None = None) -> int:
     from fricenv import compile_notice
     from fricenv.cli import _notice
 
-    with _notice.log_to_stderr(quiet="--quiet" in argv[1:]), compile_notice.in_command():
-        _notice.announce_command(argv[0], argv[1:])
-        status = command_main(argv[0])(argv[1:], prog=f"fricenv {argv[0]}")
+    try:
+        with (_notice.log_to_stderr(quiet="--quiet" in argv[1:]),
+              compile_notice.in_command()):
+            _notice.announce_command(argv[0], argv[1:])
+            status = command_main(argv[0])(argv[1:], prog=f"fricenv {argv[0]}")
+    except KeyboardInterrupt as e:  # (a command that reports its own exits 130 itself)
+        from fricenv.cli._args import interrupted
+
+        return interrupted(f"fricenv {argv[0]}", e)
     return status if isinstance(status, int) else 0
 
 

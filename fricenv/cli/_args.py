@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import argparse
 import math
+import signal
+import sys
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -138,8 +140,52 @@ def plant(args: argparse.Namespace) -> OscillatorParams:
 
 
 def out_dir(text: str) -> Path:
-    """An output folder: an existing file there is refused up front."""
+    """An output folder: an existing file there, or a file where one of the folders above
+    it should be (``--out report.txt/run``), is refused up front, before a run whose
+    results could not be written."""
     path = Path(text)
-    if path.exists() and not path.is_dir():
-        raise argparse.ArgumentTypeError(f"{text!r} is a file, not a folder")
+    try:
+        if path.exists() and not path.is_dir():
+            raise argparse.ArgumentTypeError(f"{text!r} is a file, not a folder")
+        for parent in path.absolute().parents:
+            if parent.exists():
+                if not parent.is_dir():
+                    raise argparse.ArgumentTypeError(
+                        f"{text!r} cannot be made: {str(parent)!r} is a file, not a folder")
+                break
+    except OSError as e:  # (a name too long, a loop of symlinks)
+        raise argparse.ArgumentTypeError(f"{text!r} cannot be a folder: {e.strerror}") from None
     return path
+
+
+def positive_int(text: str) -> int:
+    """A count of at least 1 (workers, say): 0 or a negative count is refused up front
+    instead of meaning "none" or hanging."""
+    try:
+        n = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 1, got {text!r}") from None
+    if n < 1:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 1, got {text!r}")
+    return n
+
+
+def unique_axes(pairs: Sequence[tuple[str, np.ndarray]]) -> dict[str, np.ndarray]:
+    """``(name, grid)`` pairs (repeated ``--axis`` options) as a dict; ``ValueError``
+    naming a parameter given twice, which a dict would otherwise keep once, silently."""
+    out: dict[str, np.ndarray] = {}
+    for name, values in pairs:
+        if name in out:
+            raise ValueError(f"--axis: parameter {name!r} is given twice")
+        out[name] = values
+    return out
+
+
+def interrupted(prog: str, exc: KeyboardInterrupt, where: str = "") -> int:
+    """Report a Ctrl-C (or a SIGTERM that stopped a sweep) in one line and return the
+    shell's status for it, ``128 + signal`` (130 for Ctrl-C), as ``fricenv train`` does:
+    a traceback there says nothing the user does not know. ``where``: what was kept."""
+    signum = int(getattr(exc, "signum", signal.SIGINT))
+    print(f"{prog}: interrupted ({signal.Signals(signum).name})"
+          + (f"; {where}" if where else ""), file=sys.stderr, flush=True)
+    return 128 + signum

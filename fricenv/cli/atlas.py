@@ -27,7 +27,15 @@ from typing import Any
 import numpy as np
 
 from fricenv.cli import _notice
-from fricenv.cli._args import add_plant_arguments, grid, parser, plant
+from fricenv.cli._args import (
+    add_plant_arguments,
+    grid,
+    interrupted,
+    parser,
+    plant,
+    positive_int,
+    unique_axes,
+)
 from fricenv.compile_notice import method_for_law
 
 #: The command's description and examples (``--help``).
@@ -85,7 +93,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     where.add_argument("--scheduler", default=None, metavar="ADDRESS",
                        help="a running Dask scheduler (tcp://host:8786); default: "
                             "this machine's threads")
-    where.add_argument("--local-workers", type=int, default=None, metavar="N",
+    where.add_argument("--local-workers", type=positive_int, default=None, metavar="N",
                        help="start a local Dask cluster of N single-threaded workers")
     parser.add_argument("--no-progress", action="store_true",
                         help="no progress bar (the stage line stays)")
@@ -105,9 +113,7 @@ def run(args: argparse.Namespace) -> int:
         return 2
 
     try:
-        axes = dict(parse_axis(a) for a in args.axis)
-        if len(axes) != len(args.axis):
-            raise ValueError("--axis: a parameter is given twice")
+        axes = unique_axes([parse_axis(a) for a in args.axis])
         base = plant(args)
         settings = SweepSettings(**parse_settings(args.settings))
     except (TypeError, ValueError) as exc:
@@ -157,13 +163,21 @@ def build_parser(prog: str | None = None) -> argparse.ArgumentParser:
 def main(argv: Sequence[str] | None = None, prog: str | None = None) -> int:
     """``fricenv atlas``: the compile notice, then the run (``fricenv.cli.main`` prints
     the stage lines)."""
-    args = build_parser(prog).parse_args(argv)
+    p = build_parser(prog)
+    args = p.parse_args(argv)
     _notice.announce(lambda: [("sweep", method_for_law(args.law or "coulomb"))])
-    return run(args)
+    try:
+        return run(args)
+    except KeyboardInterrupt as e:  # (SweepInterrupted: the finished chunks are stored)
+        return interrupted(p.prog, e, f"finished chunks are in {args.out} (rerun to resume)")
 
 
 def module_main(argv: Sequence[str] | None = None) -> int:
     """``python -m fricenv.atlas``: as ``fricenv atlas``, stage lines on stderr."""
-    args = build_parser("python -m fricenv.atlas").parse_args(argv)
-    with _notice.log_to_stderr(quiet=args.quiet):
-        return run(args)
+    p = build_parser("python -m fricenv.atlas")
+    args = p.parse_args(argv)
+    try:
+        with _notice.log_to_stderr(quiet=args.quiet):
+            return run(args)
+    except KeyboardInterrupt as e:  # (SweepInterrupted: the finished chunks are stored)
+        return interrupted(p.prog, e, f"finished chunks are in {args.out} (rerun to resume)")

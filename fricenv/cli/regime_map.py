@@ -17,7 +17,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from fricenv.cli import _notice
-from fricenv.cli._args import add_plant_arguments, grid, out_dir, parser, plant
+from fricenv.cli._args import add_plant_arguments, grid, interrupted, out_dir, parser, plant
 from fricenv.compile_notice import method_for_law
 
 
@@ -58,9 +58,9 @@ def main(argv: Sequence[str] | None = None, prog: str | None = None) -> int:
                                progress=not (args.no_progress or args.quiet))
     except (TypeError, ValueError) as e:
         parser.error(str(e))
-    except KeyboardInterrupt:
-        parser.exit(130, f"{parser.prog}: interrupted; cells done so far are in "
-                         f"{args.out / 'map.npz'} (rerun to resume)\n")
+    except KeyboardInterrupt as e:
+        return interrupted(parser.prog, e, f"cells done so far are in {args.out / 'map.npz'} "
+                                           "(rerun to resume)")
     _notice.stage(f"map: drawing {args.out / 'map.png'}")
     from fricenv import plotting
 

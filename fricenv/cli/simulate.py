@@ -70,13 +70,16 @@ def main(argv: Sequence[str] | None = None, prog: str | None = None) -> int:
 
     try:
         params = plant(args)
+        try:  # before the run: a folder that cannot be made would lose it
+            args.out.mkdir(parents=True, exist_ok=True)
+        except OSError as e:
+            raise ValueError(f"--out {str(args.out)!r} cannot be made: {e}") from None
         _notice.announce(lambda: [("simulate", resolve_method(params, args.method))])
         tr = fricenv.simulate(params, args.t_end, method=args.method, dt_out=args.dt_out)
     except (TypeError, ValueError) as e:
         parser.error(str(e))
     except fricenv.SimulationError as e:
         parser.exit(1, f"{parser.prog}: error: {e}\n")
-    args.out.mkdir(parents=True, exist_ok=True)
     data = write_data(tr, args.out / "trajectory", args.format)
     # (the panel's title names the law and the parameters; the figure's adds the run's facts)
     title = (f"{tr.method} method, τ from 0 to {args.t_end:g}, stick-time fraction "

@@ -462,6 +462,10 @@ def check_noise_state(noise: Any, where: str) -> None:
             and rows.shape[0] <= NOISE_ROWS and rows.dtype == np.float64):
         raise ValueError(f"{where}: unread normals must be a float64 array (m, {K.N_OBS}) "
                          f"with m <= {NOISE_ROWS}, {got(rows)}")
+    if not np.all(np.isfinite(rows)):  # (they are added to readings as they are)
+        row, col = (int(i) for i in np.argwhere(~np.isfinite(rows))[0])
+        raise ValueError(f"{where}: unread normals hold a non-finite value "
+                         f"({float(rows[row, col])!r} at row {row}, column {col})")
 
 
 @kernel

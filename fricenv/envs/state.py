@@ -259,6 +259,12 @@ def check_state(state: Any, delay_rows: int | None, noisy: bool,
                          "restore a state into an environment made with the same options")
     if state.delay is not None and state.delay.dtype != np.float32:
         raise ValueError(f"state.delay must be float32, got {state.delay.dtype}")
+    if state.delay is not None and not np.all(np.isfinite(state.delay)):
+        # (readings are clipped to the observation space: a NaN one would reach the
+        # agent k steps later, far from the set_state that put it there)
+        row, col = (int(i) for i in np.argwhere(~np.isfinite(state.delay))[0])
+        raise ValueError(f"state.delay holds a non-finite reading "
+                         f"({float(state.delay[row, col])!r} at row {row}, column {col})")
     if (state.noise is None) == noisy:
         raise ValueError("state and environment differ in their noise stream (obs_noise or "
                          "randomize_sensors): restore a state into an environment made "

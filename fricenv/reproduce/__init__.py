@@ -212,8 +212,14 @@ def main(argv: Sequence[str] | None = None, prog: str | None = None) -> int:
     except (TypeError, ValueError) as e:
         ap.error(str(e))
     t0 = time.perf_counter()
-    path = run(out, quick=a.quick, docs=a.docs, n_threads=a.threads,
-               progress=not (a.no_progress or a.quiet), only=only, resolution=a.resolution)
+    try:
+        path = run(out, quick=a.quick, docs=a.docs, n_threads=a.threads,
+                   progress=not (a.no_progress or a.quiet), only=only, resolution=a.resolution)
+    except KeyboardInterrupt as e:
+        from fricenv.cli._args import interrupted
+
+        return interrupted(ap.prog, e,
+                           f"finished maps and cells are kept in {out} (rerun to resume)")
     print(f"wrote {path} and figures in {out} ({time.perf_counter() - t0:.1f} s)")
     return 0
 
