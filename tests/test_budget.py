@@ -252,3 +252,18 @@ def test_ctrl_c_stops_a_running_call_within_a_second(call: str) -> None:
     latency = float(line[1]) - sent  # perf_counter is system-wide on Linux
     print(f"\n[{call}] Ctrl-C latency {latency:.3f} s")
     assert latency <= INTERRUPT_S
+
+
+@pytest.mark.parametrize("b3", [1e6, 1e9, 1e12])
+def test_stiff_cubic_slip_gives_one_answer(b3: float) -> None:
+    """A large cubic coefficient damps fast slip hard, but slip near the belt speed stays
+    soft: the stick fraction converges as b3 grows, rather than a refusal or a wrong
+    number (0.0328-0.0330 for b3 = 1e6 .. 1e12 over 100 units)."""
+    s = run_stats(OscillatorParams(b3=b3, u0=5.0, nu=1.0), 100.0)
+    assert abs(s.stick_fraction - 0.0329) < 3e-4
+
+
+def test_anti_damped_cubic_slip_names_its_cause() -> None:
+    """b3 < 0 runs away; the error said the slip was too stiff for the time resolution."""
+    with pytest.raises(SimulationError, match="negative net damping"):
+        run_stats(OscillatorParams(b3=-1e4, u0=5.0, nu=1.0), 10.0)

@@ -9,13 +9,12 @@ from __future__ import annotations
 
 import argparse
 import math
-import signal
-import sys
 from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
 
+from fricenv.interrupts import interrupted as interrupted
 from fricenv.params import FRICTION_LAWS, PAPER_CASES, OscillatorParams
 
 
@@ -179,13 +178,3 @@ def unique_axes(pairs: Sequence[tuple[str, np.ndarray]]) -> dict[str, np.ndarray
             raise ValueError(f"--axis: parameter {name!r} is given twice")
         out[name] = values
     return out
-
-
-def interrupted(prog: str, exc: KeyboardInterrupt, where: str = "") -> int:
-    """Report a Ctrl-C (or a SIGTERM that stopped a sweep) in one line and return the
-    shell's status for it, ``128 + signal`` (130 for Ctrl-C), as ``fricenv train`` does:
-    a traceback there says nothing the user does not know. ``where``: what was kept."""
-    signum = int(getattr(exc, "signum", signal.SIGINT))
-    print(f"{prog}: interrupted ({signal.Signals(signum).name})"
-          + (f"; {where}" if where else ""), file=sys.stderr, flush=True)
-    return 128 + signum

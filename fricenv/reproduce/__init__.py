@@ -216,7 +216,7 @@ def main(argv: Sequence[str] | None = None, prog: str | None = None) -> int:
         path = run(out, quick=a.quick, docs=a.docs, n_threads=a.threads,
                    progress=not (a.no_progress or a.quiet), only=only, resolution=a.resolution)
     except KeyboardInterrupt as e:
-        from fricenv.cli._args import interrupted
+        from fricenv.interrupts import interrupted
 
         return interrupted(ap.prog, e,
                            f"finished maps and cells are kept in {out} (rerun to resume)")
