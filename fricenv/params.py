@@ -90,6 +90,14 @@ def law_stiffness(P: np.ndarray) -> np.ndarray:
     P = np.asarray(P, dtype=np.float64)
     out = np.zeros(P.shape[:-1])
     codes = P[..., P_LAW]
+    if P.ndim == 2 and P.shape[0] == 1:  # (every run checks its row: spare the masks)
+        law = friction.law_of_code(codes[0])
+        if not law.closed_form:
+            row = P[0]
+            out[0] = law.stiffness(
+                {p.name: float(row[P_LAW_PARAMS + i]) for i, p in enumerate(law.params)},
+                float(row[P_LAM]), float(row[P_XFK]), float(row[P_XFS]))
+        return out
     for law in friction.LAWS.values():
         rows = codes == law.code
         if law.closed_form or not np.any(rows):
@@ -223,6 +231,8 @@ class OscillatorParams:
             if getattr(self, p.name) is None:
                 object.__setattr__(self, p.name, p.default)
         law.check(self.law_values())
+        # the kernels' vector, once: the instance is frozen, and every run asks for it
+        object.__setattr__(self, "_array", self._build_array())
 
     # -- derived quantities -------------------------------------------------------------
     @property
@@ -329,7 +339,10 @@ class OscillatorParams:
         return out
 
     def to_array(self) -> np.ndarray:
-        """The float64 vector the kernels take (layout ``P_*`` in this module)."""
+        """The float64 vector the kernels take (layout ``P_*`` in this module), a copy."""
+        return self._array.copy()  # type: ignore[attr-defined]
+
+    def _build_array(self) -> np.ndarray:
         p = np.empty(N_PARAMS)
         p[P_LAM] = self.lam
         p[P_V] = self.V

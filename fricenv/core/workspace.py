@@ -71,7 +71,6 @@ C_TX = _take("C_TX", TAYLOR_MAX_ORDER + 1)
 C_TV = _take("C_TV", TAYLOR_MAX_ORDER + 1)
 C_TW = _take("C_TW", TAYLOR_MAX_ORDER + 1)
 C_TQ = _take("C_TQ", TAYLOR_MAX_ORDER + 1)
-C_TL = _take("C_TL", LAW_SCRATCH)  # the friction law's own series (its Taylor recurrence)
 # Whole-interval closed form (``_whole_interval``): constants over the call's span T, keyed
 # on (lam, T) and on each tone's frequency (a retuned tone recomputes only its own).
 W_I_KEY_LAM, W_I_KEY_T, W_I_KEY_W1, W_I_KEY_W2 = WORKSPACE.group(
@@ -102,6 +101,9 @@ W_T_KEY2 = _take("W_T_KEY2", N_T)
 # The call's step budget (see MAX_STEPS_PER_TAU), read at every step, so that another thread
 # can end a running call by lowering W_MAX_STEPS_CALL below 0.
 W_MAX_STEPS_TAU, W_MAX_STEPS_CALL = WORKSPACE.group("W_MAX_STEPS_TAU", "W_MAX_STEPS_CALL")
+# The friction law's own series (its Taylor recurrence), last: only a law that needs them
+# touches these slots, and the ones every step reads stay together.
+C_TL = _take("C_TL", LAW_SCRATCH)
 N_CX = WORKSPACE.size
 N_WORK = N_CX
 

@@ -1,6 +1,8 @@
 """The friction laws inside the kernels: one entry per question, dispatched on the law's code.
 
-The solvers call these and never a law's module directly, so a law joins every kernel by
+The solvers call these and never a law's module directly (those called from one place in
+a step loop are inlined there at numba's IR level, so that LLVM sees the law's branch and
+takes it out of the loop), so a law joins every kernel by
 a branch here (its ``CODE``), and its module holds the mathematics, as plain Python
 functions that this module compiles (``QUESTIONS``). The law's constants
 travel as a 4-tuple ``lc`` that its ``prepare`` makes from the parameter row's law block
@@ -23,16 +25,21 @@ QUESTIONS = ("prepare", "add_accel", "sgn_accel", "slope", "net_slope", "taylor_
              "taylor_step_cap")
 
 
-def _compiled(law: object) -> tuple:
-    return tuple(kernel(getattr(law, q)) for q in QUESTIONS)
+def _compiled(law: object, inline: bool) -> tuple:
+    """The law's functions as kernels: inlined (IR level) into their one caller, the branch
+    below, where ``inline`` (typed there once either way, they add no compile unit of
+    their own: three laws' 21 units added 2.3 s to the first event-method call from an
+    empty cache); else compiled apart, so that a law of long functions (exp, pow, loops)
+    does not grow the hot loops of the others past what LLVM inlines there."""
+    return tuple(kernel(getattr(law, q), called_once=inline) for q in QUESTIONS)
 
 
 (co_prepare, co_add_accel, co_sgn_accel, co_slope, co_net_slope, co_taylor_term,
- co_taylor_step_cap) = _compiled(coulomb)
+ co_taylor_step_cap) = _compiled(coulomb, inline=True)
 (cu_prepare, cu_add_accel, cu_sgn_accel, cu_slope, cu_net_slope, cu_taylor_term,
- cu_taylor_step_cap) = _compiled(cubic)
+ cu_taylor_step_cap) = _compiled(cubic, inline=True)
 (ex_prepare, ex_add_accel, ex_sgn_accel, ex_slope, ex_net_slope, ex_taylor_term,
- ex_taylor_step_cap) = _compiled(exponential)
+ ex_taylor_step_cap) = _compiled(exponential, inline=False)
 
 
 @kernel
@@ -59,7 +66,7 @@ def prepare(law, p0, p1, p2, xfk, xfs):
     return co_prepare(p0, p1, p2, xfk, xfs)
 
 
-@kernel
+@kernel(called_once=True)
 def add_accel(law, lc, a, sd, vr):
     """``a`` plus the speed-dependent part of the slip acceleration (all of ``-F`` but the
     kinetic level ``-sd xfk``, which the solvers add themselves)."""
@@ -70,7 +77,7 @@ def add_accel(law, lc, a, sd, vr):
     return co_add_accel(a, lc, sd, vr)
 
 
-@kernel
+@kernel(called_once=True)
 def sgn_accel(law, lc, a, s, vr):
     """``add_accel`` for the RK4 baseline, which takes ``s = sgn(vr)`` literally (0 at vr =
     0) and writes each law as the paper's Eq. 7 does."""
@@ -101,7 +108,7 @@ def net_slope(law, lc, lam, sd, vr):
     return co_net_slope(lc, lam, sd, vr)
 
 
-@kernel
+@kernel(called_once=True)
 def taylor_term(law, lc, sd, cx, tw, tq, tl, k, wk):
     """k-th Taylor coefficient of the speed-dependent acceleration along a slip step, from
     the series of w = v - V in ``cx[tw:]`` (``wk`` = its k-th term); ``cx[tq:]`` and
@@ -113,7 +120,7 @@ def taylor_term(law, lc, sd, cx, tw, tq, tl, k, wk):
     return co_taylor_term(lc, sd, cx, tw, tq, tl, k, wk)
 
 
-@kernel
+@kernel(called_once=True)
 def taylor_step_cap(law, lc, cx, tl, n, eps, h):
     """The Taylor step ``h`` of order ``n``, shortened where the law's own series would not
     converge over it at tolerance ``eps``."""
@@ -124,7 +131,7 @@ def taylor_step_cap(law, lc, cx, tl, n, eps, h):
     return co_taylor_step_cap(lc, cx, tl, n, eps, h)
 
 
-@kernel
+@kernel(called_once=True)
 def start_level(law, xfk, xfs):
     """|F| as slip starts (vr -> 0): ``xfs`` for a law continuous at break-away, else the
     kinetic level ``xfk``."""
