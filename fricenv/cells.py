@@ -161,7 +161,8 @@ class SweepSettings:
         if self.method == "auto":
             return METHOD_EXACT if params.is_coulomb else METHOD_EVENT
         if self.method == "exact" and not params.is_coulomb:
-            raise ValueError("method 'exact' needs the Coulomb law (b1 = b3 = 0)")
+            raise ValueError(f"method 'exact' needs the Coulomb law (b1 = b3 = 0), got the "
+                             f"{params.law_spec.name} law")
         return METHODS[self.method]
 
 

@@ -111,7 +111,9 @@ class EnvSetup:
             not sc.params.is_coulomb
             or any(drawn.get(k, (0.0, 0.0)) != (0.0, 0.0) for k in ("b1", "b3"))
         ):
-            raise ValueError("method='exact' needs the Coulomb law (b1 = b3 = 0)")
+            raise ValueError(f"method='exact' needs the Coulomb law (b1 = b3 = 0), got the "
+                             f"{sc.params.law_spec.name} law"
+                             + (" with b1, b3 randomised" if sc.params.is_coulomb else ""))
         # Every episode drawn without options (the vector env's autoresets included) stays
         # within what this checks; reset(options=...) checks its own plant.
         sc.check_interval_cost(randomize)
