@@ -40,6 +40,7 @@ import numpy as np
 import yaml
 
 from fricenv.checks import check_output_dir
+from fricenv.interrupts import sigterm_handled
 
 from .cli import HelpFormatter, Stages
 from .config import (
@@ -203,19 +204,9 @@ def _raise_on_sigterm(signum: int, frame: object) -> None:
 @contextlib.contextmanager
 def sigterm_as_ctrl_c() -> Iterator[None]:
     """Within this block SIGTERM stops a training as Ctrl-C does (the model so far saved,
-    config.yml marked interrupted). SIGTERM is what ``timeout``, SLURM, ``docker stop``
-    and Kubernetes send; Python's default action ends the process at once, with no model.
-    Only in the main thread, and only where SIGTERM has its default action (a handler of
-    the caller's own is left alone), as ``fricenv.calls.sweep_signals`` does for sweeps."""
-    if (threading.current_thread() is not threading.main_thread()
-            or signal.getsignal(signal.SIGTERM) is not signal.SIG_DFL):
+    config.yml marked interrupted), as ``fricenv.calls.sweep_signals`` does for sweeps."""
+    with sigterm_handled(_raise_on_sigterm):
         yield
-        return
-    signal.signal(signal.SIGTERM, _raise_on_sigterm)
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGTERM, signal.SIG_DFL)
 
 
 def train(args: argparse.Namespace, prepared: tuple | None = None,

@@ -29,6 +29,7 @@ from .checks import check_finite_real
 from .core import new_workspace as _new_workspace
 from .core.constants import MAX_STEPS_PER_CALL, MAX_STEPS_PER_TAU
 from .core.workspace import W_MAX_STEPS_CALL, W_MAX_STEPS_TAU
+from .interrupts import sigterm_handled
 from .layout import STATUS_STEP_BUDGET
 
 #: Steps a call runs in the calling thread before it is moved to a worker thread.
@@ -61,18 +62,9 @@ def _raise_on_sigterm(signum: int, frame: object) -> None:
 @contextlib.contextmanager
 def sweep_signals() -> Iterator[None]:
     """Within this block SIGTERM stops a sweep as Ctrl-C does (its finished cells saved,
-    then :class:`SweepInterrupted` raised), where Python's default would end the process
-    at once and lose them. Only in the main thread, and only where SIGTERM has its default
-    action: a handler of the caller's own is left alone."""
-    if (threading.current_thread() is not threading.main_thread()
-            or signal.getsignal(signal.SIGTERM) is not signal.SIG_DFL):
+    then :class:`SweepInterrupted` raised): see :func:`fricenv.interrupts.sigterm_handled`."""
+    with sigterm_handled(_raise_on_sigterm):
         yield
-        return
-    signal.signal(signal.SIGTERM, _raise_on_sigterm)
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGTERM, signal.SIG_DFL)
 
 
 def step_budget(max_steps_per_tau: float | None, max_steps: float | None
