@@ -56,7 +56,6 @@ from .params import (
     PARAM_LIMIT,
     SLIP_STIFFNESS_LIMIT,
     OscillatorParams,
-    law_envelope,
     law_stiffness,
 )
 
@@ -198,12 +197,14 @@ def resolve_method(params: OscillatorParams, method: str) -> str:
 
 
 def _damping_cause(P: np.ndarray) -> str:
-    """Why a plant's slip runs away, or "": negative net damping, from the law's envelope
-    (b1 > lam with b3 = 0, or b3 < 0: |v - V| then grows without bound)."""
-    _, b1, b3 = (float(a) for a in law_envelope(P))
-    if b3 < 0.0 or (b3 == 0.0 and b1 > P[P_LAM]):
-        return (f"slip has negative net damping (lam = {P[P_LAM]:g}, b1 = {b1:g}, "
-                f"b3 = {b3:g}: b1 > lam with b3 = 0, or b3 < 0)")
+    """Why a plant's slip runs away, or "": negative net damping (``FrictionLaw.runs_away``:
+    b1 > lam with b3 = 0, or b3 < 0, for the cubic law)."""
+    law = law_of_code(P[P_LAW])
+    values = {p.name: float(P[P_LAW_PARAMS + i]) for i, p in enumerate(law.params)}
+    if law.runs_away(values, float(P[P_LAM])):
+        shown = ", ".join(f"{k} = {v:g}" for k, v in values.items())
+        return (f"slip has negative net damping (lam = {P[P_LAM]:g}, {shown}: b1 > lam "
+                f"with b3 = 0, or b3 < 0)")
     return ""
 
 

@@ -238,9 +238,10 @@ def _check_cells(axes: dict[str, np.ndarray], base: OscillatorParams,
     largest (the scan step depends on u0 only through whether it is 0)."""
     b1 = axes.get("b1", np.array([base.b1]))
     b3 = axes.get("b3", np.array([base.b3]))
-    # (only whether some cell is not Coulomb matters: method 'exact' refuses it)
-    settings.method_code(base.replace(b1=float(b1[np.argmax(b1 != 0.0)]),
-                                      b3=float(b3[np.argmax(b3 != 0.0)])))
+    # (only whether some cell is not Coulomb matters: method 'exact' refuses it; the
+    # largest coefficients make such a cell where one exists)
+    settings.method_code(base.replace(b1=float(b1[np.argmax(np.abs(b1))]),
+                                      b3=float(b3[np.argmax(np.abs(b3))])))
     nu = axes.get("nu", np.array([base.nu]))
     for eta in axes.get("eta", [base.eta]):  # (a plan is refused for its eta and nu alone)
         try:

@@ -32,7 +32,7 @@ from fricenv.envs.scenes import (
 )
 from fricenv.envs.sensors import Instruments
 from fricenv.envs.settings import EnvSettings
-from fricenv.friction import closed_form_rows
+from fricenv.friction import closed_form_rows, polynomial_laws_in
 from fricenv.layout import (
     METHOD_EVENT,
     METHOD_EXACT,
@@ -109,7 +109,8 @@ class EnvSetup:
         drawn = sc.ranges if randomize else {}
         if method == "exact" and (
             not sc.params.is_coulomb
-            or any(drawn.get(k, (0.0, 0.0)) != (0.0, 0.0) for k in ("b1", "b3"))
+            or "cubic" in polynomial_laws_in(drawn.get("b1", (0.0, 0.0)),
+                                             drawn.get("b3", (0.0, 0.0)))
         ):
             raise ValueError(f"method='exact' needs the Coulomb law (b1 = b3 = 0), got the "
                              f"{sc.params.law_spec.name} law"

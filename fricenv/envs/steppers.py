@@ -25,7 +25,7 @@ from fricenv.core import (
 )
 from fricenv.envs import batch
 from fricenv.envs import kernels as K
-from fricenv.friction import closed_form_rows
+from fricenv.friction import closed_form_rows, polynomial_laws_in
 from fricenv.jit import kernel
 from fricenv.layout import METHOD_EVENT, METHOD_EXACT
 from fricenv.params import P_LAM, P_LAW
@@ -142,7 +142,8 @@ def steppers_for_plants(method: int, P_rows: np.ndarray, lo: np.ndarray | None =
     friction = bool(law.any())
     lam_min = float(P_rows[:, P_LAM].min()) if P_rows.size else np.inf
     if lo is not None and hi is not None:
-        coulomb = coulomb or (lo[K.D_B1] == 0.0 and lo[K.D_B3] == 0.0)
-        friction = friction or hi[K.D_B1] != 0.0 or hi[K.D_B3] != 0.0
+        drawn = polynomial_laws_in((lo[K.D_B1], hi[K.D_B1]), (lo[K.D_B3], hi[K.D_B3]))
+        coulomb = coulomb or "coulomb" in drawn
+        friction = friction or "cubic" in drawn
         lam_min = min(lam_min, float(lo[K.D_LAM]))
     return steppers_for(method, lam_min, coulomb, friction)

@@ -51,6 +51,7 @@ from fricenv.envs.vector_draws import (
 )
 from fricenv.envs.vector_instruments import PlantInstruments
 from fricenv.envs.vector_render import PlantFrames, plant_snapshot
+from fricenv.friction import polynomial_laws_in
 from fricenv.jit import parallel_section
 from fricenv.layout import METHOD_EXACT, STATUS_DIVERGED
 
@@ -187,8 +188,8 @@ class StickSlipVectorEnv(VectorEnv):
                                                *self._bounds))
         # Episodes started in the kernel skip EnvSetup.episode's check: it cannot fail
         # without options when b1 and b3 are drawn from [0, 0].
-        b13 = self._bounds[:, [K.D_B1, K.D_B3]]
-        if self._cfg[K.C_METHOD] == METHOD_EXACT and np.any(b13 != 0.0):
+        b1, b3 = (tuple(self._bounds[:, k]) for k in (K.D_B1, K.D_B3))
+        if self._cfg[K.C_METHOD] == METHOD_EXACT and "cubic" in polynomial_laws_in(b1, b3):
             raise ValueError("method='exact' needs the Coulomb law (b1 = b3 = 0)")
         self._act_shape = (n, *self.single_action_space.shape)
         self._needs_reset = True

@@ -52,6 +52,20 @@ def polynomial_law(b1: float, b3: float) -> FrictionLaw:
     return coulomb.LAW if b1 == 0.0 and b3 == 0.0 else cubic.LAW
 
 
+def polynomial_laws_in(b1_range: tuple[float, float], b3_range: tuple[float, float]
+                       ) -> frozenset[str]:
+    """The laws of the paper's family that plants drawn with b1 and b3 in these closed
+    ranges ``(lo, hi)`` can have: ``coulomb`` where both ranges hold 0, ``cubic`` unless
+    both are ``(0, 0)``."""
+    (l1, h1), (l3, h3) = b1_range, b3_range
+    out = set()
+    if l1 <= 0.0 <= h1 and l3 <= 0.0 <= h3:
+        out.add(coulomb.LAW.name)
+    if (l1, h1, l3, h3) != (0.0, 0.0, 0.0, 0.0):
+        out.add(cubic.LAW.name)
+    return frozenset(out)
+
+
 def method_for(law: FrictionLaw) -> str:
     """The method ``"auto"`` runs a law with: the closed form where the law's slip equation
     is linear, the event method otherwise."""
@@ -65,4 +79,4 @@ def closed_form_rows(codes: np.ndarray) -> np.ndarray:
 
 
 __all__ = ["LAWS", "OWNER", "PRESETS", "FrictionLaw", "LawParam", "closed_form_rows",
-           "law_named", "law_of_code", "method_for", "polynomial_law"]
+           "law_named", "law_of_code", "method_for", "polynomial_law", "polynomial_laws_in"]

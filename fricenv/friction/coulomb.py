@@ -29,6 +29,7 @@ LAW = FrictionLaw(
     near_belt_slope=lambda values, xfk, xfs: 0.0,
     envelope=lambda values, xfk, xfs: (xfk, 0.0, 0.0),
     stiffness=lambda values, lam, xfk, xfs: lam,
+    runs_away=lambda values, lam: False,
     presets={"coulomb": {}},
 )
 

@@ -39,6 +39,9 @@ LAW = FrictionLaw(
     # for as long as it lasts; anti-damped slip (b1 > lam) leaves the belt speed at once,
     # and 3 b3 vr^2 grows with the speed (stiff cubic slip is brief: the steps take it)
     stiffness=lambda values, lam, xfk, xfs: np.maximum(lam - values["b1"], 0.0),
+    # b3 < 0, or b1 > lam with b3 = 0: |v - V| grows without bound
+    runs_away=lambda values, lam: values["b3"] < 0.0 or (values["b3"] == 0.0
+                                                         and values["b1"] > lam),
     presets={"viscous": {"b1": 0.2}, "stribeck": {"b1": 0.2, "b3": 0.16}},
 )
 

@@ -68,6 +68,7 @@ LAW = FrictionLaw(
     envelope=lambda values, xfk, xfs: (xfs, -values["cv"], 0.0),
     # the falling part's slope (xfs - xfk) delta u^(delta - 1) e^(-u^delta) / vs peaks at
     # 1 (delta = 1, u = 0) or sqrt(2 / e) (delta = 2, u = 1 / sqrt(2)) times (xfs - xfk) / vs
+    runs_away=lambda values, lam: False,  # (bounded force, cv >= 0: it damps large speeds)
     stiffness=lambda values, lam, xfk, xfs: lam + values["cv"] + (xfs - xfk) / values["vs"] * (
         (values["delta"] == 1.0) + (values["delta"] != 1.0) * 0.8577638849607068),
     presets={"exponential": {"vs": 0.4, "delta": 2.0, "cv": 0.05}},

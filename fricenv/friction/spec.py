@@ -71,6 +71,7 @@ class FrictionLaw:
     | near_belt_slope | ``-dF/dvr`` as ``vr -> 0+``: the damping slip near V loses |
     | envelope | ``(level, b1, b3)``: a cubic law that bounds this one (divergence bound) |
     | stiffness | the largest abs(dv'/dv) of slip not growing with the speed, vectorised |
+    | runs_away | ``(values, lam)``: slip has negative net damping, so the motion grows |
     """
 
     name: str
@@ -83,6 +84,7 @@ class FrictionLaw:
     near_belt_slope: Callable[[Mapping[str, float], float, float], float]
     envelope: Callable[[Mapping[str, float], float, float], tuple[float, float, float]]
     stiffness: Callable[[Mapping[str, Any], Any, Any, Any], Any]
+    runs_away: Callable[[Mapping[str, float], float], bool]
     presets: Mapping[str, Mapping[str, float]] = field(default_factory=dict)
 
     @property
