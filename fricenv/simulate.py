@@ -2,14 +2,16 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import warnings
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from . import calls, core, divergence
+from . import calls, core, divergence, sensitivity
 from .checks import check_bounded_real, check_finite_real, check_int, check_rtol, got
 from .core import constants
 from .friction import law_of_code
@@ -332,6 +334,11 @@ class RunStats:
     vr2_integral: float
     n_steps: int
     state: OscillatorState
+    #: The parameters the run was differentiated by (``run_stats(wrt=...)``), and the
+    #: derivatives by each, in that order: of ``vr2_integral``, ``stick_time`` and the
+    #: final ``x`` and ``v`` (keys of those names); empty without ``wrt``.
+    wrt: tuple[str, ...] = ()
+    derivatives: dict[str, np.ndarray] = field(default_factory=dict, repr=False)
 
     @property
     def stick_fraction(self) -> float:
@@ -374,6 +381,16 @@ class Trajectory:
     event_kind: np.ndarray
     event_x: np.ndarray
     stats: RunStats = field(repr=False)
+    #: With ``simulate(wrt=...)``: the names differentiated by, and the derivatives of x
+    #: and v at each output time (shape ``(n_out, len(wrt))``, columns in ``wrt``'s order)
+    #: and of each switch's time (``(n_events, len(wrt))``). ``singular`` lists the points
+    #: where the derivative does not exist (time, kind, name: a grazing contact, a
+    #: tangential break-away, a stick/reversal tie); the derivatives are NaN from the first.
+    wrt: tuple[str, ...] = ()
+    dx_dp: np.ndarray | None = field(default=None, repr=False)
+    dv_dp: np.ndarray | None = field(default=None, repr=False)
+    event_t_dp: np.ndarray | None = field(default=None, repr=False)
+    singular: np.ndarray | None = field(default=None, repr=False)
 
     @property
     def events(self) -> np.ndarray:
@@ -518,6 +535,7 @@ def simulate(
     max_event_rate: float = MAX_EVENT_RATE,
     max_steps_per_tau: float | None = None,
     max_steps: float | None = None,
+    wrt: Sequence[str] | None = None,
     **deprecated: Any,
 ) -> Trajectory:
     """Simulate for ``t_span`` from ``state`` (default: rest at t = 0), recording the state
@@ -538,6 +556,11 @@ def simulate(
     cannot go on, or whose motion diverged (:mod:`fricenv.divergence`), raises
     :class:`SimulationError` with its ``status``. ``max_steps_per_tau`` and ``max_steps``
     bound the work (see :func:`run_stats`); Ctrl-C stops the call within about a second.
+
+    ``wrt`` (parameter names, see :func:`fricenv.sensitivity.valid_wrt`) also returns the
+    derivatives of x, v and the switching times by each (``dx_dp``, ``dv_dp``,
+    ``event_t_dp``), exact through every switch; the event method carries them, so
+    ``method`` must then be ``"auto"`` or ``"event"``.
     """
     _check_params(params)
     t_span, state = _deprecated_start(params, t_span, state, deprecated)
@@ -551,6 +574,9 @@ def simulate(
     atol = _positive("atol", atol)
     max_event_rate = _positive("max_event_rate", max_event_rate)
     budget = calls.step_budget(max_steps_per_tau, max_steps)
+    if wrt is not None:
+        wrt = sensitivity.check_wrt(params, wrt, state.mode == 0)
+        method = _tangent_method(method)
     method = resolve_method(params, method)
     if t_span / dt_out + 1.0 > MAX_OUTPUTS:
         raise ValueError(f"dt_out = {dt_out!r} asks for {t_span / dt_out:.3g} output instants up "
@@ -590,6 +616,9 @@ def simulate(
     # A periodic run switches a few times per forcing period; start there, grow if needed.
     w = max(params.omega1, params.omega2, 1.0)
     capacity = int(min(max_events + 1, 64 + 8 * t_span * w / (2 * math.pi)))
+    if wrt is not None:
+        return _simulate_tangent(params, state, wrt, out_t, (rtol, atol, max_events),
+                                 budget, capacity, scan_steps + n)
     counts = np.zeros(2, np.int64)
     record = core.kernels_for(code, P).record  # compiles this method's kernels only
     S0 = state.to_array()
@@ -621,6 +650,48 @@ def simulate(
                       RunStats.from_array(stats, OscillatorState.from_array(S)))
 
 
+def _tangent_method(method: str) -> str:
+    """The method of a run with ``wrt``: the event method, whose series carry the
+    derivatives; ``ValueError`` for another."""
+    if method not in ("auto", "event"):
+        raise ValueError(f"wrt needs method 'auto' or 'event' (the event method carries the "
+                         f"derivatives; it agrees with the Coulomb closed form to about "
+                         f"1e-10), got method={method!r}")
+    return "event"
+
+
+def _simulate_tangent(params: OscillatorParams, state: OscillatorState, wrt: tuple[str, ...],
+                      out_t: np.ndarray, settings: tuple[float, float, int],
+                      budget: tuple[float, float], capacity: int, work_steps: float
+                      ) -> Trajectory:
+    """``simulate`` with ``wrt``: the event method's run, carrying the tangent."""
+    seed, P = sensitivity.seeds(params, wrt)
+    run = sensitivity.record(P, state.to_array(), seed, out_t, settings, budget, capacity,
+                             work_steps)
+    t_span = float(out_t[-1] - out_t[0])
+    _raise_status(run.status, run.state[S_T], settings[2], t_span, P, budget)
+    _raise_if_diverged(P, state.x, state.v, t_span, run.stats, run.state)
+    stats = RunStats.from_array(run.stats, OscillatorState.from_array(run.state))
+    d = {"vr2_integral": run.d_stats[0].copy(), "stick_time": run.d_stats[1].copy(),
+         "x": run.dx_dp[-1].copy(), "v": run.dv_dp[-1].copy()}
+    return Trajectory(params, "event", out_t, run.out_x, run.out_v,
+                      run.out_mode.astype(np.int8), run.ev_t, run.ev_kind, run.ev_x,
+                      dataclasses.replace(stats, wrt=wrt, derivatives=d),
+                      wrt, run.dx_dp, run.dv_dp, run.ev_dt_dp, run.singular)
+
+
+def _stats_tangent(params: OscillatorParams, state: OscillatorState, t_span: float,
+                   wrt: Sequence[str], settings: tuple[float, float, int],
+                   budget: tuple[float, float], scan_steps: float) -> RunStats:
+    """``run_stats`` with ``wrt``: a run recorded at its two ends only, with the tangent."""
+    names = sensitivity.check_wrt(params, wrt, state.mode == 0)
+    out_t = np.array([state.t, state.t + t_span])
+    w = max(params.omega1, params.omega2, 1.0)
+    capacity = int(min(settings[2] + 1, 64 + 8 * t_span * w / (2 * math.pi)))
+    return _simulate_tangent(params, state, names, out_t, settings, budget, capacity,
+                             scan_steps + 2).stats
+
+
 def run_stats(
     params: OscillatorParams,
     t_span: float,
@@ -632,6 +703,7 @@ def run_stats(
     max_event_rate: float = MAX_EVENT_RATE,
     max_steps_per_tau: float | None = None,
     max_steps: float | None = None,
+    wrt: Sequence[str] | None = None,
 ) -> RunStats:
     """Advance by ``t_span`` from ``state`` (default: rest at t = 0) storing no trajectory.
 
@@ -649,9 +721,15 @@ def run_stats(
     ``STATUS_STEP_BUDGET`` within about a second (slip far stiffer than the model's scale,
     or a start far from it). Ctrl-C stops the call within about a second, raising
     ``KeyboardInterrupt`` and leaving ``state`` as it was.
+
+    ``wrt`` (parameter names, as in :func:`simulate`) also returns the derivatives of the
+    (v - V)^2 integral, the stick time and the final x and v by each
+    (``RunStats.derivatives``), exact through every switch, from the event method.
     """
     _check_params(params)
     t_span = _positive("t_span", t_span)
+    if wrt is not None:
+        method = _tangent_method(method)
     method = resolve_method(params, method)
     if method == "rk4":
         raise ValueError("run_stats needs an event-driven method ('exact' or 'event'), got 'rk4'")
@@ -669,6 +747,9 @@ def run_stats(
     P = params.to_array()
     scan_steps = check_scan_steps(P[None], np.array([t_span]), _SCAN_REMEDY,
                                   min(MAX_SCAN_STEPS, budget[1]))
+    if wrt is not None:
+        return _stats_tangent(params, state, t_span, wrt, (rtol, atol, max_events), budget,
+                              scan_steps)
     S0 = state.to_array()
     S = S0.copy()
     stats = np.empty(N_STATS)

@@ -67,3 +67,11 @@ def taylor_step_cap(lc, cx, tl, n, eps, h):
 def taylor_term(lc, sd, cx, tw, tq, tl, k, wk):
     """k-th Taylor coefficient of the speed-dependent part: 0."""
     return 0.0
+
+
+def tangent_series(lc, sd, cx, tw, tl, out, n):
+    """Taylor coefficients (orders 0 .. n - 1) of the speed-dependent acceleration's
+    derivatives along a slip step (see ``cubic.tangent_series``): all 0."""
+    for r in range(out.shape[0]):
+        for k in range(n):
+            out[r, k] = 0.0

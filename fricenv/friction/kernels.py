@@ -22,7 +22,7 @@ LAW_SCRATCH = exponential.SCRATCH
 #: The numeric functions each law's module defines, in plain Python (so that naming a law
 #: loads no numba); compiled here, in this order.
 QUESTIONS = ("prepare", "add_accel", "sgn_accel", "slope", "net_slope", "taylor_term",
-             "taylor_step_cap")
+             "taylor_step_cap", "tangent_series")
 
 
 def _compiled(law: object, inline: bool) -> tuple:
@@ -35,11 +35,11 @@ def _compiled(law: object, inline: bool) -> tuple:
 
 
 (co_prepare, co_add_accel, co_sgn_accel, co_slope, co_net_slope, co_taylor_term,
- co_taylor_step_cap) = _compiled(coulomb, inline=True)
+ co_taylor_step_cap, co_tangent_series) = _compiled(coulomb, inline=True)
 (cu_prepare, cu_add_accel, cu_sgn_accel, cu_slope, cu_net_slope, cu_taylor_term,
- cu_taylor_step_cap) = _compiled(cubic, inline=True)
+ cu_taylor_step_cap, cu_tangent_series) = _compiled(cubic, inline=True)
 (ex_prepare, ex_add_accel, ex_sgn_accel, ex_slope, ex_net_slope, ex_taylor_term,
- ex_taylor_step_cap) = _compiled(exponential, inline=False)
+ ex_taylor_step_cap, ex_tangent_series) = _compiled(exponential, inline=False)
 
 
 @kernel
@@ -129,6 +129,20 @@ def taylor_step_cap(law, lc, cx, tl, n, eps, h):
     if law == EXPONENTIAL:
         return ex_taylor_step_cap(lc, cx, tl, n, eps, h)
     return co_taylor_step_cap(lc, cx, tl, n, eps, h)
+
+
+@kernel(called_once=True)
+def tangent_series(law, lc, sd, cx, tw, tl, out, n):
+    """Taylor coefficients along the current slip step of the speed-dependent
+    acceleration's slope (row 0 of ``out``) and of its derivatives by xfk, xfs and the
+    law's three parameters (rows 1 .. 5), orders 0 .. n - 1: what the forward
+    sensitivities' series need (:mod:`fricenv.core.tangent`)."""
+    if law == CUBIC:
+        cu_tangent_series(lc, sd, cx, tw, tl, out, n)
+    elif law == EXPONENTIAL:
+        ex_tangent_series(lc, sd, cx, tw, tl, out, n)
+    else:
+        co_tangent_series(lc, sd, cx, tw, tl, out, n)
 
 
 @kernel(called_once=True)
