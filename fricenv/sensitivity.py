@@ -182,3 +182,4 @@ def record(P: np.ndarray, S0: np.ndarray, seed: np.ndarray, out_t: np.ndarray,
                       rec.ev_kind[:m].copy(), rec.ev_x[:m].copy(), tan.out_dx, tan.out_dv,
                       tan.ev_dt[:m].copy(), tan.d_stats,
                       singular_points(tan.flags, int(tan.n_flags[0])))
+

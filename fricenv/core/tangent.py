@@ -474,3 +474,4 @@ def record_tangent(P, S, stats, rtol, atol, max_events, rec, tan, work):
     carrying the tangent ``tan`` (a :class:`Tangent`); the status."""
     t_span = rec.out_t[rec.out_t.shape[0] - 1] - rec.out_t[0]
     return _run_tangent(P, S, t_span, stats, max_events, rtol, atol, rec, tan, work)
+
