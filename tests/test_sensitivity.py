@@ -163,7 +163,8 @@ def test_grazing_contact_is_flagged():
     x0 = 2.5  # at the slip's equilibrium: v then peaks at about half |v0|
 
     def touches(v0: float) -> bool:
-        return simulate(p, 8.0, state=OscillatorState.start(p, x0=x0, v0=v0), method="event").n_stick > 0
+        start = OscillatorState.start(p, x0=x0, v0=v0)
+        return simulate(p, 8.0, state=start, method="event").n_stick > 0
 
     miss, hit = -1.0, -3.0
     assert not touches(miss) and touches(hit)
