@@ -536,6 +536,7 @@ def simulate(
     max_steps_per_tau: float | None = None,
     max_steps: float | None = None,
     wrt: Sequence[str] | None = None,
+    t_eval: np.ndarray | Sequence[float] | None = None,
     **deprecated: Any,
 ) -> Trajectory:
     """Simulate for ``t_span`` from ``state`` (default: rest at t = 0), recording the state
@@ -561,9 +562,17 @@ def simulate(
     derivatives of x, v and the switching times by each (``dx_dp``, ``dv_dp``,
     ``event_t_dp``), exact through every switch; the event method carries them, so
     ``method`` must then be ``"auto"`` or ``"event"``.
+
+    ``t_eval`` replaces the ``dt_out`` grid by given output instants (a measured record's
+    times, say): increasing, starting at ``state.t``; ``t_span`` may then be left out (it
+    is ``t_eval[-1] - state.t``).
     """
     _check_params(params)
-    t_span, state = _deprecated_start(params, t_span, state, deprecated)
+    span_given = t_span is not None or "t_end" in deprecated
+    t_span, state = _deprecated_start(  # (a placeholder span where t_eval gives it)
+        params, t_span if span_given or t_eval is None else 1.0, state, deprecated)
+    if t_eval is not None:
+        t_eval, t_span = _check_t_eval(t_eval, state, t_span if span_given else None)
     t_span = _positive("t_span", t_span)
     if not isinstance(state, OscillatorState):
         raise TypeError(f"state must be an OscillatorState, got {type(state).__name__}")
@@ -578,7 +587,7 @@ def simulate(
         wrt = sensitivity.check_wrt(params, wrt, state.mode == 0)
         method = _tangent_method(method)
     method = resolve_method(params, method)
-    if t_span / dt_out + 1.0 > MAX_OUTPUTS:
+    if t_eval is None and t_span / dt_out + 1.0 > MAX_OUTPUTS:
         raise ValueError(f"dt_out = {dt_out!r} asks for {t_span / dt_out:.3g} output instants up "
                          f"to t_span = {t_span!r} (at most {MAX_OUTPUTS:g}); use a larger dt_out, "
                          "record the run in pieces (each from the last one's final_state), or "
@@ -588,7 +597,7 @@ def simulate(
     if method != "rk4":  # before the output arrays are allocated
         scan_steps = check_scan_steps(P[None], np.array([t_span]), _SCAN_REMEDY,
                                       min(MAX_SCAN_STEPS, budget[1]))
-    out_t = _output_grid(state.t, t_span, dt_out)
+    out_t = _output_grid(state.t, t_span, dt_out) if t_eval is None else t_eval
     n = out_t.shape[0]
     out_x = np.empty(n)
     out_v = np.empty(n)
@@ -648,6 +657,38 @@ def simulate(
     return Trajectory(params, method, out_t, out_x, out_v, out_mode.astype(np.int8),
                       ev_t[:k].copy(), ev_kind[:k].copy(), ev_x[:k].copy(),
                       RunStats.from_array(stats, OscillatorState.from_array(S)))
+
+
+def _check_t_eval(t_eval: object, state: OscillatorState, t_span: float | None
+                  ) -> tuple[np.ndarray, float]:
+    """``t_eval`` as a float64 array, and the span it covers; ``ValueError`` naming the
+    first bad instant (not finite, not increasing, not starting at ``state.t``, or
+    ending elsewhere than ``state.t + t_span``)."""
+    t = np.array(t_eval, dtype=np.float64, ndmin=1)
+    if t.dtype != np.float64:
+        raise TypeError(f"t_eval must hold real numbers, {got(t_eval)}")
+    if t.ndim != 1 or t.size < 2:
+        raise ValueError(f"t_eval must be a 1-d array of at least 2 instants, got shape "
+                         f"{t.shape}")
+    if t.size > MAX_OUTPUTS:
+        raise ValueError(f"t_eval holds {t.size} instants, more than MAX_OUTPUTS = "
+                         f"{MAX_OUTPUTS:g}")
+    bad = np.flatnonzero(~np.isfinite(t))
+    if bad.size:
+        raise ValueError(f"t_eval[{bad[0]}] = {float(t[bad[0]])!r} is not finite")
+    steps = np.flatnonzero(np.diff(t) <= 0.0)
+    if steps.size:
+        k = int(steps[0])
+        raise ValueError(f"t_eval must increase: t_eval[{k + 1}] = {float(t[k + 1])!r} "
+                         f"follows t_eval[{k}] = {float(t[k])!r}")
+    if t[0] != state.t:
+        raise ValueError(f"t_eval[0] = {float(t[0])!r} must be the start's time state.t = "
+                         f"{state.t!r}")
+    span = float(t[-1] - t[0])
+    if t_span is not None and span != t_span:
+        raise ValueError(f"t_eval ends at {float(t[-1])!r}, but t_span = {t_span!r} ends at "
+                         f"{state.t + t_span!r}; give one of them")
+    return t, span
 
 
 def _tangent_method(method: str) -> str:

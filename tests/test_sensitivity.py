@@ -237,3 +237,20 @@ def test_property_random_plants(law, u0, nu, lam, delta, cv):
             continue
         fd = (a.x - b.x) / (2 * h)
         assert _rel(tr.dx_dp[:, j], fd) < 1e-5, name
+
+
+def test_t_eval_gives_outputs_at_given_instants():
+    p = OscillatorParams.preset("stribeck", u0=2.0, nu=0.5)
+    t = np.sort(np.random.default_rng(0).uniform(0.0, 20.0, 50))
+    t[0] = 0.0
+    tr = simulate(p, t_eval=t, wrt=("b1",))
+    np.testing.assert_array_equal(tr.t, t)
+    assert tr.dx_dp.shape == (50, 1)
+    whole = simulate(p, 20.0, dt_out=0.01)
+    assert tr.x[-1] == pytest.approx(np.interp(t[-1], whole.t, whole.x), abs=1e-3)
+    for bad, match in (([0.0, 1.0, 1.0], "must increase"), ([0.0, np.nan], "not finite"),
+                       ([1.0, 2.0], r"t_eval\[0\] = 1.0"), ([0.0], "at least 2")):
+        with pytest.raises(ValueError, match=match):
+            simulate(p, t_eval=bad)
+    with pytest.raises(ValueError, match="give one of them"):
+        simulate(p, 5.0, t_eval=[0.0, 4.0])
