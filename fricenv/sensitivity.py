@@ -146,7 +146,7 @@ def record(P: np.ndarray, S0: np.ndarray, seed: np.ndarray, out_t: np.ndarray,
     ``simulate`` does); ``work_steps``: the steps the call may take, for
     :func:`fricenv.calls.run_call`."""
     from .core.recording import Recording
-    from .core.tangent import N_LAW_ROWS, N_TONE_ROWS, Tangent, record_tangent
+    from .core.tangent import N_TONE_ROWS, Tangent, law_rows_needed, record_tangent
     from .core.workspace import TAYLOR_MAX_ORDER
     from .layout import N_STATS
 
@@ -163,7 +163,7 @@ def record(P: np.ndarray, S0: np.ndarray, seed: np.ndarray, out_t: np.ndarray,
         tan = Tangent(seed, np.empty((k, 2)), np.empty((n, k)), np.empty((n, k)),
                       np.full((capacity, k), np.nan), np.zeros((2, k)),
                       np.empty((MAX_FLAGS, 2)), np.zeros(1, np.int64),
-                      np.empty((N_LAW_ROWS, L)), np.empty((N_TONE_ROWS + 1, L)),
+                      np.empty((law_rows_needed(seed), L)), np.empty((N_TONE_ROWS + 1, L)),
                       np.empty((k, 2, L)))
 
         def go(work: np.ndarray, rec: Recording = rec, tan: Tangent = tan) -> int:

@@ -1,4 +1,4 @@
-"""The benchmarks of ``fricenv bench``: solvers, sweep, env and compile.
+"""The benchmarks of ``fricenv bench``: solvers, sweep, env, compile and derivatives.
 
 Each module has ``main(argv, prog)``, returning the exit status (1 when a bound it checks
 fails), and a module docstring saying what it measures and which bounds it checks. They
@@ -24,6 +24,7 @@ BENCHMARKS = {
     "sweep": "regime-map cells against an event-driven SciPy loop, and full panels",
     "env": "environment step cost against Pendulum-v1, the vector env, PPO's share",
     "compile": "cold start: first calls in fresh processes, numba compile time by kernel",
+    "derivatives": "cost and accuracy of runs with forward sensitivities (wrt=)",
 }
 
 

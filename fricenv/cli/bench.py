@@ -22,6 +22,7 @@ BENCHMARK_NEEDS: dict[str, list[tuple[str, str]]] = {
     "sweep": [("sweep", "exact")],
     "env": [("env", "exact"), ("vector_env", "exact")],
     "compile": [],  # (each workload compiles in a child process with a cache of its own)
+    "derivatives": [("simulate", "event")],
 }
 
 DESCRIPTION = "Run one of fricenv's benchmarks and check its bounds."
@@ -29,7 +30,7 @@ EXAMPLE = "example:\n  fricenv bench solvers --quick --out out/bench"
 
 
 def build_parser(prog: str | None = None) -> argparse.ArgumentParser:
-    listing = "\n".join(f"  {k:<8} {v}" for k, v in BENCHMARKS.items())
+    listing = "\n".join(f"  {k:<11} {v}" for k, v in BENCHMARKS.items())
     p = argparse.ArgumentParser(
         prog=prog, description=DESCRIPTION, formatter_class=argparse.RawDescriptionHelpFormatter,
         epilog=f"benchmarks:\n{listing}\n\n'fricenv bench NAME --help' shows a benchmark's "

@@ -19,7 +19,7 @@ from ..layout import N_STATS, STATUS_OK
 from .constants import TIME_REL_TOL
 from .event import _run_event
 from .recording import Recording, stats_only
-from .tangent import N_LAW_ROWS, N_TONE_ROWS, SEED_DTYPE, Tangent, _run_tangent
+from .tangent import N_LEVEL_ROWS, N_TONE_ROWS, SEED_DTYPE, Tangent, _run_tangent
 from .workspace import TAYLOR_MAX_ORDER
 
 #: Points without a derivative a chunk may note (the chunk is then left out).
@@ -122,7 +122,7 @@ def worker_buffers(n_workers: int, event_cap: int) -> WorkerBuffers:
         np.zeros((w, 2), np.int64), np.empty((w, 2, 2)), np.empty((w, 2, 2, 2)),
         np.zeros((w, 2, 2)),
         np.empty((w, event_cap, 2)), np.empty((w, _FLAGS, 2)), np.zeros((w, 1), np.int64),
-        np.empty((w, N_LAW_ROWS + N_TONE_ROWS + 1, L)), np.empty((w, 2, 2, L)),
+        np.empty((w, N_LEVEL_ROWS + N_TONE_ROWS + 1, L)), np.empty((w, 2, 2, L)),
         np.zeros((w, N_STATS)), new_workspace(w, extrema=False, vr2=False))
 
 
@@ -134,7 +134,7 @@ def _worker(B, w):
                     B.counts[w])
     ser = B.series[w]
     tan = Tangent(B.seed, B.y[w], B.d_out[w, 0], B.d_out[w, 1], B.ev_dt[w], B.d_stats[w],
-                  B.flags[w], B.n_flags[w], ser[:N_LAW_ROWS], ser[N_LAW_ROWS:], B.ser[w])
+                  B.flags[w], B.n_flags[w], ser[:N_LEVEL_ROWS], ser[N_LEVEL_ROWS:], B.ser[w])
     return (rec, tan, B.stats[w]), B.work[w]
 
 

@@ -90,8 +90,19 @@ FLAG_NAMES = {FLAG_GRAZING: "grazing", FLAG_TANGENT_BREAKAWAY: "tangent break-aw
 #: that close to |f| = xfs. The derivative there holds only for parameter changes of that
 #: relative size, below what any difference quotient or fit can use.
 SINGULAR_REL = 1e-10
-#: Rows of ``Tangent.law_rows``: the law's slope and its five parameter derivatives.
+#: Rows of ``Tangent.law_rows``: the law's slope, its derivatives by xfk and xfs, and by
+#: its three parameters. A run whose columns need fewer of the last three gets fewer rows
+#: (``law_rows_needed``), and the law skips the series of the rows left out.
 N_LAW_ROWS = 6
+N_LEVEL_ROWS = 3
+
+
+def law_rows_needed(seed: np.ndarray) -> int:
+    """Rows of ``Tangent.law_rows`` the columns ``seed`` read: the first three, and the
+    law parameters' up to the last one a column differentiates by."""
+    law = [np.any(seed[f"law{i}"] != 0.0) for i in range(N_LAW_ROWS - N_LEVEL_ROWS)]
+    return N_LEVEL_ROWS + (max(i + 1 for i, used in enumerate(law) if used) if any(law)
+                           else 0)
 #: Rows of ``Tangent.tones``: the series of cos and sin of each tone's phase (and one
 #: more row of scratch, the (v - V)^2 integral's weights).
 N_TONE_ROWS = 4
@@ -191,9 +202,10 @@ def _step_series(cx, tan, sd, t0, tones, n):
             # the explicit derivative of the acceleration, order k; the tones' phases
             # move by (t0 + t) dw_i
             e = (-s.lam * cx[C_TV + k] + s.xfk * lr[1, k] + s.xfs * lr[2, k]
-                 + s.law0 * lr[3, k] + s.law1 * lr[4, k] + s.law2 * lr[5, k]
                  + s.u1 * tr[0, k] + s.u2 * tr[2, k] - s.V * lr[0, k]
                  - t0 * (u1 * s.w1 * tr[1, k] + u2 * s.w2 * tr[3, k]))
+            for r in range(N_LEVEL_ROWS, lr.shape[0]):  # (rows the seeds need)
+                e += (s.law0, s.law1, s.law2)[r - N_LEVEL_ROWS] * lr[r, k]
             if k == 0:
                 e -= sd * s.xfk
             else:

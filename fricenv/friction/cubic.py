@@ -123,23 +123,27 @@ def tangent_series(lc, sd, cx, tw, tl, out, n):
     """Taylor coefficients (orders 0 .. n - 1) along the current slip step of what the
     forward sensitivities need, from the series of w = v - V in ``cx[tw:]``: row 0 the
     slope d/dw of the speed-dependent acceleration (b1 - 3 b3 w^2), rows 1 and 2 its
-    derivatives by xfk and xfs (none), rows 3 .. 5 by the law's parameters: w by b1,
-    -w^3 by b3 (row 5, no third parameter, is 0 when done)."""
+    derivatives by xfk and xfs (none), rows 3 and 4 by the law's parameters (w by b1,
+    -w^3 by b3), as far as ``out`` has rows (a run that needs no b3 skips w^3)."""
     b1 = lc[0]
     b3 = lc[1]
+    rows = out.shape[0]
     for k in range(n):
-        q = 0.0  # (w^2)_k
+        q = 0.0  # (w^2)_k, kept in row 2 until the end
         for i in range(k + 1):
             q += cx[tw + i] * cx[tw + k - i]
-        out[5, k] = q
-        c = 0.0  # (w^3)_k
-        for i in range(k + 1):
-            c += out[5, i] * cx[tw + k - i]
+        out[2, k] = q
         out[0, k] = -3.0 * b3 * q
         out[1, k] = 0.0
-        out[2, k] = 0.0
-        out[3, k] = cx[tw + k]
-        out[4, k] = -c
+        if rows > 3:
+            out[3, k] = cx[tw + k]
+        if rows > 4:
+            c = 0.0  # (w^3)_k
+            for i in range(k + 1):
+                c += out[2, i] * cx[tw + k - i]
+            out[4, k] = -c
+        if rows > 5:
+            out[5, k] = 0.0
     out[0, 0] += b1
     for k in range(n):
-        out[5, k] = 0.0
+        out[2, k] = 0.0

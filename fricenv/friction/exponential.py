@@ -175,8 +175,9 @@ def taylor_term(lc, sd, cx, tw, tq, tl, k, wk):
 
 def tangent_series(lc, sd, cx, tw, tl, out, n):
     """Taylor coefficients (orders 0 .. n - 1) along the current slip step of what the
-    forward sensitivities need (rows as in ``cubic.tangent_series``), from the series of
-    u, u^delta and E that ``taylor_term`` left in the scratch ``cx[tl:]``:
+    forward sensitivities need (rows as in ``cubic.tangent_series``, as far as ``out`` has
+    rows), from the series of u, u^delta and E that ``taylor_term`` left in the scratch
+    ``cx[tl:]``:
 
     - row 0, the slope: (xfs - xfk) delta u^(delta - 1) E / vs - cv;
     - rows 1, 2: +sd E by xfk, -sd E by xfs;
@@ -184,21 +185,25 @@ def tangent_series(lc, sd, cx, tw, tl, out, n):
       (a whole number: no derivative), -w by cv.
     """
     m = int(lc[1])
+    rows = out.shape[0]
     pw = tl + (m - 1) * SERIES_LEN  # u^delta
     e = tl + _E
     for k in range(n):
-        ue = 0.0  # (u^(delta - 1) E)_k: E itself for delta = 1
-        pe = 0.0  # (u^delta E)_k
-        for i in range(k + 1):
-            pe += cx[pw + i] * cx[e + k - i]
-            if m == 2:
+        ue = cx[e + k]  # (u^(delta - 1) E)_k
+        if m == 2:
+            ue = 0.0
+            for i in range(k + 1):
                 ue += cx[tl + i] * cx[e + k - i]
-        if m == 1:
-            ue = cx[e + k]
         out[0, k] = lc[3] * m * lc[0] * ue
         out[1, k] = sd * cx[e + k]
         out[2, k] = -sd * cx[e + k]
-        out[3, k] = -sd * lc[3] * m * lc[0] * pe
-        out[4, k] = 0.0
-        out[5, k] = -cx[tw + k]
+        if rows > 3:
+            pe = 0.0  # (u^delta E)_k
+            for i in range(k + 1):
+                pe += cx[pw + i] * cx[e + k - i]
+            out[3, k] = -sd * lc[3] * m * lc[0] * pe
+        if rows > 4:
+            out[4, k] = 0.0
+        if rows > 5:
+            out[5, k] = -cx[tw + k]
     out[0, 0] -= lc[2]
