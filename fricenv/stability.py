@@ -182,18 +182,18 @@ def lyapunov_rows(params: Sequence[OscillatorParams], states: Sequence[object],
     renormalisation interval)) from its start state, in parallel: ``(out, S)`` with
     ``out[i]`` = (exponent, time counted, status) and ``S`` the final state vectors.
     ``SimulationError`` naming the first plant whose run failed."""
-    import numba
-
     from .core.lyapunov import lyapunov_rows as kernel_rows
     from .core.lyapunov import worker_buffers
+    from .jit import num_threads, parallel_section
 
     P = np.array([p.to_array() for p in params])
     S = np.array([s.to_array() for s in states])  # type: ignore[attr-defined]
     spans = np.ascontiguousarray(spans, dtype=np.float64)
     max_events = int(LYAPUNOV_EVENT_RATE * max(1.0, float(np.max(spans[:, 2]))))
     out = np.empty((P.shape[0], 3))
-    B = worker_buffers(min(P.shape[0], numba.get_num_threads()), max_events + 2)
-    kernel_rows(P, S, spans, (tolerances[0], tolerances[1], max_events), B, out)
+    B = worker_buffers(min(P.shape[0], num_threads()), max_events + 2)
+    with parallel_section():
+        kernel_rows(P, S, spans, (tolerances[0], tolerances[1], max_events), B, out)
     bad = np.flatnonzero(out[:, 2] != 0)
     if bad.size:
         i = int(bad[0])
