@@ -10,13 +10,13 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 import fricenv  # noqa: F401  (registers the environments)
-from fricenv.envs import ENV_IDS, HORIZONS
+from fricenv.envs import HORIZONS, env_id_of
 
 if TYPE_CHECKING:
     from stable_baselines3.common.base_class import BaseAlgorithm
 
 #: Scene name -> registered Gymnasium id (the key of the hyperparameter files).
-SCENE_ENV_IDS: dict[str, str] = {scene: env_id for env_id, scene in ENV_IDS.items()}
+SCENE_ENV_IDS: dict[str, str] = {scene: env_id_of(scene) for scene in HORIZONS}
 ALGOS = ("ppo", "sac")
 #: The baseline controllers, by name (built by ``baselines.make_baseline``).
 BASELINES = ("zero", "random", "best_constant", "feedback")

@@ -20,7 +20,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any
 
-from fricenv.envs.ids import ENV_IDS, HORIZONS
+from fricenv.envs.ids import ENV_IDS, HORIZONS, env_id_of
 
 if TYPE_CHECKING:
     from fricenv.envs.settings import EnvKwargs, EnvSettings
@@ -35,6 +35,7 @@ __all__ = [
     "StickSlipEnv",
     "StickSlipSB3VecEnv",
     "StickSlipVectorEnv",
+    "env_id_of",
     "register_envs",
 ]
 

@@ -15,3 +15,12 @@ ENV_IDS: dict[str, str] = {
 #: Each scene's horizon: the ``max_episode_steps`` of its id and of its ``Scene``.
 HORIZONS: dict[str, int] = {"paper": 200, "self_excited": 400, "stribeck": 300, "viscous": 300,
                             "exponential": 300}
+
+
+def env_id_of(scene: str) -> str:
+    """The registered id of a scene (``KeyError`` naming it and the scenes otherwise)."""
+    for env_id, name in ENV_IDS.items():
+        if name == scene:
+            return env_id
+    raise KeyError(f"no registered environment for scene {scene!r}; scenes: "
+                   f"{sorted(ENV_IDS.values())}")
