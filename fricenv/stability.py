@@ -79,6 +79,7 @@ def _period_map(params: OscillatorParams, x: float, v: float, T: float, rtol: fl
     stuck = state.mode == 0
     wrt = ("x0",) if stuck else ("x0", "v0")
     tr = simulate(params, T, state=state, wrt=wrt, dt_out=T, rtol=rtol)
+    assert tr.singular is not None and tr.dx_dp is not None and tr.dv_dp is not None
     if tr.singular.shape[0]:
         s = tr.singular[0]
         raise SimulationError(f"the orbit has a {s['name']} at t = {s['t']:.6g}, where the "

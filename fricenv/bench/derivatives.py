@@ -82,6 +82,7 @@ def accuracy(law: str) -> dict[str, float]:
     p, names = PLANTS[law]
     state = OscillatorState.start(p, *START)
     tr = simulate(p, 30.0, state=state, wrt=names, rtol=1e-12)
+    assert tr.dx_dp is not None
     out = {}
     h = 1e-6
     for j, name in enumerate(names):
