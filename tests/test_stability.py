@@ -85,3 +85,14 @@ def test_refusals():
     with pytest.raises(SimulationError, match="did not converge"):
         periodic_orbit(OscillatorParams(eta=0.6, nu=0.5, u0=2.0), max_iter=1,
                        transient=0)
+
+
+@pytest.mark.parametrize("case", ["5a", "5b", "6"])
+def test_paper_stick_slip_cases_lock_onto_stable_orbits(case):
+    """The paper's stick-slip cases (Figs. 5a, 5b, 6; nu = 1/10, 1/5, 23/20) settle on a
+    periodic stick-slip response of their forcing period, and it is stable."""
+    p = OscillatorParams(**PAPER_CASES[case])
+    o = periodic_orbit(p, transient=100)
+    assert o.stable and o.residual <= 1e-10
+    tr = simulate(p, o.period, state=OscillatorState.start(p, o.x, o.v))
+    assert tr.n_stick >= 1
