@@ -176,25 +176,37 @@ def lyapunov_exponent(params: OscillatorParams, t_span: float, *,
 LYAPUNOV_EVENT_RATE = 1000.0
 
 
-def lyapunov_rows(params: Sequence[OscillatorParams], states: Sequence[object],
-                  spans: np.ndarray, tolerances: tuple[float, float]
-                  ) -> tuple[np.ndarray, np.ndarray]:
-    """The largest Lyapunov exponent of each plant (``spans[i]`` = (transient, window,
-    renormalisation interval)) from its start state, in parallel: ``(out, S)`` with
-    ``out[i]`` = (exponent, time counted, status) and ``S`` the final state vectors.
-    ``SimulationError`` naming the first plant whose run failed."""
+def lyapunov_of_rows(P: np.ndarray, S: np.ndarray, spans: np.ndarray,
+                     tolerances: tuple[float, float]) -> np.ndarray:
+    """The largest Lyapunov exponent of each parameter row of ``P`` (layout ``P_*``) from
+    its state vector in ``S`` (advanced in place), with ``spans[i]`` = (transient,
+    window, renormalisation interval), in parallel: ``out[i]`` = (exponent, time counted,
+    status). A run that fails leaves its status there (exponent NaN) and raises nothing:
+    what a sweep's cells need."""
     from .core.lyapunov import lyapunov_rows as kernel_rows
     from .core.lyapunov import worker_buffers
     from .jit import num_threads, parallel_section
 
-    P = np.array([p.to_array() for p in params])
-    S = np.array([s.to_array() for s in states])  # type: ignore[attr-defined]
     spans = np.ascontiguousarray(spans, dtype=np.float64)
+    out = np.full((P.shape[0], 3), np.nan)
+    if P.shape[0] == 0:
+        return out
     max_events = int(LYAPUNOV_EVENT_RATE * max(1.0, float(np.max(spans[:, 2]))))
-    out = np.empty((P.shape[0], 3))
     B = worker_buffers(min(P.shape[0], num_threads()), max_events + 2)
     with parallel_section():
-        kernel_rows(P, S, spans, (tolerances[0], tolerances[1], max_events), B, out)
+        kernel_rows(np.ascontiguousarray(P), S, spans,
+                    (tolerances[0], tolerances[1], max_events), B, out)
+    return out
+
+
+def lyapunov_rows(params: Sequence[OscillatorParams], states: Sequence[OscillatorState],
+                  spans: np.ndarray, tolerances: tuple[float, float]
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`lyapunov_of_rows` for plants and states: ``(out, S)`` with ``S`` the final
+    state vectors; ``SimulationError`` naming the first plant whose run failed."""
+    P = np.array([p.to_array() for p in params])
+    S = np.array([s.to_array() for s in states])
+    out = lyapunov_of_rows(P, S, spans, tolerances)
     bad = np.flatnonzero(out[:, 2] != 0)
     if bad.size:
         i = int(bad[0])

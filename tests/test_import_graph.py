@@ -262,7 +262,7 @@ def test_the_graph_sees_every_kind_of_import() -> None:
     """The parser finds module- and function-level imports, ``import_module`` and the
     ``_HOMES`` tables (else the checks below would pass on an empty graph)."""
     assert "fricenv.core" in GRAPH["fricenv.simulate"]  # module level
-    assert "fricenv.plotting" in GRAPH["fricenv.simulate"]  # function level
+    assert "fricenv.plotting" in GRAPH["fricenv.trajectory"]  # function level
     assert "fricenv.sweep" in GRAPH["fricenv"]  # the package's _HOMES
     assert "fricenv.cli.simulate" in GRAPH["fricenv.cli"]  # a command's module name
     assert "fricenv.envs.stick_slip" in GRAPH["fricenv.envs"]  # an entry point

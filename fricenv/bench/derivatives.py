@@ -41,10 +41,15 @@ START = (0.3, 1.4)
 
 
 def build_parser(prog: str | None = None) -> argparse.ArgumentParser:
-    ap = argparse.ArgumentParser(prog=prog, description=__doc__.split("\n\n")[0],
-                                 formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--span", type=float, default=2000.0, help="length of each run")
-    ap.add_argument("--rounds", type=int, default=7, help="alternating timing rounds")
+    ap = argparse.ArgumentParser(
+        prog=prog, description="Time runs with derivatives (wrt=) against the same runs "
+        "without, side by side, and check their derivatives against central differences.",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog="example:\n  fricenv bench derivatives --span 500 --rounds 3")
+    ap.add_argument("--span", type=float, default=2000.0,
+                    help="length of each run (default: %(default)s)")
+    ap.add_argument("--rounds", type=int, default=7,
+                    help="alternating timing rounds (default: %(default)s)")
     ap.add_argument("--json", default=None, help="also write the numbers to this file")
     ap.add_argument("--report-only", action="store_true", help=REPORT_ONLY_HELP)
     return ap
