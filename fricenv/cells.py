@@ -23,6 +23,7 @@ import numpy as np
 from . import calls
 from .cell_kernels import CELL_KERNELS
 from .checks import (
+    check_bool,
     check_bounded_real,
     check_finite_real,
     check_int,
@@ -30,7 +31,7 @@ from .checks import (
     got,
     real_array,
 )
-from .core import conditioned_rows
+from .core import conditioned_rows, initial_mode
 from .core.constants import MAX_STEPS_PER_CALL, MAX_STEPS_PER_TAU
 from .core.workspace import N_WORK, W_MAX_STEPS_CALL
 from .divergence import diverged
@@ -40,7 +41,11 @@ from .layout import (
     METHOD_EVENT,
     METHOD_EXACT,
     METHODS,
+    N_STATE,
     N_STATS,
+    S_MODE,
+    S_V,
+    S_X,
     ST_DURATION,
     ST_N_REVERSAL,
     ST_N_SLIP,
@@ -99,7 +104,9 @@ class SweepSettings:
     (chattering); ``max_steps_per_tau, max_steps``: the cell's step budget (as in
     :func:`fricenv.run_stats`, ``max_steps`` spent over the transient and all windows
     together; a cell past it is UNRESOLVED with ``STATUS_STEP_BUDGET``); ``q_max, m_max,
-    n_strobe, strobe_tol, lock_extensions``: periodicity test. ``x0, v0`` lie within
+    n_strobe, strobe_tol, lock_extensions``: periodicity test. ``lyapunov``: also measure
+    each cell's largest Lyapunov exponent over its window (:func:`lyapunov_of_cells`).
+    ``x0, v0`` lie within
     ``PARAM_LIMIT`` like every parameter; ``q_max`` and ``m_max`` are at most
     ``MAX_PERIOD``, ``lock_extensions`` at most ``MAX_LOCK_EXTENSIONS`` and ``n_strobe`` at
     most ``MAX_SEGMENTS``, ``atol`` > 0 and ``strobe_tol`` in (0, 1) (``ValueError`` naming
@@ -125,10 +132,14 @@ class SweepSettings:
     max_event_rate: float = 200.0
     max_steps_per_tau: float = MAX_STEPS_PER_TAU
     max_steps: float = MAX_STEPS_PER_CALL
+    lyapunov: bool = False
 
     def __post_init__(self) -> None:
         for f in fields(self):
             v = getattr(self, f.name)
+            if f.name == "lyapunov":
+                object.__setattr__(self, f.name, check_bool(f.name, v))
+                continue
             if f.name == "method":
                 if not isinstance(v, str):
                     raise TypeError(f"method must be 'auto', 'exact' or 'event', {got(v)}")
@@ -535,6 +546,7 @@ class CellResults(NamedTuple):
     status: np.ndarray  # int64: kernel status, STATUS_NOT_RUN for a cell not run
     period: np.ndarray  # int64: period in common forcing periods, 0 none or untested
     labels: np.ndarray  # int8: Regime values, NOT_COMPUTED for a cell not run
+    lyapunov: np.ndarray  # float64: largest Lyapunov exponent, NaN if not measured
 
 
 def _cell_values(values: object) -> dict[str, np.ndarray]:
@@ -611,6 +623,33 @@ def cell_inputs(base: OscillatorParams, values: Mapping[str, object],
     return CellInputs(P, t_tr, t_seg, n_seg, tries, method, nu, q)
 
 
+def lyapunov_of_cells(cells: CellInputs, settings: SweepSettings, status: np.ndarray
+                      ) -> np.ndarray:
+    """The largest Lyapunov exponent of each cell that ran with status OK, from the same
+    start (``settings.x0, v0``), transient and window (all its segments) as its regime, by
+    the event method's exact tangent (:func:`fricenv.stability.lyapunov_exponent`),
+    renormalised every period of the faster tone (at most 10); NaN elsewhere, and where the
+    tangent's run fails."""
+    from .stability import lyapunov_of_rows
+
+    out = np.full(status.shape[0], np.nan)
+    ok = np.flatnonzero(status == STATUS_OK)
+    if not ok.size:
+        return out
+    P = np.ascontiguousarray(cells.P[ok])
+    S = np.zeros((ok.size, N_STATE))
+    S[:, S_X] = settings.x0
+    S[:, S_V] = settings.v0
+    S[:, S_MODE] = [initial_mode(row, settings.x0, settings.v0, 0.0, 0.0) for row in P]
+    fast = np.maximum(P[:, P_W1], P[:, P_W2])
+    renorm = np.minimum(10.0, 2.0 * np.pi / np.where(fast > 0.0, fast, np.inf))
+    spans = np.stack([cells.t_transient[ok], cells.t_segment[ok] * cells.n_segment[ok],
+                      np.where(renorm > 0.0, renorm, 10.0)], axis=1)
+    res = lyapunov_of_rows(P, S, spans, (settings.rtol, settings.atol))
+    out[ok] = np.where(res[:, 2] == STATUS_OK, res[:, 0], np.nan)
+    return out
+
+
 def measure_cells(base: OscillatorParams, values: Mapping[str, object],
                   settings: SweepSettings, n_threads: int | None = None,
                   stop_requested: Callable[[], bool] | None = None) -> CellResults:
@@ -649,7 +688,10 @@ def measure_cells(base: OscillatorParams, values: Mapping[str, object],
                              stats[:, ST_N_REVERSAL], cells.nu, cells.q, period, status,
                              stats[:, ST_N_SLIP])
     labels[status == STATUS_NOT_RUN] = NOT_COMPUTED
-    results = CellResults(stats, status, period, labels)
+    exponent = np.full(n, np.nan)
+    if settings.lyapunov and stopped is None:
+        exponent = lyapunov_of_cells(cells, settings, status)
+    results = CellResults(stats, status, period, labels, exponent)
     if stopped is not None:
         stopped.results = results
         raise stopped

@@ -78,6 +78,13 @@ class RegimeMap:
     elapsed: float = 0.0  # compute time spent so far, seconds (all sessions)
     meta: dict = field(default_factory=dict)
     plan: CellPlan | None = None  # per-nu time spans used (checked when resuming)
+    #: float64 (n_u0, n_nu): largest Lyapunov exponent (``SweepSettings.lyapunov``), NaN
+    #: where not measured
+    lyapunov: np.ndarray = None  # type: ignore[assignment]  # (filled in below)
+
+    def __post_init__(self) -> None:
+        if self.lyapunov is None:
+            self.lyapunov = np.full(self.labels.shape, np.nan)
 
     # -- derived -----------------------------------------------------------------------
     @property
@@ -175,6 +182,7 @@ class RegimeMap:
             with open(tmp, "wb") as fh:
                 np.savez(fh, u0=self.u0, nu=self.nu, labels=self.labels, stats=self.stats,
                          period=self.period, status=self.status, done=self.done, q=self.q,
+                         lyapunov=self.lyapunov,
                          meta=np.array(json.dumps(self.metadata(), sort_keys=True)), **plan)
                 fh.flush()
                 os.fsync(fh.fileno())
@@ -209,6 +217,9 @@ class RegimeMap:
             raise ValueError(f"{path} is not a complete regime map: no {missing}")
         names = [f"plan_{f.name}" for f in fields(CellPlan)]
         arrays = {k: z[k] for k in _MAP_ARRAYS}
+        # (maps saved before the exponent was measured have none: NaN, not measured)
+        arrays["lyapunov"] = z["lyapunov"] if "lyapunov" in z else np.full(
+            arrays["labels"].shape, np.nan)
         plan = CellPlan(*(z[n] for n in names)) if all(n in z for n in names) else None
         try:  # written by save, so anything else is a damaged or foreign file
             params = OscillatorParams(**meta["params"])
@@ -238,7 +249,8 @@ def _check_map_arrays(arrays: dict[str, np.ndarray], plan: CellPlan | None) -> N
     grid = (u0.size, nu.size)
     want = {"u0": ((u0.size,), "iuf"), "nu": ((nu.size,), "iuf"), "labels": (grid, "iu"),
             "stats": (grid + (N_STATS,), "f"), "period": (grid, "iu"),
-            "status": (grid, "iu"), "done": (grid, "b"), "q": ((nu.size,), "iu")}
+            "status": (grid, "iu"), "done": (grid, "b"), "q": ((nu.size,), "iu"),
+            "lyapunov": (grid, "f")}
     if plan is not None:
         want.update({f"plan_{f.name}": ((nu.size,), "iuf") for f in fields(CellPlan)})
     for name, (shape, kinds) in want.items():

@@ -121,6 +121,7 @@ def _empty_map(params: OscillatorParams, u0: np.ndarray, nu: np.ndarray,
         status=np.zeros(shape, dtype=np.int8),
         done=np.zeros(shape, dtype=bool),
         q=q.astype(np.int16), meta={**meta, "algorithm": ALGORITHM},
+        lyapunov=np.full(shape, np.nan),
     )
 
 
@@ -136,7 +137,9 @@ def regime_map(params: OscillatorParams | str, u0: object, nu: object, *,
     grid; both tones get amplitude ``u0`` and the second tone frequency ``nu * eta``
     (``params.u0`` and ``params.nu`` are replaced by the grid's; ``params.u1`` and ``u2``
     must be None, as they would be dropped). ``settings`` / keyword ``overrides`` set the
-    transient, window and periodicity test (:class:`SweepSettings`). With ``path`` the map
+    transient, window and periodicity test (:class:`SweepSettings`); ``lyapunov=True``
+    also measures each cell's largest Lyapunov exponent (``RegimeMap.lyapunov``). With
+    ``path`` the map
     is saved at most every ``SAVE_EVERY_S`` seconds, after its last chunk and when the
     sweep stops on an exception (Ctrl-C, a callback's), and a run with the same
     arguments resumes from the file
@@ -283,16 +286,19 @@ def _store_cells(rmap: RegimeMap, iu: np.ndarray, jn: np.ndarray, cells: CellRes
     rmap.stats[iu, jn] = cells.stats[ok]
     rmap.status[iu, jn] = cells.status[ok]
     rmap.period[iu, jn] = cells.period[ok]
+    rmap.lyapunov[iu, jn] = cells.lyapunov[ok]
     rmap.labels[iu, jn] = cells.labels[ok]
     rmap.done[iu, jn] = True
 
 
 def cell_statistics(params: list[OscillatorParams], settings: SweepSettings | None = None,
                     n_threads: int | None = None, **overrides: object
-                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+                    ) -> tuple[np.ndarray, ...]:
     """Measure arbitrary parameter sets the way a map cell is measured.
 
-    Returns ``(labels, stats, period, status)`` with one row per entry of ``params`` (a list,
+    Returns ``(labels, stats, period, status)``, and the largest Lyapunov exponents fifth
+    with ``lyapunov=True`` (as ``numpy.unique`` adds what its flags ask for), with one row
+    per entry of ``params`` (a list,
     or any iterable, of :class:`OscillatorParams`); each entry's own ``eta``, ``nu`` and
     amplitudes are used. Each entry is measured by :func:`~fricenv.cells.measure_cells`, as
     a map or atlas cell is, so it gets the bits it gets there: with ``method="auto"`` a
@@ -337,6 +343,13 @@ def cell_statistics(params: list[OscillatorParams], settings: SweepSettings | No
             cells = measure_cells(params[0], values, settings, n_threads)
     except SweepInterrupted as stop:
         cells = stop.results
-        stop.results = (cells.labels, cells.stats, cells.period, cells.status)
+        stop.results = _returned(cells, settings)
         raise
-    return cells.labels, cells.stats, cells.period, cells.status
+    return _returned(cells, settings)
+
+
+def _returned(cells: CellResults, settings: SweepSettings) -> tuple[np.ndarray, ...]:
+    """What ``cell_statistics`` returns: (labels, stats, period, status), and the Lyapunov
+    exponents fifth when the settings ask for them."""
+    out = (cells.labels, cells.stats, cells.period, cells.status)
+    return (*out, cells.lyapunov) if settings.lyapunov else out

@@ -15,7 +15,7 @@ import fricenv
 from fricenv.atlas.core import VARIABLES
 
 ORDER = ["stick_fraction", "n_stick", "n_reversal", "v_min", "v_max", "period", "status",
-         "label"]
+         "lyapunov", "label"]
 
 
 @pytest.fixture(scope="module")

@@ -227,6 +227,14 @@ def test_store_of_format_2_is_refused(fresh):
             call()
 
 
+def test_store_of_format_3_is_refused(fresh):
+    _set_json(fresh / "zarr.json", lambda m: m["attributes"].update(format_version=3))
+    for call in (lambda: fricenv.open_atlas(fresh), lambda: _run(fresh)):
+        with pytest.raises(ValueError, match="format version 3, without the lyapunov "
+                                             "variable.*remove it"):
+            call()
+
+
 def test_store_of_format_1_is_refused(fresh):
     _set_json(fresh / "zarr.json", lambda m: m["attributes"].update(format_version=1))
     for call in (lambda: fricenv.open_atlas(fresh), lambda: _run(fresh)):

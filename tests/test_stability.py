@@ -8,6 +8,7 @@ import math
 import numpy as np
 import pytest
 
+import fricenv
 from fricenv import forcing_period, lyapunov_exponent, periodic_orbit
 from fricenv.params import PAPER_CASES, OscillatorParams
 from fricenv.simulate import OscillatorState, SimulationError, simulate
@@ -96,3 +97,25 @@ def test_paper_stick_slip_cases_lock_onto_stable_orbits(case):
     assert o.stable and o.residual <= 1e-10
     tr = simulate(p, o.period, state=OscillatorState.start(p, o.x, o.v))
     assert tr.n_stick >= 1
+
+
+def test_lyapunov_is_a_statistic_of_maps_cells_and_atlases(tmp_path):
+    """regime_map, cell_statistics and the atlas measure it on request, from each cell's
+    own start, transient and window, and a saved map keeps it."""
+    p = OscillatorParams.preset("stribeck", eta=0.6)
+    u0, nu = np.array([0.5, 3.0, 30.0]), np.array([0.5, 1.0])
+    m = fricenv.regime_map(p, u0=u0, nu=nu, lyapunov=True)
+    assert np.all(np.isfinite(m.lyapunov)) and np.all(m.lyapunov < 0.0)
+    plain = fricenv.regime_map(p, u0=u0, nu=nu)
+    assert np.all(np.isnan(plain.lyapunov))
+    np.testing.assert_array_equal(plain.labels, m.labels)
+    m.save(tmp_path / "m.npz")
+    np.testing.assert_array_equal(fricenv.RegimeMap.load(tmp_path / "m.npz").lyapunov,
+                                  m.lyapunov)
+    cell = p.replace(u0=3.0, nu=1.0)
+    labels, _, _, _, exponent = fricenv.cell_statistics([cell], lyapunov=True)
+    assert exponent[0] == m.lyapunov[1, 1] and labels[0] == m.labels[1, 1]
+    assert len(fricenv.cell_statistics([cell])) == 4
+    ds = fricenv.atlas(p, {"u0": u0, "nu": nu}, path=tmp_path / "a.zarr", progress=False,
+                       settings=fricenv.SweepSettings(lyapunov=True))
+    np.testing.assert_array_equal(ds["lyapunov"].values, m.lyapunov)

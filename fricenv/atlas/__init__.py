@@ -9,7 +9,7 @@ See :func:`fricenv.atlas.api.atlas` and docs/atlas.md.
 An atlas is an ``xarray.Dataset`` whose dimensions are the swept axes, in the order
 given, with ``q`` (the tested denominator of each nu) as a coordinate along nu, and whose
 data variables come in this order: ``stick_fraction``, ``n_stick``, ``n_reversal``,
-``v_min``, ``v_max``, ``period``, ``status``, ``label`` (:data:`.core.VARIABLES`). The
+``v_min``, ``v_max``, ``period``, ``status``, ``lyapunov``, ``label`` (:data:`.core.VARIABLES`). The
 order is the same from :func:`fricenv.atlas`, :func:`fricenv.open_atlas` and plain
 ``xarray.open_zarr(path)``, which opens a store without a warning (its metadata is
 consolidated, in that order).

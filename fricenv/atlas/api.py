@@ -66,7 +66,9 @@ def atlas(base: OscillatorParams | str, axes: Mapping[str, object],
     ``b1, b3`` for the paper's laws, ``vs, delta, cv`` for the exponential law) to 1-d
     grids, in the order of the
     result's dimensions. Each cell is measured exactly as :func:`fricenv.regime_map`
-    measures it (same transient, window, periodicity test and label), bit for bit.
+    measures it (same transient, window, periodicity test and label), bit for bit; with
+    ``settings.lyapunov`` its largest Lyapunov exponent too (variable ``lyapunov``, NaN
+    otherwise).
 
     ``path``: a Zarr store (a folder) that chunks stream into as they finish; run again
     with the same arguments, only the missing or damaged chunks are computed (every chunk

@@ -64,6 +64,7 @@ VARIABLES: dict[str, tuple[str, float]] = {
     "v_max": ("float64", math.nan),
     "period": ("int16", 0),
     "status": ("int8", STATUS_NOT_RUN),
+    "lyapunov": ("float64", math.nan),
     "label": ("int8", NOT_COMPUTED),
 }
 
@@ -389,7 +390,8 @@ def compute_chunk(task: ChunkTask, n_threads: int | None = None,
                               task.settings, n_threads, stop_requested)
     except SweepInterrupted as stop:
         stopped, cells = stop, stop.results
-    measured = variables_from_stats(cells.stats, cells.period, cells.status, cells.labels)
+    measured = variables_from_stats(cells.stats, cells.period, cells.status, cells.labels,
+                                    cells.lyapunov)
     if task.todo is None:
         variables = measured
     else:  # (a cell depends on its own values only: a subset runs as in the whole chunk)
@@ -404,16 +406,16 @@ def compute_chunk(task: ChunkTask, n_threads: int | None = None,
 
 
 def variables_from_stats(stats: np.ndarray, period: np.ndarray, status: np.ndarray,
-                         labels: np.ndarray) -> dict[str, np.ndarray]:
+                         labels: np.ndarray, lyapunov: np.ndarray) -> dict[str, np.ndarray]:
     """The stored variables from window statistics (layout ``ST_*``), as ``RegimeMap``'s
-    properties derive them."""
+    properties derive them, and the Lyapunov exponents (NaN where not measured)."""
     d = stats[..., ST_DURATION]
     with np.errstate(invalid="ignore", divide="ignore"):
         frac = np.where(d > 0, stats[..., ST_STICK_TIME] / np.where(d > 0, d, 1), np.nan)
     out = {"stick_fraction": frac, "n_stick": stats[..., ST_N_STICK],
            "n_reversal": stats[..., ST_N_REVERSAL], "v_min": stats[..., ST_V_MIN],
            "v_max": stats[..., ST_V_MAX], "period": period, "status": status,
-           "label": labels}
+           "lyapunov": lyapunov, "label": labels}
     return {k: np.ascontiguousarray(out[k], dtype=VARIABLES[k][0]) for k in VARIABLES}
 
 

@@ -66,8 +66,9 @@ from .core import STATUS_NOT_RUN, VARIABLES, AtlasSpec, chunk_slices, variables_
 FORMAT = "fricenv.atlas"
 #: Version 2: chunks carry checksums, metadata documents have theirs in the group's
 #: attributes, and every chunk file is written (fill values included).
-FORMAT_VERSION = 3
+FORMAT_VERSION = 4
 #: Version 3: each chunk has a record binding its files to the store, variable and index.
+#: Version 4: the ``lyapunov`` variable.
 #: Group attribute holding the store's random id, which the records' checksums cover.
 _STORE_ID = "store_id"
 #: Folder of the chunk records, inside the label array's folder (Zarr lists no such
@@ -99,6 +100,7 @@ _DESCRIPTIONS = {
     "v_max": "greatest velocity in the window",
     "period": "response period in common forcing periods (0: none found or not tested)",
     "status": f"kernel status (0: ok; {STATUS_NOT_RUN}: not computed)",
+    "lyapunov": "largest Lyapunov exponent over the window (NaN: not measured)",
     "label": "regime label, a fricenv.Regime value",
 }
 
@@ -158,7 +160,8 @@ def regime_map_dataset(rmap: RegimeMap) -> xr.Dataset:
                                    "nu": np.asarray(rmap.nu, dtype=float)},
                      rmap.settings, tuple(rmap.labels.shape))
     status = np.where(rmap.done, rmap.status, STATUS_NOT_RUN)
-    arrays = variables_from_stats(rmap.stats, rmap.period, status, rmap.labels)
+    arrays = variables_from_stats(rmap.stats, rmap.period, status, rmap.labels,
+                                  rmap.lyapunov)
     return to_dataset(spec, arrays, int(rmap.meta.get("algorithm", ALGORITHM)))
 
 
@@ -281,6 +284,11 @@ def _check_format(path: Path, attrs: dict) -> None:
                          f"atlas read as this one's); this fricenv reads version "
                          f"{FORMAT_VERSION} only: remove it and run the atlas again "
                          "(xarray.open_zarr still reads it)")
+    if version == 3:
+        raise ValueError(f"{path} is a fricenv atlas store of format version 3, without the "
+                         f"lyapunov variable; this fricenv reads version {FORMAT_VERSION} "
+                         "only: remove it and run the atlas again (xarray.open_zarr still "
+                         "reads it)")
     if version != FORMAT_VERSION:
         raise ValueError(f"{path} is a fricenv atlas store of format version {version!r}; "
                          f"this fricenv reads version {FORMAT_VERSION}")
