@@ -359,6 +359,36 @@ def _sorted_grid(rmap: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return u0, nu, labels
 
 
+def draw_lyapunov_map(ax: Axes, rmap: Any, title: str | None = None) -> Any:
+    """One (u0, nu) panel coloured by each cell's largest Lyapunov exponent
+    (``rmap.lyapunov``; grey where not measured), on a diverging scale centred on 0, so
+    that chaos (> 0) and neutral motion (0) stand apart from the stable (< 0). Returns
+    the mesh, for a colour bar."""
+    order_u, order_nu = np.argsort(rmap.u0), np.argsort(rmap.nu)
+    u0, nu = rmap.u0[order_u], rmap.nu[order_nu]
+    values = np.asarray(rmap.lyapunov)[np.ix_(order_u, order_nu)]
+    log = _is_log(u0)
+    finite = values[np.isfinite(values)]
+    span = float(np.max(np.abs(finite))) if finite.size else 1.0
+    cmap = plt_colormap("RdBu_r").with_extremes(bad="0.8")
+    mesh = ax.pcolormesh(_edges(u0, log), _edges(nu, False), values.T, cmap=cmap,
+                         vmin=-span, vmax=span, shading="flat", rasterized=True)
+    if log:
+        ax.set_xscale("log")
+    ax.set_xlabel("u0")
+    ax.set_ylabel("nu")
+    if title:
+        ax.set_title(title, fontsize=10)
+    return mesh
+
+
+def plt_colormap(name: str) -> Any:
+    """A registered matplotlib colormap (a copy, safe to modify)."""
+    import matplotlib
+
+    return matplotlib.colormaps[name].copy()
+
+
 def draw_regime_map(ax: Axes, rmap: Any, boundaries: bool = True,
                     title: str | None = None, legend: bool = False) -> None:
     """One (u0, nu) panel: u0 on x (log if the grid is geometric), nu on y.
