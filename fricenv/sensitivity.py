@@ -138,19 +138,19 @@ MAX_FLAGS = 16
 
 
 def record(P: np.ndarray, S0: np.ndarray, seed: np.ndarray, out_t: np.ndarray,
-           settings: tuple[float, float, int], budget: tuple[float, float],
-           capacity: int, work_steps: float) -> TangentRun:
+           settings: tuple[float, float, int],
+           limits: tuple[tuple[float, float], int, float]) -> TangentRun:
     """Record a run from the state vector ``S0`` over the grid ``out_t`` with the event
     method, carrying one tangent column per seed. ``settings``: (rtol, atol,
-    max_events); ``capacity``: the first event buffer's size (grown by 4 while full, as
-    ``simulate`` does); ``work_steps``: the steps the call may take, for
-    :func:`fricenv.calls.run_call`."""
+    max_events); ``limits``: (the step budget, the first event buffer's size, grown by 4
+    while full as ``simulate`` does, and the steps the call may take, for
+    :func:`fricenv.calls.run_call`)."""
     from .core.recording import Recording
     from .core.tangent import N_TONE_ROWS, Tangent, law_rows_needed, record_tangent
     from .core.workspace import TAYLOR_MAX_ORDER
     from .layout import N_STATS
 
-    rtol, atol, max_events = settings
+    budget, capacity, work_steps = limits
     n, k = out_t.shape[0], seed.shape[0]
     out_x, out_v, out_mode = np.empty(n), np.empty(n), np.empty(n)
     stats = np.empty(N_STATS)
@@ -171,7 +171,7 @@ def record(P: np.ndarray, S0: np.ndarray, seed: np.ndarray, out_t: np.ndarray,
 
             S[:] = S0
             reset_stats(stats)
-            return record_tangent(P, S, stats, rtol, atol, max_events, rec, tan, work)
+            return record_tangent(P, S, settings, (rec, tan, stats), work)
 
         status = calls.run_call(go, lambda: calls.new_workspace(budget), work_steps)
         if status != STATUS_BUFFER_FULL:

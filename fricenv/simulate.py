@@ -422,7 +422,7 @@ def simulate(
     capacity = int(min(max_events + 1, 64 + 8 * t_span * w / (2 * math.pi)))
     if wrt is not None:
         return _simulate_tangent(params, state, wrt, out_t, (rtol, atol, max_events),
-                                 budget, capacity, scan_steps + n)
+                                 (budget, capacity, scan_steps + n))
     counts = np.zeros(2, np.int64)
     record = core.kernels_for(code, P).record  # compiles this method's kernels only
     S0 = state.to_array()
@@ -498,12 +498,12 @@ def _tangent_method(method: str) -> str:
 
 def _simulate_tangent(params: OscillatorParams, state: OscillatorState, wrt: tuple[str, ...],
                       out_t: np.ndarray, settings: tuple[float, float, int],
-                      budget: tuple[float, float], capacity: int, work_steps: float
-                      ) -> Trajectory:
-    """``simulate`` with ``wrt``: the event method's run, carrying the tangent."""
+                      limits: tuple[tuple[float, float], int, float]) -> Trajectory:
+    """``simulate`` with ``wrt``: the event method's run, carrying the tangent
+    (``limits`` as in :func:`fricenv.sensitivity.record`)."""
+    budget = limits[0]
     seed, P = sensitivity.seeds(params, wrt)
-    run = sensitivity.record(P, state.to_array(), seed, out_t, settings, budget, capacity,
-                             work_steps)
+    run = sensitivity.record(P, state.to_array(), seed, out_t, settings, limits)
     t_span = float(out_t[-1] - out_t[0])
     _raise_status(run.status, run.state[S_T], settings[2], t_span, P, budget)
     _raise_if_diverged(P, state.x, state.v, t_span, run.stats, run.state)
@@ -524,8 +524,8 @@ def _stats_tangent(params: OscillatorParams, state: OscillatorState, t_span: flo
     out_t = np.array([state.t, state.t + t_span])
     w = max(params.omega1, params.omega2, 1.0)
     capacity = int(min(settings[2] + 1, 64 + 8 * t_span * w / (2 * math.pi)))
-    return _simulate_tangent(params, state, names, out_t, settings, budget, capacity,
-                             scan_steps + 2).stats
+    return _simulate_tangent(params, state, names, out_t, settings,
+                             (budget, capacity, scan_steps + 2)).stats
 
 
 def run_stats(

@@ -32,14 +32,13 @@ def _chunk_map(P, S, t_chunk, settings, bufs, cx):
     ``bufs`` = (recording, tangent, statistics)), leaving the chunk's 2x2 map of (dx, dv)
     in the tangent's ``y``; the status, or -1 if the chunk met a point without a
     derivative."""
-    rtol, atol, max_events = settings
     rec, tan, stats = bufs
     rec.out_t[0] = 0.0
     rec.out_t[1] = t_chunk
     rec.counts[0] = 0
     rec.counts[1] = 0
     tan.n_flags[0] = 0
-    status = _run_tangent(P, S, t_chunk, stats, max_events, rtol, atol, rec, tan, cx)
+    status = _run_tangent(P, S, t_chunk, settings, bufs, cx)
     if status == STATUS_OK and tan.n_flags[0] > 0:
         return -1
     return status

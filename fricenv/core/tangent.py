@@ -160,9 +160,11 @@ def _dphase(s, t):
 
 
 @kernel
-def _dforce(cx, s, t, dx, c1, s1, c2, s2):
+def _dforce(cx, s, t, dx, tones):
     """Derivative of f = -lam V - x + g(t) (every force but friction) by a column's
-    parameter at run time t in stick, with dx/dp = dx."""
+    parameter at run time t in stick, with dx/dp = dx; ``tones`` = the tones' (cos, sin,
+    cos, sin) there."""
+    c1, s1, c2, s2 = tones
     d1, d2 = _dphase(s, t)
     return (-s.lam * cx[C_V] - cx[C_LAM] * s.V - dx + s.u1 * c1 + s.u2 * c2
             - cx[C_U1] * s1 * d1 - cx[C_U2] * s2 * d2)
@@ -174,7 +176,7 @@ def _step_series(cx, tan, sd, t0, tones, n):
     the tones' (cos, sin, cos, sin) at its start, the state's series in ``cx``) for every
     column, into ``tan.ser``."""
     law, lc = _law(cx)
-    friction.tangent_series(law, lc, sd, cx, C_TW, C_TL, tan.law_rows, n)
+    friction.tangent_series(law, lc, sd, cx, (C_TW, C_TL), tan.law_rows, n)
     tr = tan.tones
     w1 = cx[C_W1]
     w2 = cx[C_W2]
@@ -305,12 +307,14 @@ def _shallow(d1, d2, scale):
 
 
 @kernel
-def _contact_tangent(cx, tan, rec, kind, t, x, acc, ph1, ph2):
-    """Saltation where slip reached v = V at run time t (the step's series still in
-    ``cx``; ``acc`` = (v'-, v''-, v'+): v' on either side and v'' before): the contact
+def _contact_tangent(cx, tan, rec, kind, at, acc):
+    """Saltation where slip reached v = V at ``at`` = (run time t, x, tones' phases ph1,
+    ph2) (the step's series still in ``cx``; ``acc`` = (v'-, v''-, v'+): v' on either
+    side and v'' before): the contact
     time moves by dtau = -(dv/dp - dV/dp) / v'-, and dv/dp jumps by (v'- - v'+) dtau (to
     dV/dp on sticking). Flags a grazing contact and a stick/reversal tie."""
     a_before, j_before, a_after = acc
+    t, x, ph1, ph2 = at
     scale = _scale(cx, x)
     f = -cx[C_LAM] * cx[C_V] - x + cx[C_U1] * math.cos(ph1) + cx[C_U2] * math.cos(ph2)
     if _shallow(a_before, j_before, scale):
@@ -329,12 +333,13 @@ def _contact_tangent(cx, tan, rec, kind, t, x, acc, ph1, ph2):
 
 
 @kernel
-def _breakaway_tangent(cx, tan, rec, t, x, a_after, ph1, ph2, sd):
-    """Saltation where stick ended at run time t at x (tones' phases ph_i), slipping in
-    direction ``sd`` with v' = ``a_after``: h = sd f - xfs reached 0, so the break-away
+def _breakaway_tangent(cx, tan, rec, at, a_after, sd):
+    """Saltation where stick ended at ``at`` = (run time t, x, tones' phases ph1, ph2),
+    slipping in direction ``sd`` with v' = ``a_after``: h = sd f - xfs reached 0, so the break-away
     moves by dtau = -(dh/dp) / (dh/dt) and dv/dp jumps by -v'+ dtau. Flags a tangential
     break-away (f' = 0 there); a stick that the start state already violated ends at once,
     whatever the parameters (dtau = 0)."""
+    t, x, ph1, ph2 = at
     c1 = math.cos(ph1)
     s1 = math.sin(ph1)
     c2 = math.cos(ph2)
@@ -348,7 +353,7 @@ def _breakaway_tangent(cx, tan, rec, t, x, a_after, ph1, ph2, sd):
         _flag(tan, t, FLAG_TANGENT_BREAKAWAY)
     for j in range(tan.y.shape[0]):
         s = tan.seed[j]
-        dh = sd * _dforce(cx, s, t, tan.y[j, 0], c1, s1, c2, s2) - s.xfs
+        dh = sd * _dforce(cx, s, t, tan.y[j, 0], (c1, s1, c2, s2)) - s.xfs
         dtau = 0.0 if past else -dh / (sd * fd)
         _store_dt(tan, rec, j, dtau)
         tan.y[j, 1] -= a_after * dtau
@@ -377,10 +382,14 @@ def _end_outputs(tan, rec, j_out):
 
 
 @kernel
-def _run_tangent(P, S, t_span, stats, max_events, rtol, atol, rec, tan, cx):
+def _run_tangent(P, S, t_span, settings, bufs, cx):
     """``_run_event`` of a recording run (Taylor steps in slip, exact stick) that carries
-    the tangent ``tan`` along: see the module's docstring. The state and statistics are
-    those of a recording event run; the tangent's outputs go to ``tan``."""
+    the tangent along: see the module's docstring. ``settings`` = (rtol, atol, switches
+    allowed); ``bufs`` = (the :class:`~fricenv.core.recording.Recording`, the
+    :class:`Tangent`, the statistics). The state and statistics are those of a recording
+    event run; the tangent's outputs go to the tangent."""
+    rtol, atol, max_events = settings
+    rec, tan, stats = bufs
     _setup_context(P, cx)
     cx[C_TN] = taylor_order(rtol)
     cap = _scan_cap(P, False)
@@ -439,8 +448,8 @@ def _run_tangent(P, S, t_span, stats, max_events, rtol, atol, rec, tan, cx):
             _slip_tangent(cx, tan, rec, (t0, t - t0, j0, j_out, origin), sd, tones)
             if kind != 0:
                 _, a_before, j_before = _dense_v(cx, t - t0)
-                _contact_tangent(cx, tan, rec, kind, t, x, (a_before, j_before, acc), ph1,
-                                 ph2)
+                _contact_tangent(cx, tan, rec, kind, (t, x, ph1, ph2),
+                                 (a_before, j_before, acc))
                 phases_stale = True
             else:
                 n_carried += 1
@@ -450,7 +459,7 @@ def _run_tangent(P, S, t_span, stats, max_events, rtol, atol, rec, tan, cx):
                 cx, stats, rec, j_out, origin, t, t_span, x, v, acc, ph1, ph2, mode, cap)
             _stick_tangent(tan, rec, (t0, t - t0, j0, j_out, origin))
             if kind != 0:
-                _breakaway_tangent(cx, tan, rec, t, x, acc, ph1, ph2, mode)
+                _breakaway_tangent(cx, tan, rec, (t, x, ph1, ph2), acc, mode)
             fresh = kind != 0
             phases_stale = True
         if kind != 0:
@@ -481,9 +490,10 @@ def _rhs_acc_or_0(cx, mode, x, v, ph1, ph2):
 
 
 @kernel(allocates=True, nogil=True)
-def record_tangent(P, S, stats, rtol, atol, max_events, rec, tan, work):
+def record_tangent(P, S, settings, bufs, work):
     """Record a run over [rec.out_t[0], rec.out_t[-1]] from ``S`` with the event method,
-    carrying the tangent ``tan`` (a :class:`Tangent`); the status."""
-    t_span = rec.out_t[rec.out_t.shape[0] - 1] - rec.out_t[0]
-    return _run_tangent(P, S, t_span, stats, max_events, rtol, atol, rec, tan, work)
+    carrying the tangent (``settings``, ``bufs`` = (rec, tangent, statistics) as in
+    ``_run_tangent``); the status."""
+    out_t = bufs[0].out_t
+    return _run_tangent(P, S, out_t[out_t.shape[0] - 1] - out_t[0], settings, bufs, work)
 

@@ -69,7 +69,7 @@ def taylor_term(lc, sd, cx, tw, tq, tl, k, wk):
     return 0.0
 
 
-def tangent_series(lc, sd, cx, tw, tl, out, n):
+def tangent_series(lc, sd, cx, at, out, n):
     """Taylor coefficients (orders 0 .. n - 1) of the speed-dependent acceleration's
     derivatives along a slip step (see ``cubic.tangent_series``): all 0."""
     for r in range(out.shape[0]):

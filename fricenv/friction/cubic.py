@@ -119,12 +119,13 @@ def taylor_term(lc, sd, cx, tw, tq, tl, k, wk):
     return fric
 
 
-def tangent_series(lc, sd, cx, tw, tl, out, n):
+def tangent_series(lc, sd, cx, at, out, n):
     """Taylor coefficients (orders 0 .. n - 1) along the current slip step of what the
     forward sensitivities need, from the series of w = v - V in ``cx[tw:]``: row 0 the
     slope d/dw of the speed-dependent acceleration (b1 - 3 b3 w^2), rows 1 and 2 its
     derivatives by xfk and xfs (none), rows 3 and 4 by the law's parameters (w by b1,
     -w^3 by b3), as far as ``out`` has rows (a run that needs no b3 skips w^3)."""
+    tw, tl = at  # offsets of the series of w and of the law's scratch
     b1 = lc[0]
     b3 = lc[1]
     rows = out.shape[0]

@@ -173,7 +173,7 @@ def taylor_term(lc, sd, cx, tw, tq, tl, k, wk):
     return -(sd * lc[3] * cx[e + k] + lc[2] * wk)
 
 
-def tangent_series(lc, sd, cx, tw, tl, out, n):
+def tangent_series(lc, sd, cx, at, out, n):
     """Taylor coefficients (orders 0 .. n - 1) along the current slip step of what the
     forward sensitivities need (rows as in ``cubic.tangent_series``, as far as ``out`` has
     rows), from the series of u, u^delta and E that ``taylor_term`` left in the scratch
@@ -184,6 +184,7 @@ def tangent_series(lc, sd, cx, tw, tl, out, n):
     - rows 3 .. 5 (vs, delta, cv): -sd (xfs - xfk) delta u^delta E / vs by vs, 0 by delta
       (a whole number: no derivative), -w by cv.
     """
+    tw, tl = at  # offsets of the series of w and of the law's scratch
     m = int(lc[1])
     rows = out.shape[0]
     pw = tl + (m - 1) * SERIES_LEN  # u^delta

@@ -132,17 +132,18 @@ def taylor_step_cap(law, lc, cx, tl, n, eps, h):
 
 
 @kernel(called_once=True)
-def tangent_series(law, lc, sd, cx, tw, tl, out, n):
+def tangent_series(law, lc, sd, cx, at, out, n):
     """Taylor coefficients along the current slip step of the speed-dependent
     acceleration's slope (row 0 of ``out``) and of its derivatives by xfk, xfs and the
     law's three parameters (rows 1 .. 5), orders 0 .. n - 1: what the forward
-    sensitivities' series need (:mod:`fricenv.core.tangent`)."""
+    sensitivities' series need (:mod:`fricenv.core.tangent`). ``at`` = (offset of the
+    series of w, offset of the law's scratch) in ``cx``."""
     if law == CUBIC:
-        cu_tangent_series(lc, sd, cx, tw, tl, out, n)
+        cu_tangent_series(lc, sd, cx, at, out, n)
     elif law == EXPONENTIAL:
-        ex_tangent_series(lc, sd, cx, tw, tl, out, n)
+        ex_tangent_series(lc, sd, cx, at, out, n)
     else:
-        co_tangent_series(lc, sd, cx, tw, tl, out, n)
+        co_tangent_series(lc, sd, cx, at, out, n)
 
 
 @kernel(called_once=True)
