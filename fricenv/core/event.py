@@ -7,6 +7,7 @@ of :mod:`fricenv.core.stick` (``_event_stick_step``).
 """
 
 import math
+from typing import NamedTuple
 
 from ..friction import kernels as friction
 from ..jit import kernel
@@ -78,6 +79,41 @@ from .workspace import (
 )
 
 
+class Motion(NamedTuple):
+    """The event runner's state between two steps: time since the call's start, x, v, the
+    slip acceleration v' (0 in stick), the tones' phase angles and the mode (-1/+1: slip
+    below/above the belt, 0: stick)."""
+
+    t: float
+    x: float
+    v: float
+    acc: float
+    ph1: float
+    ph2: float
+    mode: float
+
+
+class Bounds(NamedTuple):
+    """What bounds every step of a call: its end ``t_stop`` (time since its start), the
+    step caps of stick (``cap``) and of slip (``cap_slip``), and the tolerances."""
+
+    t_stop: float
+    cap: float
+    cap_slip: float
+    rtol: float
+    atol: float
+
+
+class Stiff(NamedTuple):
+    """A stiff stretch's Rosenbrock state (``_stiff_step``): its step size ``h`` (-1: not
+    in one), and after failures the Taylor steps to take before trying again
+    (``backoff``) and those taken so far (``skip``)."""
+
+    h: float
+    backoff: float
+    skip: float
+
+
 @kernel
 def _stiffness(cx, sd, vr):
     """|dv'/dv| in slip at vr = v - V: how fast slip relaxes, against the step length."""
@@ -100,23 +136,26 @@ def _output_tau(rec, j_out, origin, t, step_end):
 
 
 @kernel
-def _stiff_step(cx, stats, t, t_stop, x, v, acc, ph1, ph2, sd, h, cap, rtol, atol, h_ros,
-                ros_backoff, ros_skip):
+def _stiff_step(cx, stats, m, lim, h, ros):
     """A Rosenbrock slip step, where the slip is stiff (the cubic law's slope |df/dv|
     past what an explicit step of the tolerance's length can follow); stats-only calls.
 
     The step is kept only where no switch, extremum or sign change of v needs a dense
-    output; anything else goes to the Taylor step (``taken`` False). Carries the stiff
-    stretch's step size ``h_ros`` (-1: not in a stiff stretch) and its back-off after
-    failures. Returns (taken, k_stiff = |df/dv|, t, x, v, v', phases, h_ros, ros_backoff,
-    ros_skip).
+    output; anything else goes to the Taylor step (``taken`` False). From the
+    :class:`Motion` ``m`` (slip direction ``m.mode``) within :class:`Bounds` ``lim``, ``h``
+    the last Taylor step's natural length; carries the stiff stretch's :class:`Stiff`
+    state ``ros``. Returns (taken, k_stiff = |df/dv|, the motion, the stiff state).
     """
+    t, x, v, acc, ph1, ph2, sd = m
+    t_stop, cap = lim.t_stop, lim.cap
+    rtol, atol = lim.rtol, lim.atol
+    h_ros, ros_backoff, ros_skip = ros
     V = cx[C_V]
     vr0 = v - V
     k_stiff = _stiffness(cx, sd, vr0)
     taken = False
     if not k_stiff * min(h, cap) >= STIFF_HK:
-        return taken, k_stiff, t, x, v, acc, ph1, ph2, -1.0, ros_backoff, ros_skip
+        return taken, k_stiff, m, Stiff(-1.0, ros_backoff, ros_skip)
     h_stab = STIFF_HK / k_stiff  # about the Taylor step's stiff limit
     if not h_ros > 0.0:
         h_ros = 2.0 * h_stab
@@ -150,7 +189,8 @@ def _stiff_step(cx, stats, t, t_stop, x, v, acc, ph1, ph2, sd, h, cap, rtol, ato
                                                           (xr - x) / hr - V)
                 t, x, v, acc, ph1, ph2 = _carry(cx, t, xr, vr1, ar, ph1, ph2, hr)
             break
-    return taken, k_stiff, t, x, v, acc, ph1, ph2, h_ros, ros_backoff, ros_skip
+    return taken, k_stiff, Motion(t, x, v, acc, ph1, ph2, sd), Stiff(h_ros, ros_backoff,
+                                                                      ros_skip)
 
 
 @kernel
@@ -184,9 +224,12 @@ def _taylor_trial(cx, t, t_stop, h, cap_slip, k_stiff):
 
 
 @kernel
-def _taylor_contact(cx, stats, fresh, hstep, x, v, sd, v1, a1, j1, m2):
-    """Where the Taylor step [0, hstep] from (x, v) first reaches v = V: (te, -1 if
+def _taylor_contact(cx, stats, fresh, hstep, start, end):
+    """Where the Taylor step [0, hstep] from ``start`` = (x, v, slip direction) first
+    reaches v = V (``end`` = v, v', v'' at its end and the bound on |v''|): (te, -1 if
     never; t_ext, v_ext: v's interior extremum if searched, -1 otherwise)."""
+    x, v, sd = start
+    v1, a1, j1, m2 = end
     V = cx[C_V]
     a0 = cx[C_TV + 1]
     j0 = 2.0 * cx[C_TV + 2]
@@ -211,9 +254,12 @@ def _taylor_contact(cx, stats, fresh, hstep, x, v, sd, v1, a1, j1, m2):
 
 
 @kernel
-def _taylor_outputs(rec, j_out, origin, t, step_end, x1, v1, mode, cx):
-    """Write the output instants inside the Taylor step (t, t + step_end] from its series;
-    the next output's index."""
+def _taylor_outputs(rec, out, t, step_end, end, cx):
+    """Write the output instants inside the Taylor step (t, t + step_end] from its series
+    (``out`` = (next output's index, the outputs' origin); ``end`` = x, v and the mode at
+    the step's end); the next output's index."""
+    j_out, origin = out
+    x1, v1, mode = end
     while _output_due(rec, j_out, origin, t, step_end):
         tau = _output_tau(rec, j_out, origin, t, step_end)
         if tau == step_end:
@@ -229,24 +275,29 @@ def _taylor_outputs(rec, j_out, origin, t, step_end, x1, v1, mode, cx):
 
 
 @kernel
-def _taylor_step(cx, stats, rec, j_out, origin, t, t_stop, x, v, ph1, ph2, sd, h, cap_slip,
-                 k_stiff, fresh, rtol, atol):
-    """One Taylor slip step from (x, v) in direction ``sd`` (the tones' cos/sin at its
-    start in ``cx``), up to a contact if one comes first, with its outputs and statistics.
+def _taylor_step(cx, stats, rec, out, m, lim, trial):
+    """One Taylor slip step from the :class:`Motion` ``m`` (direction ``m.mode``; the
+    tones' cos/sin at its start in ``cx``) within :class:`Bounds` ``lim``, up to a contact
+    if one comes first, with its outputs (``out`` = (next output's index, the outputs'
+    origin)) and statistics. ``trial`` = (the last step's natural length, the stiffness
+    |dv'/dv| at the start, whether the phase has just begun).
 
-    Returns (too stiff, event kind (0: none), the series' natural step length, j_out, t, x,
-    v, v', phases, mode) at the step's end.
+    Returns (too stiff, event kind (0: none), the series' natural step length, the next
+    output's index, the motion at the step's end).
     """
+    t, x, v, _, ph1, ph2, sd = m
+    j_out, origin = out
+    h, k_stiff, fresh = trial
     V = cx[C_V]
     w1 = cx[C_W1]
     w2 = cx[C_W2]
-    h = _taylor_coeffs(cx, sd, x, v, rtol, atol)
-    hstep, v1, a1, j1, m2 = _taylor_trial(cx, t, t_stop, h, cap_slip, k_stiff)
+    h = _taylor_coeffs(cx, sd, x, v, lim.rtol, lim.atol)
+    hstep, v1, a1, j1, m2 = _taylor_trial(cx, t, lim.t_stop, h, lim.cap_slip, k_stiff)
     if hstep < 0.0:
-        return True, 0, h, j_out, t, x, v, 0.0, ph1, ph2, sd
+        return True, 0, h, j_out, Motion(t, x, v, 0.0, ph1, ph2, sd)
     x1 = _dense_x(cx, hstep)
     stats[ST_N_STEPS] += 1.0
-    te, t_ext, v_ext = _taylor_contact(cx, stats, fresh, hstep, x, v, sd, v1, a1, j1, m2)
+    te, t_ext, v_ext = _taylor_contact(cx, stats, fresh, hstep, (x, v, sd), (v1, a1, j1, m2))
     if te > 0.0:
         step_end = te
         x1 = _dense_x(cx, te)
@@ -257,7 +308,7 @@ def _taylor_step(cx, stats, rec, j_out, origin, t, t_stop, x, v, ph1, ph2, sd, h
         step_end = 0.0
     else:
         step_end = hstep
-    j_out = _taylor_outputs(rec, j_out, origin, t, step_end, x1, v1, sd, cx)
+    j_out = _taylor_outputs(rec, (j_out, origin), t, step_end, (x1, v1, sd), cx)
     if step_end > 0.0:
         _slip_extrema(_x_turn_dense, cx, stats, step_end, t_ext, v_ext, v, v1, x1)
         if cx[W_SKIP_VR2] != 1.0:
@@ -271,7 +322,7 @@ def _taylor_step(cx, stats, rec, j_out, origin, t, t_stop, x, v, ph1, ph2, sd, h
         ph1 = _wrap(pe1)
         ph2 = _wrap(pe2)
         acc = _rhs_acc(cx, new_mode, xe, V, ph1, ph2) if new_mode != 0.0 else 0.0
-        return False, kind, h, j_out, t + te, xe, V, acc, ph1, ph2, new_mode
+        return False, kind, h, j_out, Motion(t + te, xe, V, acc, ph1, ph2, new_mode)
     if sd * (v1 - V) < 0.0:  # a few ulps short (see _scan_exact)
         v1 = V
     ce1, se1 = _sincos(w1 * hstep)
@@ -283,18 +334,21 @@ def _taylor_step(cx, stats, rec, j_out, origin, t, t_stop, x, v, ph1, ph2, sd, h
     a_end = _acc(cx[C_LAM], V, sd, cx[C_XFK], law, lc, 0.0, 0.0, x1, v1, 0.0,
                  0.0) + cx[C_U1] * c_end1 + cx[C_U2] * c_end2
     t, x, v, acc, ph1, ph2 = _carry(cx, t, x1, v1, a_end, ph1, ph2, hstep)
-    return False, 0, h, j_out, t, x, v, acc, ph1, ph2, sd
+    return False, 0, h, j_out, Motion(t, x, v, acc, ph1, ph2, sd)
 
 
 @kernel
-def _event_stick_step(cx, stats, rec, j_out, origin, t, t_stop, x, v, acc, ph1, ph2, mode, cap):
-    """One exact stick step from x (the tones' phase angles ph_i), up to the stick's end
-    if it comes first, with its outputs and statistics. Returns (event kind (0: none),
-    j_out, t, x, v', phases, mode) at the step's end."""
+def _event_stick_step(cx, stats, rec, out, m, lim):
+    """One exact stick step from the :class:`Motion` ``m`` within :class:`Bounds` ``lim``,
+    up to the stick's end if it comes first, with its outputs (``out`` as in
+    ``_taylor_step``) and statistics. Returns (event kind (0: none), the next output's
+    index, the motion at the step's end)."""
+    t, x, v, acc, ph1, ph2, mode = m
+    j_out, origin = out
     V = cx[C_V]
     w1 = cx[C_W1]
     w2 = cx[C_W2]
-    L = min(cap, t_stop - t)
+    L = min(lim.cap, lim.t_stop - t)
     stats[ST_N_STEPS] += 1.0
     cx[C_XA] = x
     cx[C_C1A] = math.cos(ph1)
@@ -303,7 +357,7 @@ def _event_stick_step(cx, stats, rec, j_out, origin, t, t_stop, x, v, acc, ph1, 
     cx[C_S2A] = math.sin(ph2)
     _, f0, fd0, fdd0 = _stick_at(cx, 0.0)
     L, _, _, held, _, f1, fd1, fdd1, _, _, _, _ = _stick_trial(
-        cx, L, cap, False, (0.0, 0.0, 0.0, 0.0), False, f0, fd0, fdd0)
+        cx, L, lim.cap, False, (0.0, 0.0, 0.0, 0.0), False, f0, fd0, fdd0)
     te = -1.0 if held else _stick_exit_time(cx, L, f0, fd0, fdd0, f1, fd1, fdd1)
     step_end = L if te < 0.0 else te
     while _output_due(rec, j_out, origin, t, step_end):
@@ -323,9 +377,10 @@ def _event_stick_step(cx, stats, rec, j_out, origin, t, t_stop, x, v, acc, ph1, 
     ph1 = _wrap(ph1e)
     ph2 = _wrap(ph2e)
     if te < 0.0:
-        return 0, j_out, t, x, acc, ph1, ph2, mode
+        return 0, j_out, Motion(t, x, v, acc, ph1, ph2, mode)
     mode = _stick_outcome(cx, stats, x, math.cos(ph1e), math.cos(ph2e))
-    return EVENT_SLIP, j_out, t, x, _rhs_acc(cx, mode, x, v, ph1, ph2), ph1, ph2, mode
+    return EVENT_SLIP, j_out, Motion(t, x, v, _rhs_acc(cx, mode, x, v, ph1, ph2), ph1, ph2,
+                                     mode)
 
 
 @kernel
@@ -346,21 +401,14 @@ def _run_event(P, S, t_span, stats, max_events, rtol, atol, rec, cx):
     # scale with the call's span, not with how long the run has been going (a call
     # continued from t = 1e12 would be off by 1e-5 in x after 50 units of tau).
     t_start = S[S_T]
-    t_stop = t_span
+    lim = Bounds(t_span, cap, cap_slip, rtol, atol)
     origin = rec.out_t[0] if recording(rec) else 0.0
-    x = S[S_X]
-    v = S[S_V]
-    mode = S[S_MODE]
-    ph1 = S[S_PHI1]
-    ph2 = S[S_PHI2]
-    t = 0.0
+    m = _start_motion(cx, S)
     n_events = 0
     status = STATUS_OK
     fresh = True
     h = min(cap, TAYLOR_FIRST_STEP)  # the last Taylor step's natural length (stiffness test)
-    h_ros = -1.0  # Rosenbrock step size while in a stiff stretch (-1: not in one)
-    ros_backoff = 1.0  # Taylor steps to take before trying Rosenbrock again ...
-    ros_skip = 0.0  # ... and those taken so far
+    ros = Stiff(-1.0, 1.0, 0.0)  # no stiff stretch yet
     phases_stale = True
     n_carried = 0
     n_call = 0.0  # steps so far, and the step budget's state (see _budget_check)
@@ -370,44 +418,40 @@ def _run_event(P, S, t_span, stats, max_events, rtol, atol, rec, cx):
     n_scan = SCAN_ALLOWANCE / cap
     j_out = 1
     if recording(rec):
-        _write_output(rec, 0, x, v, mode)
+        _write_output(rec, 0, m.x, m.v, m.mode)
         rec.counts[1] = 1
-    _note_v(stats, v)
-    _note_x(stats, x)
-    acc = _rhs_acc(cx, mode, x, v, ph1, ph2) if mode != 0.0 else 0.0
-    while t < t_stop and status == STATUS_OK:
-        if t_stop - t <= TIME_REL_TOL * max(1.0, abs(t_stop)):
-            t = t_stop
+    _note_v(stats, m.v)
+    _note_x(stats, m.x)
+    while m.t < t_span and status == STATUS_OK:
+        if t_span - m.t <= TIME_REL_TOL * max(1.0, abs(t_span)):
+            m = Motion(t_span, m.x, m.v, m.acc, m.ph1, m.ph2, m.mode)
             break
         n_call += 1.0
         if n_call >= n_check:
-            over, t_win, n_win0, n_check = _budget_check(cx, t, n_call, t_win, n_win0, n_scan)
+            over, t_win, n_win0, n_check = _budget_check(cx, m.t, n_call, t_win, n_win0,
+                                                         n_scan)
             if over:
                 status = STATUS_STEP_BUDGET
                 break
         kind = 0
-        if mode != 0.0:
+        if m.mode != 0.0:
             if phases_stale or n_carried >= PHASE_RESYNC_STEPS:
-                _set_phases(cx, ph1, ph2)  # resync the carried cos/sin with the angles
+                _set_phases(cx, m.ph1, m.ph2)  # resync the carried cos/sin with the angles
                 phases_stale = False
                 n_carried = 0
-            sd = mode
             taken = False
             k_stiff = 0.0
             if not recording(rec):
-                taken, k_stiff, t, x, v, acc, ph1, ph2, h_ros, ros_backoff, ros_skip = (
-                    _stiff_step(cx, stats, t, t_stop, x, v, acc, ph1, ph2, sd, h, cap, rtol,
-                                atol, h_ros, ros_backoff, ros_skip))
+                taken, k_stiff, m, ros = _stiff_step(cx, stats, m, lim, h, ros)
             else:
-                k_stiff = _stiffness(cx, sd, v - cx[C_V])
-                h_ros = -1.0
+                k_stiff = _stiffness(cx, m.mode, m.v - cx[C_V])
+                ros = Stiff(-1.0, ros.backoff, ros.skip)
             if taken:
                 n_carried += 1
                 fresh = False
             else:
-                too_stiff, kind, h, j_out, t, x, v, acc, ph1, ph2, mode = _taylor_step(
-                    cx, stats, rec, j_out, origin, t, t_stop, x, v, ph1, ph2, sd, h,
-                    cap_slip, k_stiff, fresh, rtol, atol)
+                too_stiff, kind, h, j_out, m = _taylor_step(cx, stats, rec, (j_out, origin),
+                                                            m, lim, (h, k_stiff, fresh))
                 if too_stiff:
                     status = STATUS_TOO_STIFF
                     break
@@ -417,27 +461,47 @@ def _run_event(P, S, t_span, stats, max_events, rtol, atol, rec, cx):
                     n_carried += 1
                     fresh = False
         else:
-            kind, j_out, t, x, acc, ph1, ph2, mode = _event_stick_step(
-                cx, stats, rec, j_out, origin, t, t_stop, x, v, acc, ph1, ph2, mode, cap)
+            kind, j_out, m = _event_stick_step(cx, stats, rec, (j_out, origin), m, lim)
             fresh = False
             phases_stale = True
         if kind != 0:
             fresh = True
             n_events += 1
-            status = _log_event(rec, t_start + t, kind, x, n_events, max_events)
-        if not (math.isfinite(x) and math.isfinite(v)):
+            status = _log_event(rec, t_start + m.t, kind, m.x, n_events, max_events)
+        if not (math.isfinite(m.x) and math.isfinite(m.v)):
             status = STATUS_NONFINITE
-    # any output times left at the very end (rounding of the last step)
+    _finish(S, stats, rec, (status, j_out, t_start), m)
+    return status
+
+
+@kernel
+def _start_motion(cx, S):
+    """The :class:`Motion` a call starts from, the state vector ``S`` (time 0: the call's
+    own clock)."""
+    x = S[S_X]
+    v = S[S_V]
+    mode = S[S_MODE]
+    ph1 = S[S_PHI1]
+    ph2 = S[S_PHI2]
+    acc = _rhs_acc(cx, mode, x, v, ph1, ph2) if mode != 0.0 else 0.0
+    return Motion(0.0, x, v, acc, ph1, ph2, mode)
+
+
+@kernel
+def _finish(S, stats, rec, end, m):
+    """End a call at the :class:`Motion` ``m``: the output instants left by the last
+    step's rounding, the duration, and the state written back to ``S``. ``end`` = (the
+    call's status, the next output's index, its start time)."""
+    status, j_out, t_start = end
     if recording(rec):
         while status == STATUS_OK and j_out < rec.out_t.shape[0]:
-            _write_output(rec, j_out, x, v, mode)
+            _write_output(rec, j_out, m.x, m.v, m.mode)
             j_out += 1
             rec.counts[1] = j_out
-    stats[ST_DURATION] += t
-    S[S_T] = t_start + t
-    S[S_X] = x
-    S[S_V] = v
-    S[S_MODE] = mode
-    S[S_PHI1] = ph1
-    S[S_PHI2] = ph2
-    return status
+    stats[ST_DURATION] += m.t
+    S[S_T] = t_start + m.t
+    S[S_X] = m.x
+    S[S_V] = m.v
+    S[S_MODE] = m.mode
+    S[S_PHI1] = m.ph1
+    S[S_PHI2] = m.ph2

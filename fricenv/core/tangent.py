@@ -35,13 +35,7 @@ from ..friction import kernels as friction
 from ..jit import kernel
 from ..layout import (
     EVENT_STICK,
-    S_MODE,
-    S_PHI1,
-    S_PHI2,
     S_T,
-    S_V,
-    S_X,
-    ST_DURATION,
     STATUS_NONFINITE,
     STATUS_OK,
     STATUS_STEP_BUDGET,
@@ -49,9 +43,17 @@ from ..layout import (
 )
 from .constants import PHASE_RESYNC_STEPS, SCAN_ALLOWANCE, TAYLOR_FIRST_STEP, TIME_REL_TOL
 from .context import _scan_cap, _setup_context
-from .event import _event_stick_step, _stiffness, _taylor_step
+from .event import (
+    Bounds,
+    Motion,
+    _event_stick_step,
+    _finish,
+    _start_motion,
+    _stiffness,
+    _taylor_step,
+)
 from .recording import _log_event, _write_output
-from .slip import _law, _rhs_acc, _set_phases
+from .slip import _law, _set_phases
 from .state import _note_v, _note_x
 from .taylor import _dense_v, taylor_order
 from .trig import _INV
@@ -396,12 +398,8 @@ def _run_tangent(P, S, t_span, settings, bufs, cx):
     cap_slip = _scan_cap(P, True)
     t_start = S[S_T]
     origin = rec.out_t[0]
-    x = S[S_X]
-    v = S[S_V]
-    mode = S[S_MODE]
-    ph1 = S[S_PHI1]
-    ph2 = S[S_PHI2]
-    t = 0.0
+    lim = Bounds(t_span, cap, cap_slip, rtol, atol)
+    m = _start_motion(cx, S)
     n_events = 0
     status = STATUS_OK
     fresh = True
@@ -414,79 +412,62 @@ def _run_tangent(P, S, t_span, settings, bufs, cx):
     n_win0 = 0.0
     n_scan = SCAN_ALLOWANCE / cap
     j_out = 1
-    _write_output(rec, 0, x, v, mode)
+    _write_output(rec, 0, m.x, m.v, m.mode)
     rec.counts[1] = 1
-    _start_tangent(tan, rec, mode)
-    _note_v(stats, v)
-    _note_x(stats, x)
-    acc = _rhs_acc_or_0(cx, mode, x, v, ph1, ph2)
-    while t < t_span and status == STATUS_OK:
-        if t_span - t <= TIME_REL_TOL * max(1.0, abs(t_span)):
-            t = t_span
+    _start_tangent(tan, rec, m.mode)
+    _note_v(stats, m.v)
+    _note_x(stats, m.x)
+    while m.t < t_span and status == STATUS_OK:
+        if t_span - m.t <= TIME_REL_TOL * max(1.0, abs(t_span)):
+            m = Motion(t_span, m.x, m.v, m.acc, m.ph1, m.ph2, m.mode)
             break
         n_call += 1.0
         if n_call >= n_check:
-            over, t_win, n_win0, n_check = _budget_check(cx, t, n_call, t_win, n_win0, n_scan)
+            over, t_win, n_win0, n_check = _budget_check(cx, m.t, n_call, t_win, n_win0,
+                                                         n_scan)
             if over:
                 status = STATUS_STEP_BUDGET
                 break
-        t0 = t
+        t0 = m.t
         j0 = j_out
-        if mode != 0.0:
+        if m.mode != 0.0:
             if phases_stale or n_carried >= PHASE_RESYNC_STEPS:
-                _set_phases(cx, ph1, ph2)
+                _set_phases(cx, m.ph1, m.ph2)
                 phases_stale = False
                 n_carried = 0
-            sd = mode
+            sd = m.mode
             tones = (cx[C_CP1], cx[C_SP1], cx[C_CP2], cx[C_SP2])
-            too_stiff, kind, h, j_out, t, x, v, acc, ph1, ph2, mode = _taylor_step(
-                cx, stats, rec, j_out, origin, t, t_span, x, v, ph1, ph2, sd, h, cap_slip,
-                _stiffness(cx, sd, v - cx[C_V]), fresh, rtol, atol)
+            too_stiff, kind, h, j_out, m = _taylor_step(
+                cx, stats, rec, (j_out, origin), m, lim,
+                (h, _stiffness(cx, sd, m.v - cx[C_V]), fresh))
             if too_stiff:
                 status = STATUS_TOO_STIFF
                 break
-            _slip_tangent(cx, tan, rec, (t0, t - t0, j0, j_out, origin), sd, tones)
+            _slip_tangent(cx, tan, rec, (t0, m.t - t0, j0, j_out, origin), sd, tones)
             if kind != 0:
-                _, a_before, j_before = _dense_v(cx, t - t0)
-                _contact_tangent(cx, tan, rec, kind, (t, x, ph1, ph2),
-                                 (a_before, j_before, acc))
+                _, a_before, j_before = _dense_v(cx, m.t - t0)
+                _contact_tangent(cx, tan, rec, kind, (m.t, m.x, m.ph1, m.ph2),
+                                 (a_before, j_before, m.acc))
                 phases_stale = True
             else:
                 n_carried += 1
             fresh = kind != 0
         else:
-            kind, j_out, t, x, acc, ph1, ph2, mode = _event_stick_step(
-                cx, stats, rec, j_out, origin, t, t_span, x, v, acc, ph1, ph2, mode, cap)
-            _stick_tangent(tan, rec, (t0, t - t0, j0, j_out, origin))
+            kind, j_out, m = _event_stick_step(cx, stats, rec, (j_out, origin), m, lim)
+            _stick_tangent(tan, rec, (t0, m.t - t0, j0, j_out, origin))
             if kind != 0:
-                _breakaway_tangent(cx, tan, rec, (t, x, ph1, ph2), acc, mode)
+                _breakaway_tangent(cx, tan, rec, (m.t, m.x, m.ph1, m.ph2), m.acc, m.mode)
             fresh = kind != 0
             phases_stale = True
         if kind != 0:
             n_events += 1
-            status = _log_event(rec, t_start + t, kind, x, n_events, max_events)
-        if not (math.isfinite(x) and math.isfinite(v)):
+            status = _log_event(rec, t_start + m.t, kind, m.x, n_events, max_events)
+        if not (math.isfinite(m.x) and math.isfinite(m.v)):
             status = STATUS_NONFINITE
     if status == STATUS_OK:
         _end_outputs(tan, rec, j_out)
-        while j_out < rec.out_t.shape[0]:
-            _write_output(rec, j_out, x, v, mode)
-            j_out += 1
-            rec.counts[1] = j_out
-    stats[ST_DURATION] += t
-    S[S_T] = t_start + t
-    S[S_X] = x
-    S[S_V] = v
-    S[S_MODE] = mode
-    S[S_PHI1] = ph1
-    S[S_PHI2] = ph2
+    _finish(S, stats, rec, (status, j_out, t_start), m)
     return status
-
-
-@kernel
-def _rhs_acc_or_0(cx, mode, x, v, ph1, ph2):
-    """v' at the start: the slip acceleration, 0 in stick."""
-    return _rhs_acc(cx, mode, x, v, ph1, ph2) if mode != 0.0 else 0.0
 
 
 @kernel(allocates=True, nogil=True)
