@@ -56,16 +56,20 @@ def _unresolved_return(L, h0, d0, q0, h1, tol):
     return -1.0 if h1 >= -tol else _RESOLVED
 
 @kernel(takes_kernels=True)
-def _contact_time(root, cx, kind, L, h0, d0, q0, h1, d1, q1, t_ext, h_ext, q_ext):
+def _contact_time(root, cx, kind, L, start, end, ext):
     """First relative time in (0, L] where h = sd (v - V) reaches 0, or -1 (0: at once).
 
     ``root`` is the step's family's root search (``_root_closed`` or ``_root_dense``).
-    ``t_ext``/``h_ext`` describe the interior extremum of h (t_ext < 0: none); q0, q1 and
-    q_ext are h'' at 0, L and t_ext (they place the root search's first point). A phase
+    ``start`` and ``end`` are (h, h', h'') at 0 and L; ``ext`` = (t_ext, h_ext, q_ext)
+    the interior extremum of h (t_ext < 0: none) and h'' there (the h'' place the root
+    search's first point). A phase
     that starts on the switching surface (h0 = 0, d0 clamped to >= 0 by the caller) only
     ends once h has been positive, or where ``_unresolved_return`` says when it never
     rises above rounding.
     """
+    h0, d0, q0 = start
+    h1, d1, q1 = end
+    t_ext, h_ext, q_ext = ext
     tol = GRAZE_REL * max(1.0, abs(cx[C_V]))
     if t_ext >= 0.0 and d0 > 0.0:  # h rises to a maximum, then falls
         if h1 <= 0.0:

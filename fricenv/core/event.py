@@ -48,7 +48,7 @@ from .proofs import _extremum_matters, _v_one_extremum
 from .recording import _log_event, _write_output, recording
 from .roots import K_DENSE_H, K_DENSE_V, _extremum_dense, _root_dense
 from .rosenbrock import _ros4_step
-from .slip import _acc, _carry, _end_phases, _law, _rhs_acc, _set_phases
+from .slip import NO_FORCING, _acc, _carry, _end_phases, _law, _rhs_acc, _set_phases
 from .state import _note_v, _note_x
 from .stats import _slip_extrema, _vr2_from_values, _x_turn_dense
 from .stick import _stick_exit_time, _stick_trial
@@ -248,8 +248,8 @@ def _taylor_contact(cx, stats, fresh, hstep, start, end):
         v_ext, _, j_ext = _dense_v(cx, t_ext)
         h_ext = sd * (v_ext - V)
         q_ext = sd * j_ext
-    te = _contact_time(_root_dense, cx, K_DENSE_H, hstep, h0, d0, sd * j0, h1, d1, sd * j1,
-                       t_ext, h_ext, q_ext)
+    te = _contact_time(_root_dense, cx, K_DENSE_H, hstep, (h0, d0, sd * j0),
+                       (h1, d1, sd * j1), (t_ext, h_ext, q_ext))
     return te, t_ext, v_ext
 
 
@@ -331,8 +331,8 @@ def _taylor_step(cx, stats, rec, out, m, lim, trial):
                                  ce2, se2)
     # the equation's own acceleration at the end (the next series' v_1)
     law, lc = _law(cx)
-    a_end = _acc(cx[C_LAM], V, sd, cx[C_XFK], law, lc, 0.0, 0.0, x1, v1, 0.0,
-                 0.0) + cx[C_U1] * c_end1 + cx[C_U2] * c_end2
+    a_end = (_acc((cx[C_LAM], V, cx[C_XFK]), law, lc, sd, (x1, v1), NO_FORCING)
+             + cx[C_U1] * c_end1 + cx[C_U2] * c_end2)
     t, x, v, acc, ph1, ph2 = _carry(cx, t, x1, v1, a_end, ph1, ph2, hstep)
     return False, 0, h, j_out, Motion(t, x, v, acc, ph1, ph2, sd)
 

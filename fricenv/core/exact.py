@@ -283,8 +283,8 @@ def _slip_step(cx, stats, fresh, L, cap, on_grid, reg, rot, x, v, acc, c1, s1, c
     t_ext, v_ext, h_ext, q_ext = _slip_v_extremum(cx, stats, sd, L, v, v1, acc, a1, j0, j1,
                                                   h0, h1, vdd, c1, s1, c2, s2, nc1, ns1, nc2,
                                                   ns2)
-    te = _contact_time(_root_closed, cx, K_SLIP_H, L, h0, d0, sd * j0, h1, d1, sd * j1, t_ext,
-                       h_ext, q_ext)
+    te = _contact_time(_root_closed, cx, K_SLIP_H, L, (h0, d0, sd * j0), (h1, d1, sd * j1),
+                       (t_ext, h_ext, q_ext))
     if te >= 0.0:
         v_mid, xe, _, ae, je, ec1, es1, ec2, es2 = _slip_mid_and_end(cx, te)
         _slip_stats(_x_turn_closed, cx, stats, te, t_ext, v_ext, v, acc, j0, V, ae, je, xe,

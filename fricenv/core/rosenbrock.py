@@ -7,7 +7,7 @@ gamma_i h f_t + sum c_ij g_j / h; 3 function values and 4 linear solves a step.
 
 from ..friction import kernels as friction
 from ..jit import kernel
-from .slip import _acc, _end_phases, _step_inputs
+from .slip import NO_FORCING, _acc, _end_phases, _step_inputs
 from .trig import _sincos
 from .workspace import C_W1, C_W2
 
@@ -51,12 +51,12 @@ def _ros4_step(cx, sd, x0, v0, a0, h):
     g1x, g1v = _ros_solve(c, j22, v0, a0 + h * _RG1 * gt)
     x2 = x0 + _RA21 * g1x
     v2 = v0 + _RA21 * g1v
-    f2v = _acc(lam, V, sd, xfk, law, lc, 0.0, 0.0, x2, v2, 0.0, 0.0) + g_end
+    f2v = _acc((lam, V, xfk), law, lc, sd, (x2, v2), NO_FORCING) + g_end
     g2x, g2v = _ros_solve(c, j22, v2 + _RC21 * g1x / h,
                           f2v + h * _RG2 * gt + _RC21 * g1v / h)
     x3 = x0 + _RA31 * g1x + _RA32 * g2x
     v3 = v0 + _RA31 * g1v + _RA32 * g2v
-    f3v = _acc(lam, V, sd, xfk, law, lc, 0.0, 0.0, x3, v3, 0.0, 0.0) + g_3
+    f3v = _acc((lam, V, xfk), law, lc, sd, (x3, v3), NO_FORCING) + g_3
     g3x, g3v = _ros_solve(c, j22, v3 + (_RC31 * g1x + _RC32 * g2x) / h,
                           f3v + h * _RG3 * gt + (_RC31 * g1v + _RC32 * g2v) / h)
     g4x, g4v = _ros_solve(c, j22, v3 + (_RC41 * g1x + _RC42 * g2x + _RC43 * g3x) / h,
@@ -65,5 +65,5 @@ def _ros4_step(cx, sd, x0, v0, a0, h):
     v1 = v0 + _RB1 * g1v + _RB2 * g2v + _RB3 * g3v + _RB4 * g4v
     ex = _RE1 * g1x + _RE2 * g2x + _RE4 * g4x
     ev = _RE1 * g1v + _RE2 * g2v + _RE4 * g4v
-    a1 = _acc(lam, V, sd, xfk, law, lc, 0.0, 0.0, x1, v1, 0.0, 0.0) + g_end
+    a1 = _acc((lam, V, xfk), law, lc, sd, (x1, v1), NO_FORCING) + g_end
     return x1, v1, a1, ex, ev

@@ -41,13 +41,22 @@ def _law(cx):
 def _rhs_acc(cx, sd, x, v, ph1, ph2):
     """Slip acceleration for any friction law; tone phases given as angles."""
     law, lc = _law(cx)
-    return _acc(cx[C_LAM], cx[C_V], sd, cx[C_XFK], law, lc, cx[C_U1], cx[C_U2],
-                x, v, ph1, ph2)
+    return _acc((cx[C_LAM], cx[C_V], cx[C_XFK]), law, lc, sd, (x, v),
+                (cx[C_U1], cx[C_U2], ph1, ph2))
+
+#: ``_acc``'s forcing without the tones.
+NO_FORCING = (0.0, 0.0, 0.0, 0.0)
+
 
 @kernel
-def _acc(lam, V, sd, xfk, law, lc, u1, u2, x, v, ph1, ph2):
-    """Slip acceleration in direction ``sd`` from scalars; terms a configuration zeroes are
-    skipped."""
+def _acc(plant, law, lc, sd, state, forcing):
+    """Slip acceleration in direction ``sd`` from scalars: ``plant`` = (lam, V, xfk), the
+    law's code and constants, ``state`` = (x, v), ``forcing`` = (u1, u2, ph1, ph2)
+    (``NO_FORCING``: the tones left out, for a caller that adds them itself); terms a
+    configuration zeroes are skipped."""
+    lam, V, xfk = plant
+    x, v = state
+    u1, u2, ph1, ph2 = forcing
     a = -lam * v - x - sd * xfk
     if u1 != 0.0:
         a += u1 * math.cos(ph1)
