@@ -187,7 +187,7 @@ def _stiff_step(cx, stats, m, lim, h, ros):
                 if cx[W_SKIP_VR2] != 1.0:
                     stats[ST_VR2_INT] += _vr2_from_values(hr, v - V, vr1 - V,
                                                           (xr - x) / hr - V)
-                t, x, v, acc, ph1, ph2 = _carry(cx, t, xr, vr1, ar, ph1, ph2, hr)
+                t, x, v, acc, ph1, ph2 = _carry(cx, (t, ph1, ph2), (xr, vr1, ar), hr)
             break
     return taken, k_stiff, Motion(t, x, v, acc, ph1, ph2, sd), Stiff(h_ros, ros_backoff,
                                                                       ros_skip)
@@ -327,13 +327,13 @@ def _taylor_step(cx, stats, rec, out, m, lim, trial):
         v1 = V
     ce1, se1 = _sincos(w1 * hstep)
     ce2, se2 = _sincos(w2 * hstep)
-    c_end1, c_end2 = _end_phases(cx, cx[C_CP1], cx[C_SP1], cx[C_CP2], cx[C_SP2], ce1, se1,
-                                 ce2, se2)
+    c_end1, c_end2 = _end_phases(cx, (cx[C_CP1], cx[C_SP1], cx[C_CP2], cx[C_SP2]),
+                                 (ce1, se1, ce2, se2))
     # the equation's own acceleration at the end (the next series' v_1)
     law, lc = _law(cx)
     a_end = (_acc((cx[C_LAM], V, cx[C_XFK]), law, lc, sd, (x1, v1), NO_FORCING)
              + cx[C_U1] * c_end1 + cx[C_U2] * c_end2)
-    t, x, v, acc, ph1, ph2 = _carry(cx, t, x1, v1, a_end, ph1, ph2, hstep)
+    t, x, v, acc, ph1, ph2 = _carry(cx, (t, ph1, ph2), (x1, v1, a_end), hstep)
     return False, 0, h, j_out, Motion(t, x, v, acc, ph1, ph2, sd)
 
 

@@ -43,7 +43,7 @@ def _ros4_step(cx, sd, x0, v0, a0, h):
     c = 1.0 / (_RG * h)
     ce1, se1 = _sincos(w1 * h)
     ce2, se2 = _sincos(w2 * h)
-    c_end1, c_end2 = _end_phases(cx, cp1, sp1, cp2, sp2, ce1, se1, ce2, se2)
+    c_end1, c_end2 = _end_phases(cx, (cp1, sp1, cp2, sp2), (ce1, se1, ce2, se2))
     c31, s31 = _sincos(w1 * _RALPHA3 * h)
     c32, s32 = _sincos(w2 * _RALPHA3 * h)
     g_end = u1 * c_end1 + u2 * c_end2

@@ -81,9 +81,12 @@ def _step_inputs(cx, sd):
             cx[C_CP1], cx[C_SP1], cx[C_CP2], cx[C_SP2])
 
 @kernel
-def _end_phases(cx, cp1, sp1, cp2, sp2, ce1, se1, ce2, se2):
-    """Tone phases (cos/sin) at a step's end from its start and the rotations (ce_i, se_i);
-    stored in cx[C_CE1..C_SE2] for the next step. Returns the forcing's cosines there."""
+def _end_phases(cx, start, rot):
+    """Tone phases (cos/sin) at a step's end from its start ``start`` = (cp1, sp1, cp2, sp2)
+    and the rotations ``rot`` = (ce1, se1, ce2, se2); stored in cx[C_CE1..C_SE2] for the
+    next step. Returns the forcing's cosines there."""
+    cp1, sp1, cp2, sp2 = start
+    ce1, se1, ce2, se2 = rot
     c_end1 = cp1 * ce1 - sp1 * se1
     c_end2 = cp2 * ce2 - sp2 * se2
     cx[C_CE1] = c_end1
@@ -93,9 +96,12 @@ def _end_phases(cx, cp1, sp1, cp2, sp2, ce1, se1, ce2, se2):
     return c_end1, c_end2
 
 @kernel
-def _carry(cx, t, x1, v1, a1, ph1, ph2, h):
-    """Move to the end of an accepted slip step of length h: its (t, x, v, v', phases);
-    the end's tone cos/sin become the next step's start (renormalised)."""
+def _carry(cx, start, end, h):
+    """Move to the end of an accepted slip step of length h from ``start`` = (t, phase
+    angles) to ``end`` = (x, v, v'): its (t, x, v, v', phases); the end's tone cos/sin
+    become the next step's start (renormalised)."""
+    t, ph1, ph2 = start
+    x1, v1, a1 = end
     cx[C_CP1], cx[C_SP1] = _renorm(cx[C_CE1], cx[C_SE1])
     cx[C_CP2], cx[C_SP2] = _renorm(cx[C_CE2], cx[C_SE2])
     return t + h, x1, v1, a1, _wrap(ph1 + cx[C_W1] * h), _wrap(ph2 + cx[C_W2] * h)

@@ -45,7 +45,7 @@ def _taylor_coeffs(cx, sd, x0, v0, rtol, atol):
     cx[C_TV] = v0
     for k in range(n):
         cx[C_TW + k] = wk
-        fric = friction.taylor_term(law, lc, sd, cx, C_TW, C_TQ, C_TL, k, wk)
+        fric = friction.taylor_term(law, lc, sd, cx, (C_TW, C_TQ, C_TL), k, wk)
         m = k & 3
         if m == 0:
             g = p1 * cp1 + p2 * cp2

@@ -64,7 +64,7 @@ def taylor_step_cap(lc, cx, tl, n, eps, h):
     return h
 
 
-def taylor_term(lc, sd, cx, tw, tq, tl, k, wk):
+def taylor_term(lc, sd, cx, at, k, wk):
     """k-th Taylor coefficient of the speed-dependent part: 0."""
     return 0.0
 

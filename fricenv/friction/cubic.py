@@ -82,10 +82,11 @@ def taylor_step_cap(lc, cx, tl, n, eps, h):
     return h
 
 
-def taylor_term(lc, sd, cx, tw, tq, tl, k, wk):
+def taylor_term(lc, sd, cx, at, k, wk):
     """k-th Taylor coefficient of ``b1 w - b3 w^3`` from the series of w in
     ``cx[tw:tw + k + 1]`` (``wk`` its k-th term); ``(w^2)_k`` is kept in ``cx[tq + k]``
     for the next orders."""
+    tw, tq, tl = at
     b1 = lc[0]
     b3 = lc[1]
     fric = b1 * wk

@@ -148,11 +148,12 @@ def taylor_step_cap(lc, cx, tl, n, eps, h):
     return lo
 
 
-def taylor_term(lc, sd, cx, tw, tq, tl, k, wk):
+def taylor_term(lc, sd, cx, at, k, wk):
     """k-th Taylor coefficient of ``-sd (xfs - xfk) E - cv w``, E = exp(-u^delta), from
     the series of w in ``cx[tw:tw + k + 1]``. The series of u, its powers and E up to
     order k - 1 are in the scratch ``cx[tl:tl + SCRATCH]`` from the earlier calls of this
     step (orders are taken in turn from 0)."""
+    tw, _, tl = at
     n = int(lc[1])
     cx[tl + k] = sd * wk * lc[0]  # u_k
     for j in range(1, n):  # (u^(j + 1))_k = sum_i (u^j)_i u_(k - i)

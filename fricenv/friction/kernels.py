@@ -109,15 +109,16 @@ def net_slope(law, lc, lam, sd, vr):
 
 
 @kernel(called_once=True)
-def taylor_term(law, lc, sd, cx, tw, tq, tl, k, wk):
+def taylor_term(law, lc, sd, cx, at, k, wk):
     """k-th Taylor coefficient of the speed-dependent acceleration along a slip step, from
-    the series of w = v - V in ``cx[tw:]`` (``wk`` = its k-th term); ``cx[tq:]`` and
-    ``cx[tl:]`` are the law's scratch. Orders are asked in turn from 0."""
+    the series of w = v - V in ``cx[tw:]`` (``wk`` = its k-th term), ``at`` = (tw, tq,
+    tl); ``cx[tq:]`` and ``cx[tl:]`` are the law's scratch. Orders are asked in turn from
+    0."""
     if law == CUBIC:
-        return cu_taylor_term(lc, sd, cx, tw, tq, tl, k, wk)
+        return cu_taylor_term(lc, sd, cx, at, k, wk)
     if law == EXPONENTIAL:
-        return ex_taylor_term(lc, sd, cx, tw, tq, tl, k, wk)
-    return co_taylor_term(lc, sd, cx, tw, tq, tl, k, wk)
+        return ex_taylor_term(lc, sd, cx, at, k, wk)
+    return co_taylor_term(lc, sd, cx, at, k, wk)
 
 
 @kernel(called_once=True)
