@@ -52,12 +52,8 @@ def prepare(p0, p1, p2, xfk, xfs):
 
 
 def add_accel(a, lc, sd, vr):
-    """``a + (b1 - b3 vr^2) vr``; terms the coefficients zero are skipped."""
-    b1 = lc[0]
-    b3 = lc[1]
-    if b1 != 0.0 or b3 != 0.0:
-        a += (b1 - b3 * vr * vr) * vr
-    return a
+    """``a + (b1 - b3 vr^2) vr``."""
+    return a + (lc[0] - lc[1] * vr * vr) * vr
 
 
 def sgn_accel(a, lc, s, vr):
