@@ -42,6 +42,8 @@ kernels = {"taylor._taylor_coeffs": taylor._taylor_coeffs, "taylor._taylor_vr2":
 signatures = {f"{m}.{k}": [str(sig) for sig in d.signatures]
               for m in list(sys.modules) if m.startswith("fricenv")
               for k, d in vars(sys.modules[m]).items() if isinstance(d, CPUDispatcher)}
+signatures.update({f"partial_kernel.{k}": [str(sig) for sig in d.signatures]
+                   for k, d in fricenv.core.partial_kernels().items()})
 print(json.dumps({"taylor": {name: len(k.signatures) for name, k in kernels.items()},
                   "compiles": sum(1 for _, e in compiles.buffer if e.is_start),
                   "signatures": signatures}))

@@ -580,8 +580,8 @@ class StickSlipEnv(gym.Env):
     def _sample_into(self, a: np.ndarray, t: np.ndarray, v: np.ndarray,
                      stuck: np.ndarray, ctrl: np.ndarray | None = None) -> int:
         ctrl = self._ctrl if ctrl is None else ctrl
-        return self._steppers.sample_interval(self._P, self._S, ctrl, self._cfg, a,
-                                              self._stats, t, v, stuck)
+        plant = K.Plant(self._P, self._S, ctrl, self._stats, self._work)
+        return self._steppers.sample_interval(plant, self._cfg, a, K.Trace(t, v, stuck))
 
     def _record_trace(self, a: np.ndarray) -> None:
         r = self._renderer

@@ -521,8 +521,8 @@ class StickSlipVectorEnv(VectorEnv):
             raise_status(K.STATUS_BAD_ACTION, a[bad], f" {bad}")
         # a plant the step restarts instead of stepping (next-step mode) keeps its trace
         skip = self._autoreset if self._autoreset_mode == AutoresetMode.NEXT_STEP else None
-        frames.record(self._steppers, self._P, self._S, self._ctrl, self._stats, self._cfg, a,
-                      skip)
+        plants = K.Plant(self._P, self._S, self._ctrl, self._stats, self._work)
+        frames.record(self._steppers, plants, self._cfg, a, skip)
 
     def _instruments_after_step(self, inst: PlantInstruments) -> np.ndarray:
         """The sensors read what the kernel left (``PlantInstruments.after_step``)."""
