@@ -592,7 +592,7 @@ def simulate(
     capacity = int(min(max_events + 1, 64 + 8 * t_span * w / (2 * math.pi)))
     counts = np.zeros(2, np.int64)
     record = core.kernels_for(code, P).record  # compiles this method's kernels only
-    solver = core.Solver(code, rtol, atol, max_events)
+    solver = tuple(core.Solver(code, rtol, atol, max_events))  # (plain: see core.api)
     S0 = state.to_array()
     S = S0.copy()
     while True:
@@ -606,7 +606,7 @@ def simulate(
             core.reset_stats(stats)
             counts[:] = 0
             rec = core.Recording(out_t, out_x, out_v, out_mode, ev_t, ev_kind, ev_x, counts)
-            return record(P, S, stats, solver, rec, work)
+            return record(P, S, stats, solver, tuple(rec), work)  # (see core.api)
 
         # (the budget does not charge the steps the grid adds, so count them here: a call
         # with many outputs goes to the worker thread, where Ctrl-C reaches it)
@@ -675,7 +675,7 @@ def run_stats(
     stats = np.empty(N_STATS)
     code = METHOD_EXACT if method == "exact" else METHOD_EVENT
     advance = core.kernels_for(code, P).advance  # compiles this method's kernels only
-    solver = core.Solver(code, rtol, atol, max_events)
+    solver = tuple(core.Solver(code, rtol, atol, max_events))  # (plain: see core.api)
 
     def run(work: np.ndarray) -> int:
         S[:] = S0

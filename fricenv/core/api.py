@@ -10,7 +10,10 @@ kernels in Python.
 
 The per-method kernels take how the call runs as one :class:`Solver` record (method,
 tolerances, event cap); ``advance`` and ``advance_ws`` keep their scalar arguments, as the
-kernels that callers outside the package use.
+kernels that callers outside the package use. The kernels called from Python take their
+records as plain tuples too (``tuple(solver)``): numba types a plain tuple of arrays from
+its fingerprint, a named one field by field in Python, which made a short call several
+microseconds longer.
 
 The exact method cannot run a tone too close to resonance (see CLOSED_FORM_MAX_GAIN): its
 kernels then return ``_STATUS_NEAR_RESONANCE`` having changed nothing, and the
@@ -32,7 +35,7 @@ from .constants import _STATUS_NEAR_RESONANCE, LAM_CONDITIONED
 from .context import closed_form_conditioned
 from .event import _run_event
 from .exact import _run_exact
-from .recording import stats_only
+from .recording import Recording, stats_only
 
 
 class Solver(NamedTuple):
@@ -86,13 +89,13 @@ def advance_ws(P, S, t_span, stats, method, rtol, atol, max_events, work):
 @kernel(allocates=True, nogil=True)
 def advance_exact(P, S, t_span, stats, solver, work):
     """``advance`` with the closed form alone (see ``advance_exact_ws``)."""
-    return advance_exact_ws(P, S, t_span, stats, solver, work)
+    return advance_exact_ws(P, S, t_span, stats, Solver(*solver), work)
 
 
 @kernel(allocates=True, nogil=True)
 def advance_event(P, S, t_span, stats, solver, work):
     """``advance`` with the event method alone."""
-    return advance_event_ws(P, S, t_span, stats, solver, work)
+    return advance_event_ws(P, S, t_span, stats, Solver(*solver), work)
 
 
 @kernel(allocates=True, nogil=True)
@@ -121,14 +124,17 @@ def _span(rec):
 @kernel(allocates=True, nogil=True)
 def record_exact(P, S, stats, solver, rec, work):
     """``record`` with the closed form alone (see ``advance_exact_ws``)."""
-    return _run_exact(P, S, _span(rec), stats, solver.max_events, rec, work)
+    named = Recording(*rec)
+    return _run_exact(P, S, _span(named), stats, Solver(*solver).max_events, named, work)
 
 
 @kernel(allocates=True, nogil=True)
 def record_event(P, S, stats, solver, rec, work):
     """``record`` with the event method alone."""
-    return _run_event(P, S, _span(rec), stats, solver.max_events, solver.rtol, solver.atol,
-                      rec, work)
+    named = Recording(*rec)
+    run = Solver(*solver)
+    return _run_event(P, S, _span(named), stats, run.max_events, run.rtol, run.atol, named,
+                      work)
 
 
 @kernel(allocates=True, nogil=True)
@@ -136,14 +142,16 @@ def record(P, S, stats, solver, rec, work):
     """Like ``advance`` over [out_t[0], out_t[-1]] of the :class:`Recording` ``rec``,
     recording the state at ``rec.out_t`` and the events (time, kind, x); ``rec.counts``
     returns (events recorded, outputs written). ``solver``: the method (chosen at run time,
-    as in ``advance``) and its settings; ``work`` as in ``advance``."""
-    t_span = _span(rec)
-    if solver.method == METHOD_EXACT:
-        status = _run_exact(P, S, t_span, stats, solver.max_events, rec, work)
+    as in ``advance``) and its settings; ``work`` as in ``advance``. Both records may come
+    as plain tuples (see the module docstring)."""
+    named = Recording(*rec)
+    run = Solver(*solver)
+    t_span = _span(named)
+    if run.method == METHOD_EXACT:
+        status = _run_exact(P, S, t_span, stats, run.max_events, named, work)
         if status != _STATUS_NEAR_RESONANCE:
             return status
-    return _run_event(P, S, t_span, stats, solver.max_events, solver.rtol, solver.atol, rec,
-                      work)
+    return _run_event(P, S, t_span, stats, run.max_events, run.rtol, run.atol, named, work)
 
 
 def method_for(method: int, P: np.ndarray) -> int:
@@ -198,11 +206,11 @@ def partial_kernel(body: Any, first: Any, name: str, **options: Any) -> Any:
     numba's cache refuses a function holding a kernel it was passed at run time, and one
     holding it in a closure is keyed on a pickle of the kernel that changes from process to
     process. So the caller is written here, from the body's own parameters, with the body
-    and the kernel as globals (beside the body module's); it is named ``name`` (the name of its cache files)
-    and lives in the body's file and module, so that the package's cache and the compile
-    notice treat it as any kernel there. The same arguments give the same kernel (one
-    compile per process at most); another body or kernel under a name already made is
-    refused, as the two would share their cache files.
+    and the kernel as globals (beside the body module's); it is named ``name`` (the name of
+    its cache files) and lives in the body's file and module, so that the package's cache
+    and the compile notice treat it as any kernel there. The same arguments give the same
+    kernel (one compile per process at most); another body or kernel under a name already
+    made is refused, as the two would share their cache files.
     """
     made = _PARTIALS.get(name)
     if made is not None:

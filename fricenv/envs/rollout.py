@@ -18,7 +18,6 @@ fractions after its last interval are 0.
 
 from __future__ import annotations
 
-import functools
 from dataclasses import dataclass
 from typing import Any, NamedTuple
 
@@ -133,28 +132,45 @@ def _sample_with(advance_ws, k, job, buf) -> None:
 
 @kernel(takes_kernels=True)
 def _rollout_with(sample, job, buf) -> None:
-    """Roll every sample out with ``sample`` (a ``_sample_with`` of its own), in
-    parallel."""
-    for k in prange(job.A.shape[0]):
-        sample(k, job, buf)
+    """Roll every sample out with ``sample`` (a ``_sample_with`` of its own), in parallel.
+
+    ``job`` and ``buf``: a :class:`RolloutJob` and :class:`RolloutBuffers`, as plain tuples
+    (numba types a plain tuple of arrays from Python from its fingerprint, a named one
+    field by field in Python: 6 us more per call). They are named here, before the loop,
+    by their classes (numba's parallel lowering rebuilds a record the loop uses by the
+    name of the call that made it)."""
+    named_job = RolloutJob(*job)
+    named_buf = RolloutBuffers(*buf)
+    for k in prange(named_job.A.shape[0]):
+        sample(k, named_job, named_buf)
 
 
 @kernel(takes_kernels=True)
 def _serial_with(sample, job, buf) -> None:
     """``_rollout_with`` on the calling thread (for callers that run plants in threads of
     their own, and for timing one core)."""
-    for k in range(job.A.shape[0]):
-        sample(k, job, buf)
+    named_job = RolloutJob(*job)
+    named_buf = RolloutBuffers(*buf)
+    for k in range(named_job.A.shape[0]):
+        sample(k, named_job, named_buf)
 
 
-@functools.cache
+#: The (parallel, serial) rollout kernels made so far, by ``Steppers.name``.
+_KERNELS: dict[str, tuple[Any, Any]] = {}
+
+
 def _rollout_kernels(steppers: Steppers) -> tuple[Any, Any]:
     """The (parallel, serial) rollout kernels built on the core's entry kernel of
     ``steppers``: a rollout of Coulomb plants compiles no Taylor code. Each sample runs a
     kernel of its own (``_sample_<name>``), compiled once and called by both."""
-    sample = partial_kernel(_sample_with, steppers.advance_ws, f"_sample_{steppers.name}")
-    return (partial_kernel(_rollout_with, sample, f"_rollout_{steppers.name}", parallel=True),
-            partial_kernel(_serial_with, sample, f"_serial_{steppers.name}"))
+    made = _KERNELS.get(steppers.name)
+    if made is None:
+        name = steppers.name
+        sample = partial_kernel(_sample_with, steppers.advance_ws, f"_sample_{name}")
+        made = _KERNELS[name] = (
+            partial_kernel(_rollout_with, sample, f"_rollout_{name}", parallel=True),
+            partial_kernel(_serial_with, sample, f"_serial_{name}"))
+    return made
 
 
 @dataclass(frozen=True)
@@ -213,6 +229,7 @@ class BatchRollout:
             res=np.zeros((k, K.N_RES)), zero=np.zeros(self.n_act), rewards=np.zeros((k, h)),
             stick=np.zeros((k, h)), length=np.zeros(k, dtype=np.int64),
             status=np.zeros(k, dtype=np.int64))
+        self._buf_fields = tuple(self._buf)
         self._src0 = np.zeros(k, dtype=np.int64)
 
     def run(self, start: PlantState | tuple[np.ndarray, np.ndarray], actions: np.ndarray,
@@ -239,10 +256,11 @@ class BatchRollout:
         A = self._actions(actions)
         steppers = steppers_for_plants(self.cfg[K.C_METHOD], plants[:, PL_P:PL_S])
         run = _rollout_kernels(steppers)[0 if self.parallel else 1]
-        job = RolloutJob(plants, cmds, src, self.cfg, self.ucfg, self.act, A, self.actuated)
-        buf = self._buf
+        # a RolloutJob's and the RolloutBuffers' fields as plain tuples (see _rollout_with)
+        job = (plants, cmds, src, self.cfg, self.ucfg, self.act, A, self.actuated)
         with parallel_section(self.parallel):
-            run(job, buf)
+            run(job, self._buf_fields)
+        buf = self._buf
         return RolloutResult(buf.rewards, buf.stick, buf.length, buf.status)
 
     def end_states(self) -> tuple[np.ndarray, np.ndarray]:
