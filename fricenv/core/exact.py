@@ -46,7 +46,7 @@ from .proofs import _extremum_matters, _one_extremum_at_most
 from .recording import _log_event, _write_output, recording
 from .roots import K_SLIP_H, K_SLIP_V, _extremum_closed, _root_closed
 from .state import Phases, Tones, _end_call, _note_v, _note_x
-from .stats import _slip_stats, _x_turn_closed
+from .stats import _slip_stats
 from .stick import _stick_exit_time, _stick_start, _stick_trial
 from .trig import _renorm, _sincos, _wrap
 from .whole_interval import _whole_interval
@@ -378,22 +378,27 @@ def _slip_step(cx, stats, fresh, step, m):
     ext = _slip_v_extremum(cx, stats, sd, L, p0, p1, vdd)
     te = _contact_time(_root_closed, cx, K_SLIP_H, L, h0, d0, sd * j0, h1, d1, sd * p1.jerk,
                        ext.t, ext.h, ext.q)
-    if te >= 0.0:
+    if te >= 0.0:  # the step ends at the contact, where v = V
         v_mid, pe = _slip_mid_and_end(cx, te)
-        xe = pe.x
-        te_tones = pe.tones
-        _slip_stats(_x_turn_closed, cx, stats, te, ext, p0,
-                    Point(xe, V, pe.acc, pe.jerk, te_tones), v_mid)
+        tau = te
+        p_end = Point(pe.x, V, pe.acc, pe.jerk, pe.tones)
+    else:
+        tau = L
+        p_end = p1
+        v_mid = trial.v_mid
+        if trial.on_grid:
+            mc1, ms1, mc2, ms2 = _rotate(cx, cx[W_MC1], cx[W_MS1], cx[W_MC2], cx[W_MS2])
+            _, v_mid, _, _ = _slip_with(cx, 0.5 * L,
+                                        (cx[W_M11], cx[W_M12], cx[W_M21], cx[W_M22]),
+                                        Tones(mc1, ms1, mc2, ms2))
+    _slip_stats(cx, stats, tau, ext, p0, p_end, v_mid)
+    if te >= 0.0:
+        xe = p_end.x
+        te_tones = p_end.tones
         new_mode, kind = _contact_outcome(cx, stats, xe, te_tones.c1, te_tones.s1, te_tones.c2,
                                           te_tones.s2, sd)
         a_new = _closed_acc(cx, new_mode, xe, V, te_tones.c1, te_tones.c2)
         return StepEnd(te, trial.halved, False, kind, Motion(new_mode, xe, V, a_new, te_tones))
-    v_mid = trial.v_mid
-    if trial.on_grid:
-        mc1, ms1, mc2, ms2 = _rotate(cx, cx[W_MC1], cx[W_MS1], cx[W_MC2], cx[W_MS2])
-        _, v_mid, _, _ = _slip_with(cx, 0.5 * L, (cx[W_M11], cx[W_M12], cx[W_M21], cx[W_M22]),
-                                    Tones(mc1, ms1, mc2, ms2))
-    _slip_stats(_x_turn_closed, cx, stats, L, ext, p0, p1, v_mid)
     # a slip state has sd (v - V) >= 0; v1 may be a few ulps short of V where
     # _unresolved_return saw no contact
     v_end = p1.v if sd * (p1.v - V) >= 0.0 else V

@@ -130,9 +130,7 @@ def _start_next(i, b):
     new_init = table[i, T_NEW_INIT:T_WORK]
     episode_from_uniforms(b.draws[i, row], b.bounds, b.cfg, new_P, new_init)
     counters[CT_CURSOR, i] += 1
-    plant = _plant(table, i)
-    start_episode(plant.P, plant.S, plant.ctrl, b.cfg, new_P, new_init, b.obs[OB_NOW, i],
-                  plant.work)
+    start_episode(_plant(table, i), b.cfg, new_P, new_init, b.obs[OB_NOW, i])
     counters[CT_STEPS, i] = 0
 
 
@@ -259,8 +257,7 @@ def start_batch(table, cfg, mask, obs, flags, counters) -> None:
     """Begin episodes for the plants selected by ``mask``, from their next-episode columns."""
     for i in range(table.shape[0]):
         if mask[i]:
-            plant = _plant(table, i)
-            start_episode(plant.P, plant.S, plant.ctrl, cfg, table[i, T_NEW_P:T_NEW_INIT],
-                          table[i, T_NEW_INIT:T_WORK], obs[OB_NOW, i], plant.work)
+            start_episode(_plant(table, i), cfg, table[i, T_NEW_P:T_NEW_INIT],
+                          table[i, T_NEW_INIT:T_WORK], obs[OB_NOW, i])
             counters[CT_STEPS, i] = 0
             flags[F_AUTORESET, i] = False

@@ -311,8 +311,12 @@ def write_obs(P, S, ctrl, cfg, obs, work) -> bool:
 
 
 @kernel
-def start_episode(P, S, ctrl, cfg, P_new, init, obs, work) -> None:
-    """Begin an episode from a sampled parameter vector and starting vector."""
+def start_episode(plant, cfg, P_new, init, obs) -> None:
+    """Begin ``plant``'s episode (a :class:`Plant`) from a sampled parameter vector and
+    starting vector; write its first observation to ``obs``."""
+    P = plant.P
+    S = plant.S
+    ctrl = plant.ctrl
     for k in range(P.shape[0]):
         P[k] = P_new[k]
     ctrl[0] = init[I_U0]
@@ -323,7 +327,7 @@ def start_episode(P, S, ctrl, cfg, P_new, init, obs, work) -> None:
     S[S_PHI2] = init[I_PHI2]
     # initial_state chose the mode with zero phases; redo it with the drawn ones.
     S[S_MODE] = initial_mode(P, S[S_X], S[S_V], S[S_PHI1], S[S_PHI2])
-    write_obs(P, S, ctrl, cfg, obs, work)
+    write_obs(P, S, ctrl, cfg, obs, plant.work)
 
 
 @kernel

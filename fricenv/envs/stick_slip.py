@@ -406,9 +406,8 @@ class StickSlipEnv(gym.Env):
             if rng is not None and state is not None:  # (both or neither)
                 rng.bit_generator.state = state
             raise
-        K.start_episode(
-            self._P, self._S, self._ctrl, self._cfg, self._P_new, self._init, self._obs, self._work
-        )
+        K.start_episode(K.Plant(self._P, self._S, self._ctrl, self._stats, self._work),
+                        self._cfg, self._P_new, self._init, self._obs)
         self._fit_steppers()
         self._needs_reset = False
         self._steps = 0
