@@ -115,17 +115,12 @@ def advance(P, S, t_span, stats, method, rtol, atol, max_events, work):
     return advance_any_ws(P, S, t_span, stats, Solver(method, rtol, atol, max_events), work)
 
 
-@kernel
-def _span(rec):
-    """The time a recording call covers, [out_t[0], out_t[-1]]."""
-    return rec.out_t[rec.out_t.shape[0] - 1] - rec.out_t[0]
-
-
 @kernel(allocates=True, nogil=True)
 def record_exact(P, S, stats, solver, rec, work):
     """``record`` with the closed form alone (see ``advance_exact_ws``)."""
     named = Recording(*rec)
-    return _run_exact(P, S, _span(named), stats, Solver(*solver).max_events, named, work)
+    t_span = named.out_t[named.out_t.shape[0] - 1] - named.out_t[0]
+    return _run_exact(P, S, t_span, stats, Solver(*solver).max_events, named, work)
 
 
 @kernel(allocates=True, nogil=True)
@@ -133,8 +128,8 @@ def record_event(P, S, stats, solver, rec, work):
     """``record`` with the event method alone."""
     named = Recording(*rec)
     run = Solver(*solver)
-    return _run_event(P, S, _span(named), stats, run.max_events, run.rtol, run.atol, named,
-                      work)
+    t_span = named.out_t[named.out_t.shape[0] - 1] - named.out_t[0]
+    return _run_event(P, S, t_span, stats, run.max_events, run.rtol, run.atol, named, work)
 
 
 @kernel(allocates=True, nogil=True)
@@ -146,7 +141,7 @@ def record(P, S, stats, solver, rec, work):
     as plain tuples (see the module docstring)."""
     named = Recording(*rec)
     run = Solver(*solver)
-    t_span = _span(named)
+    t_span = named.out_t[named.out_t.shape[0] - 1] - named.out_t[0]
     if run.method == METHOD_EXACT:
         status = _run_exact(P, S, t_span, stats, run.max_events, named, work)
         if status != _STATUS_NEAR_RESONANCE:

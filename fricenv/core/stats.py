@@ -11,12 +11,7 @@ from .state import _note_v, _note_x
 from .taylor import _dense_x
 from .workspace import C_V, C_XA, W_SKIP_EXTREMA, W_SKIP_VR2
 
-
-@kernel
-def _sign_change(a, b, va, vb):
-    """The :class:`~fricenv.core.roots.Bracket` of v's sign change in [a, b] (v = va, vb
-    there; its derivatives unknown)."""
-    return Bracket(a, b, va, vb, math.nan, math.nan, math.nan, math.nan)
+NAN = math.nan
 
 
 @kernel
@@ -39,8 +34,8 @@ def _x_turn_dense(cx, piece):
 @kernel(takes_kernels=True)
 def _x_extrema_between(x_turn, cx, stats, piece, vabs):
     """Displacement extremum where v changes sign on a monotone piece of v: ``piece`` is
-    the :class:`~fricenv.core.roots.Bracket` [lo, hi] with v at its ends (``_sign_change``),
-    ``x_turn`` (``_x_turn_closed`` or ``_x_turn_dense``, the step's family) finds x there.
+    the :class:`~fricenv.core.roots.Bracket` [lo, hi] with v at its ends, ``x_turn``
+    (``_x_turn_closed`` or ``_x_turn_dense``, the step's family) finds x there.
 
     ``vabs`` bounds |v| over the whole step, so |x - x(0)| <= vabs * hi: when that cannot
     reach past the recorded extrema the search is skipped (it matters once the motion
@@ -65,10 +60,13 @@ def _slip_extrema(x_turn, cx, stats, tau_e, t_ext, v_ext, v0, v1, x1):
     elif 0.0 <= t_ext <= tau_e:
         _note_v(stats, v_ext)
         vabs = max(abs(v0), abs(v_ext), abs(v1))
-        _x_extrema_between(x_turn, cx, stats, _sign_change(0.0, t_ext, v0, v_ext), vabs)
-        _x_extrema_between(x_turn, cx, stats, _sign_change(t_ext, tau_e, v_ext, v1), vabs)
+        # (the pieces with v at their ends; v' and v'' there are not needed)
+        _x_extrema_between(x_turn, cx, stats, Bracket(0.0, t_ext, v0, v_ext, NAN, NAN, NAN,
+                                                      NAN), vabs)
+        _x_extrema_between(x_turn, cx, stats, Bracket(t_ext, tau_e, v_ext, v1, NAN, NAN, NAN,
+                                                      NAN), vabs)
     else:
-        _x_extrema_between(x_turn, cx, stats, _sign_change(0.0, tau_e, v0, v1),
+        _x_extrema_between(x_turn, cx, stats, Bracket(0.0, tau_e, v0, v1, NAN, NAN, NAN, NAN),
                            max(abs(v0), abs(v1)))
 
 @kernel(called_once=True)

@@ -2,9 +2,10 @@
 
 The single environment and the native vector environment call the same inner functions, so
 they agree bit for bit. The step kernels allocate nothing of their own (only
-``sample_interval``, used for rendering, works on copies) and run on the physics core's
-stats-only path (``core.advance``): an environment step integrates to the next control
-instant and keeps no trajectory.
+``sample_interval_with``, used for rendering, works on copies) and run on the physics
+core's stats-only path (an entry kernel such as ``core.advance_exact_ws``, passed in): an
+environment step integrates to the next control instant and keeps no trajectory. A plant's
+arrays travel between the kernels as one :class:`Plant`.
 
 Kernels that allocate nothing are compiled without numba's reference-counting runtime
 (``_nrt=False``, see ``fricenv.jit``): otherwise every per-plant call does atomic count
@@ -233,12 +234,6 @@ class Plant(NamedTuple):
     work: np.ndarray
 
 
-@kernel
-def _solver(P, cfg):
-    """The core's settings for one control interval of plant ``P``."""
-    return Solver(_method(P, cfg), cfg[C_RTOL], cfg[C_ATOL], int(cfg[C_MAX_EVENTS]))
-
-
 @kernel(takes_kernels=True)
 def control_interval(advance_ws, plant, cfg, a, res) -> int:
     """Apply action ``a``, advance ``plant`` one control interval by the core's entry
@@ -255,7 +250,8 @@ def control_interval(advance_ws, plant, cfg, a, res) -> int:
     dt = cfg[C_DT]
     x_start = S[S_X]
     reset_stats(stats)
-    status = advance_ws(P, S, dt, stats, _solver(P, cfg), plant.work)
+    solver = Solver(_method(P, cfg), cfg[C_RTOL], cfg[C_ATOL], int(cfg[C_MAX_EVENTS]))
+    status = advance_ws(P, S, dt, stats, solver, plant.work)
     if status != 0:
         return status
     V = P[P_V]
@@ -419,7 +415,7 @@ def sample_interval_with(advance, plant, cfg, a, trace) -> int:
     set_excitation(Pc, cc, cfg)
     n = trace.t.shape[0]
     h = cfg[C_DT] / n
-    solver = _solver(Pc, cfg)
+    solver = Solver(_method(Pc, cfg), cfg[C_RTOL], cfg[C_ATOL], int(cfg[C_MAX_EVENTS]))
     t0 = Sc[S_T]
     work = fresh_workspace()
     for k in range(n):

@@ -14,6 +14,10 @@ a rollout scores the plant, as the reward does.
 A sample ends early if its interval fails (its status is the core's code) or its state
 leaves the observation box (the env would terminate the episode there); rewards and stick
 fractions after its last interval are 0.
+
+The kernels take the rollout's inputs and buffers as two records (:class:`RolloutJob`,
+:class:`RolloutBuffers`); the body is written once over the core's entry kernel and
+``fricenv.core.partial_kernel`` builds each method's kernels from it.
 """
 
 from __future__ import annotations

@@ -2,7 +2,8 @@
 
 Structured like Gymnasium's classic-control ``pendulum.py``. The physics lives in
 ``fricenv.core`` (which knows nothing of Gymnasium); one environment step is one call of a
-numba kernel (``kernels.step_single``) that integrates exactly to the next control instant.
+numba kernel (``Steppers.step_single``, built from ``kernels.step_single_with``) that
+integrates exactly to the next control instant.
 """
 
 from __future__ import annotations
