@@ -592,7 +592,8 @@ def simulate(
     capacity = int(min(max_events + 1, 64 + 8 * t_span * w / (2 * math.pi)))
     counts = np.zeros(2, np.int64)
     record = core.kernels_for(code, P).record  # compiles this method's kernels only
-    solver = tuple(core.Solver(code, rtol, atol, max_events))  # (plain: see core.api)
+    # a Solver's and a Recording's fields as plain tuples, numba's fastest (see core.api)
+    solver = (code, rtol, atol, max_events)
     S0 = state.to_array()
     S = S0.copy()
     while True:
@@ -605,8 +606,8 @@ def simulate(
             S[:] = S0
             core.reset_stats(stats)
             counts[:] = 0
-            rec = core.Recording(out_t, out_x, out_v, out_mode, ev_t, ev_kind, ev_x, counts)
-            return record(P, S, stats, solver, tuple(rec), work)  # (see core.api)
+            rec = (out_t, out_x, out_v, out_mode, ev_t, ev_kind, ev_x, counts)
+            return record(P, S, stats, solver, rec, work)
 
         # (the budget does not charge the steps the grid adds, so count them here: a call
         # with many outputs goes to the worker thread, where Ctrl-C reaches it)
@@ -675,7 +676,7 @@ def run_stats(
     stats = np.empty(N_STATS)
     code = METHOD_EXACT if method == "exact" else METHOD_EVENT
     advance = core.kernels_for(code, P).advance  # compiles this method's kernels only
-    solver = tuple(core.Solver(code, rtol, atol, max_events))  # (plain: see core.api)
+    solver = (code, rtol, atol, max_events)  # a Solver's fields, plain (see core.api)
 
     def run(work: np.ndarray) -> int:
         S[:] = S0

@@ -13,7 +13,7 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
-from numba import prange
+from numba import get_num_threads, prange
 
 from fricenv.envs.kernels import (
     AUTORESET_NEXT_STEP,
@@ -208,18 +208,19 @@ def step_batch_with(step_range, table, cfg, A, obs, res, flags, counters, draws,
     return _count(flags, counters, draws.shape[1], ivars)
 
 
-#: Plants per task of the parallel batch step: each task is one call of the method's range
-#: kernel, so the call's cost (the batch's array structures, passed by value) is shared by
-#: that many plant-steps.
-PLANTS_PER_TASK = 4
+#: Tasks per numba thread of the parallel batch step: each task is one call of the
+#: method's range kernel over a contiguous share of the plants, so the call's cost (the
+#: batch's array structures, passed by value) is shared by that many plant-steps, while a
+#: free thread can still take a share a delayed one has not started.
+TASKS_PER_THREAD = 4
 
 
 @kernel(takes_kernels=True)
 def step_batch_parallel_with(step_range, table, cfg, A, obs, res, flags, counters, draws,
                              bounds, ivars) -> int:
     """``step_batch`` with its plants shared between numba's threads by a plain ``prange``
-    over tasks of ``PLANTS_PER_TASK`` plants, each stepped by ``step_range`` (the serial
-    kernel's).
+    over ``TASKS_PER_THREAD`` tasks per thread, each a contiguous share of the plants
+    stepped by ``step_range`` (the serial kernel's).
 
     numba cuts the tasks into one contiguous share per thread and hands the shares to its
     threading layer; on TBB they are tasks, and a free thread may take one that no other
@@ -246,9 +247,9 @@ def step_batch_parallel_with(step_range, table, cfg, A, obs, res, flags, counter
     b = Batch(table, cfg, A, obs, res, flags, counters, draws, bounds, ivars[IV_MAX_STEPS],
               ivars[IV_MODE])
     n = table.shape[0]
-    for task in prange((n + PLANTS_PER_TASK - 1) // PLANTS_PER_TASK):
-        lo = task * PLANTS_PER_TASK
-        step_range(lo, min(n, lo + PLANTS_PER_TASK), b)
+    n_tasks = min(n, TASKS_PER_THREAD * get_num_threads())
+    for task in prange(n_tasks):
+        step_range(task * n // n_tasks, (task + 1) * n // n_tasks, b)
     return _count(flags, counters, draws.shape[1], ivars)
 
 

@@ -50,7 +50,7 @@ def steppers_on(advance_ws: Any, name: str) -> Steppers:
     """The entry kernels of the environments built on the core's entry kernel
     ``advance_ws``, named after ``name`` (``step_single_exact``, ...): both batch steps
     call one plant-range kernel of their own (``_step_range_<name>``), the serial one over
-    every plant, the parallel one per task of ``batch.PLANTS_PER_TASK`` plants."""
+    every plant, the parallel one per share of ``batch.TASKS_PER_THREAD`` per thread."""
     step_range = partial_kernel(batch.step_range_with, advance_ws, f"_step_range_{name}")
     return Steppers(
         name,
