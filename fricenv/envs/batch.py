@@ -13,7 +13,7 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
-from numba import get_num_threads, prange
+from numba import prange
 
 from fricenv.envs.kernels import (
     AUTORESET_NEXT_STEP,
@@ -37,6 +37,7 @@ from fricenv.envs.tables import (
     IV_MODE,
     IV_N_EMPTY,
     IV_N_RESET,
+    IV_N_TASKS,
     OB_FINAL,
     OB_NOW,
     R_TERM,
@@ -186,7 +187,7 @@ def step_batch_with(step_range, table, cfg, A, obs, res, flags, counters, draws,
 
     The batch's arrays (see "Vector kernels' arrays" above): plant ``table``, ``obs``
     (current and final observations), ``res``, ``flags``, ``counters``; ``ivars`` =
-    [max_episode_steps, autoreset mode, n_reset, n_empty, n_workers, work counters...].
+    [max_episode_steps, autoreset mode, n_reset, n_empty, the parallel kernel's tasks].
     ``F_AUTORESET`` marks a plant whose episode ended on the previous call. NEXT_STEP: such
     a plant is reset instead of stepped, with reward 0. SAME_STEP: a plant whose episode
     ends now is reset at once, its last observation saved in ``obs[OB_FINAL]``. DISABLED:
@@ -208,10 +209,13 @@ def step_batch_with(step_range, table, cfg, A, obs, res, flags, counters, draws,
     return _count(flags, counters, draws.shape[1], ivars)
 
 
-#: Tasks per numba thread of the parallel batch step: each task is one call of the
-#: method's range kernel over a contiguous share of the plants, so the call's cost (the
-#: batch's array structures, passed by value) is shared by that many plant-steps, while a
-#: free thread can still take a share a delayed one has not started.
+#: Tasks per numba thread of the parallel batch step (``ivars[IV_N_TASKS]`` holds their
+#: number, set by the caller from its thread count: numba's own count, read inside a
+#: kernel, would keep the kernel out of the cache): each task is one call of the method's
+#: range kernel over a contiguous share of the plants, so the call's cost (the batch's
+#: array structures, passed by value) is shared by that many plant-steps, while a free
+#: thread can still take a share a delayed one has not started. Tasks of four plants
+#: each made the step 10-14 % slower at 256 and 1024 plants.
 TASKS_PER_THREAD = 4
 
 
@@ -219,8 +223,8 @@ TASKS_PER_THREAD = 4
 def step_batch_parallel_with(step_range, table, cfg, A, obs, res, flags, counters, draws,
                              bounds, ivars) -> int:
     """``step_batch`` with its plants shared between numba's threads by a plain ``prange``
-    over ``TASKS_PER_THREAD`` tasks per thread, each a contiguous share of the plants
-    stepped by ``step_range`` (the serial kernel's).
+    over ``ivars[IV_N_TASKS]`` tasks (``TASKS_PER_THREAD`` per thread, set by the caller),
+    each a contiguous share of the plants stepped by ``step_range`` (the serial kernel's).
 
     numba cuts the tasks into one contiguous share per thread and hands the shares to its
     threading layer; on TBB they are tasks, and a free thread may take one that no other
@@ -247,7 +251,7 @@ def step_batch_parallel_with(step_range, table, cfg, A, obs, res, flags, counter
     b = Batch(table, cfg, A, obs, res, flags, counters, draws, bounds, ivars[IV_MAX_STEPS],
               ivars[IV_MODE])
     n = table.shape[0]
-    n_tasks = min(n, TASKS_PER_THREAD * get_num_threads())
+    n_tasks = max(1, min(n, ivars[IV_N_TASKS]))
     for task in prange(n_tasks):
         step_range(task * n // n_tasks, (task + 1) * n // n_tasks, b)
     return _count(flags, counters, draws.shape[1], ivars)

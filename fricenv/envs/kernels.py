@@ -86,6 +86,7 @@ from fricenv.envs.tables import (  # noqa: F401
     IV_MODE,
     IV_N_EMPTY,
     IV_N_RESET,
+    IV_N_TASKS,
     N_CFG,
     N_COUNTERS,
     N_FLAGS,
