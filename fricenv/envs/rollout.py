@@ -88,7 +88,7 @@ def _left_box(P, S, cfg) -> bool:
     return abs(S[S_X]) > cfg[K.C_X_LIM] or abs(S[S_V] - P[P_V]) > cfg[K.C_V_LIM]
 
 
-@kernel
+@kernel(called_once=True)
 def _start_sample(k, job, buf):
     """Copy sample ``k``'s start plant and command into its rows; zero its outputs."""
     row = buf.table[k]
