@@ -2,17 +2,22 @@
 
 The validating, allocating wrapper is :func:`fricenv.cells.run_cells`. The cell's run and
 the loop are written once (``_run_cell_with``, ``_cells_with``) and take the core's entry
-kernel as their first argument; each method has its own compiled kernels
-(``CELL_KERNELS``), so a Coulomb sweep compiles no Taylor or Rosenbrock code.
+kernel as their first argument; :func:`cells_kernel` builds each method's kernels from them
+(``CELL_KERNELS``), so a Coulomb sweep compiles no Taylor or Rosenbrock code. The cells,
+the settings they share and the outputs travel as three records (:class:`CellSpans`,
+:class:`CellRun`, :class:`CellOutputs`).
 """
 
 from __future__ import annotations
+
+from typing import Any, NamedTuple
 
 import numpy as np
 from numba import prange
 
 from . import core
 from .atomic import fetch_add
+from .core import Solver, partial_kernel
 from .core.workspace import W_MAX_STEPS_CALL, W_MAX_STEPS_TAU, W_SKIP_EXTREMA, W_SKIP_VR2
 from .jit import kernel
 from .layout import (
@@ -30,6 +35,49 @@ from .layout import (
 from .regimes import _strobe_period
 
 
+class CellSpans(NamedTuple):
+    """Each cell's plant and time spans, one row or entry per cell."""
+
+    P: np.ndarray  # (n, N_PARAMS) parameter rows, layout params.P_*
+    t_trans: np.ndarray  # transient
+    t_seg: np.ndarray  # one segment of the window
+    n_seg: np.ndarray  # int64: segments per window
+    tries: np.ndarray  # int64: windows tested at most (0: no periodicity test)
+
+
+class Cell(NamedTuple):
+    """One cell's spans (a row of :class:`CellSpans` but its plant)."""
+
+    t_trans: float
+    t_seg: float
+    n_seg: int
+    tries: int
+
+
+class CellRun(NamedTuple):
+    """What every cell of a call shares (the fields of ``SweepSettings`` the kernels read,
+    and the method)."""
+
+    x0: float  # start displacement
+    v0: float  # start velocity
+    method: int  # METHOD_EXACT or METHOD_EVENT (read by kernels that take it at run time)
+    rtol: float
+    atol: float
+    rate: float  # switches allowed per unit time (the event cap of each span)
+    m_max: int  # longest period tested
+    tol: float  # strobe tolerance
+    steps_tau: float  # step budget per unit time (W_MAX_STEPS_TAU)
+    steps_cell: float  # step budget of the whole cell
+
+
+class CellOutputs(NamedTuple):
+    """Each cell's statistics (n, N_STATS), status and period (n,)."""
+
+    stats: np.ndarray
+    status: np.ndarray
+    period: np.ndarray
+
+
 @kernel(allocates=True)
 def _event_cap(t_span: float, rate: float) -> int:
     return int(min(rate * t_span + 1000.0, 2.0e9))
@@ -37,9 +85,8 @@ def _event_cap(t_span: float, rate: float) -> int:
 
 @kernel(takes_kernels=True)
 def _advance_in_cell(advance_ws, P: np.ndarray, S: np.ndarray, t_span: float,
-                     stats: np.ndarray, method: int, rtol: float, atol: float,
-                     max_events: int, work: np.ndarray) -> int:
-    """``advance_ws`` within what is left of the cell's step budget.
+                     stats: np.ndarray, run: CellRun, work: np.ndarray) -> int:
+    """``advance_ws`` over ``t_span`` within what is left of the cell's step budget.
 
     A cell runs its transient and every segment of its windows as separate calls, each
     bounded by the workspace's per-call budget; spending that one budget over all of them
@@ -48,7 +95,8 @@ def _advance_in_cell(advance_ws, P: np.ndarray, S: np.ndarray, t_span: float,
     ``STATUS_STEP_BUDGET``.
     """
     before = stats[ST_N_STEPS]
-    status = advance_ws(P, S, t_span, stats, method, rtol, atol, max_events, work)
+    solver = Solver(run.method, run.rtol, run.atol, _event_cap(t_span, run.rate))
+    status = advance_ws(P, S, t_span, stats, solver, work)
     work[W_MAX_STEPS_CALL] -= stats[ST_N_STEPS] - before
     if status == STATUS_OK and work[W_MAX_STEPS_CALL] < 0.0:
         status = STATUS_STEP_BUDGET
@@ -56,23 +104,22 @@ def _advance_in_cell(advance_ws, P: np.ndarray, S: np.ndarray, t_span: float,
 
 
 @kernel(takes_kernels=True, allocates=True)
-def _run_cell_with(advance_ws, P: np.ndarray, x0: float, v0: float, t_trans: float,
-                   t_seg: float, n_seg: int, tries: int, method: int, rtol: float, atol: float,
-                   rate: float, m_max: int, tol: float, steps_tau: float, steps_cell: float,
-                   stats: np.ndarray, work: np.ndarray) -> tuple[int, int]:
-    """One cell: transient, then a window of ``n_seg`` segments measured into ``stats``,
-    each span advanced by ``advance_ws`` (the core's entry kernel for the cell's method).
+def _run_cell_with(advance_ws, P: np.ndarray, cell: Cell, run: CellRun, stats: np.ndarray,
+                   work: np.ndarray) -> tuple[int, int]:
+    """One cell: transient, then a window of ``cell.n_seg`` segments measured into
+    ``stats``, each span advanced by ``advance_ws`` (the core's entry kernel for the cell's
+    method).
 
     ``work``: the worker's workspace row, reset here for the cell. The caller owns it, so
     that another thread can stop a running cell by lowering its ``W_MAX_STEPS_CALL``.
 
-    ``tries`` = 0: no periodicity test. Otherwise the window is tested and, while no period
-    is found but the strobe mismatch is still shrinking (:func:`_converging`), repeated up
-    to ``tries - 1`` more times, each failed window becoming part of the transient (slowly
-    converging orbits still lock; the stats are the last window's).
+    ``cell.tries`` = 0: no periodicity test. Otherwise the window is tested and, while no
+    period is found but the strobe mismatch is still shrinking (:func:`_converging`),
+    repeated up to ``tries - 1`` more times, each failed window becoming part of the
+    transient (slowly converging orbits still lock; the stats are the last window's).
     """
     S = np.empty(N_STATE)
-    core.initial_state(P, x0, v0, S)
+    core.initial_state(P, run.x0, run.v0, S)
     core.reset_stats(stats)
     # One workspace for the whole cell, every cache empty (NaN keys never match); the maps
     # never read the (v - V)^2 integral. The transient's stats are dropped, so it skips the
@@ -81,29 +128,28 @@ def _run_cell_with(advance_ws, P: np.ndarray, x0: float, v0: float, t_trans: flo
     work[:] = np.nan
     work[W_SKIP_EXTREMA] = 1.0
     work[W_SKIP_VR2] = 1.0
-    work[W_MAX_STEPS_TAU] = steps_tau
-    work[W_MAX_STEPS_CALL] = steps_cell
+    work[W_MAX_STEPS_TAU] = run.steps_tau
+    work[W_MAX_STEPS_CALL] = run.steps_cell
     status = STATUS_OK
-    if t_trans > 0.0:
-        status = _advance_in_cell(advance_ws, P, S, t_trans, stats, method, rtol, atol,
-                                  _event_cap(t_trans, rate), work)
+    if cell.t_trans > 0.0:
+        status = _advance_in_cell(advance_ws, P, S, cell.t_trans, stats, run, work)
     work[W_SKIP_EXTREMA] = 0.0
+    n_seg = cell.n_seg
     xs = np.empty(n_seg)
     vs = np.empty(n_seg)
     period = 0
-    for _ in range(max(tries, 1)):
+    for _ in range(max(cell.tries, 1)):
         core.reset_stats(stats)
         k = 0
         while status == STATUS_OK and k < n_seg:
-            status = _advance_in_cell(advance_ws, P, S, t_seg, stats, method, rtol, atol,
-                                      _event_cap(t_seg, rate), work)
+            status = _advance_in_cell(advance_ws, P, S, cell.t_seg, stats, run, work)
             xs[k] = S[S_X]
             vs[k] = S[S_V]
             k += 1
-        if status != STATUS_OK or tries == 0:
+        if status != STATUS_OK or cell.tries == 0:
             break
-        period = _strobe_period(xs, vs, m_max, tol)
-        if period > 0 or not _converging(xs, vs, m_max):
+        period = _strobe_period(xs, vs, run.m_max, run.tol)
+        if period > 0 or not _converging(xs, vs, run.m_max):
             break
     stats[ST_VR2_INT] = np.nan  # skipped (the maps never read it): not a measured 0
     return status, period
@@ -132,30 +178,9 @@ def _converging(xs: np.ndarray, vs: np.ndarray, m_max: int) -> bool:
     return False
 
 
-@kernel(allocates=True)
-def _run_cell_exact(P, x0, v0, t_trans, t_seg, n_seg, tries, method, rtol, atol, rate, m_max,
-                    tol, steps_tau, steps_cell, stats, work):
-    """``_run_cell_with`` by the closed form (the cell's plant must be conditioned)."""
-    return _run_cell_with(core.advance_exact_ws, P, x0, v0, t_trans, t_seg, n_seg, tries,
-                          method, rtol, atol, rate, m_max, tol, steps_tau, steps_cell, stats,
-                          work)
-
-
-@kernel(allocates=True)
-def _run_cell_event(P, x0, v0, t_trans, t_seg, n_seg, tries, method, rtol, atol, rate, m_max,
-                    tol, steps_tau, steps_cell, stats, work):
-    """``_run_cell_with`` by the event method."""
-    return _run_cell_with(core.advance_event_ws, P, x0, v0, t_trans, t_seg, n_seg, tries,
-                          method, rtol, atol, rate, m_max, tol, steps_tau, steps_cell, stats,
-                          work)
-
-
 @kernel(takes_kernels=True, allocates=True)
-def _cells_with(run_cell, P_cells: np.ndarray, t_trans: np.ndarray, t_seg: np.ndarray,
-                n_seg: np.ndarray, tries: np.ndarray, x0: float, v0: float, method: int,
-                rtol: float, atol: float, rate: float, m_max: int, tol: float,
-                steps_tau: float, steps_cell: float, out_stats: np.ndarray, out_status: np.ndarray,
-                out_period: np.ndarray, works: np.ndarray, next_cell: np.ndarray) -> None:
+def _cells_with(run_cell, spans: CellSpans, run: CellRun, out: CellOutputs,
+                works: np.ndarray, next_cell: np.ndarray) -> None:
     """Run the cells by ``run_cell`` on ``works.shape[0]`` workers (one ``prange``
     iteration each, with its own workspace row ``works[w]``).
 
@@ -167,41 +192,36 @@ def _cells_with(run_cell, P_cells: np.ndarray, t_trans: np.ndarray, t_seg: np.nd
     end within ``BUDGET_CHECK_STEPS`` steps, with ``STATUS_STEP_BUDGET``); cells never
     claimed keep the status their outputs started with.
     """
-    n = P_cells.shape[0]
+    n = spans.P.shape[0]
+    # (the outputs out of their record before the loop: numba's parallel passes drop a
+    # write inside a prange body through a record's field)
+    out_stats, out_status, out_period = out.stats, out.status, out.period
     for w in prange(works.shape[0]):
         work = works[w]
         c = fetch_add(next_cell, 0, 1)
         while c < n:
-            P = P_cells[c].copy()
+            P = spans.P[c].copy()
             stats = np.empty(N_STATS)
-            st, per = run_cell(P, x0, v0, t_trans[c], t_seg[c], n_seg[c], tries[c], method,
-                               rtol, atol, rate, m_max, tol, steps_tau, steps_cell, stats,
-                               work)
+            cell = Cell(spans.t_trans[c], spans.t_seg[c], spans.n_seg[c], spans.tries[c])
+            st, per = run_cell(P, cell, run, stats, work)
             out_stats[c, :] = stats
             out_status[c] = st
             out_period[c] = per
             c = fetch_add(next_cell, 0, 1)
 
 
-@kernel(parallel=True, allocates=True, nogil=True)
-def _cells_kernel_exact(P_cells, t_trans, t_seg, n_seg, tries, x0, v0, method, rtol, atol,
-                        rate, m_max, tol, steps_tau, steps_cell, out_stats, out_status,
-                        out_period, works, next_cell):
-    """``_cells_with`` by the closed form (every plant conditioned)."""
-    _cells_with(_run_cell_exact, P_cells, t_trans, t_seg, n_seg, tries, x0, v0, method, rtol,
-                atol, rate, m_max, tol, steps_tau, steps_cell, out_stats, out_status,
-                out_period, works, next_cell)
+def cells_kernel(advance_ws: Any, method: str) -> Any:
+    """The parallel cell kernel ``(spans, run, out, works, next_cell)`` that advances every
+    cell by the core's entry kernel ``advance_ws``: ``_cells_with`` over a cell kernel of
+    its own (``_run_cell_with``), which is compiled once and called per cell. ``method``
+    names the kernels (``_run_cell_exact``, ``_cells_kernel_exact``)."""
+    run_cell = partial_kernel(_run_cell_with, advance_ws, f"_run_cell_{method}",
+                              allocates=True)
+    return partial_kernel(_cells_with, run_cell, f"_cells_kernel_{method}", parallel=True,
+                          allocates=True, nogil=True)
 
 
-@kernel(parallel=True, allocates=True, nogil=True)
-def _cells_kernel_event(P_cells, t_trans, t_seg, n_seg, tries, x0, v0, method, rtol, atol,
-                        rate, m_max, tol, steps_tau, steps_cell, out_stats, out_status,
-                        out_period, works, next_cell):
-    """``_cells_with`` by the event method."""
-    _cells_with(_run_cell_event, P_cells, t_trans, t_seg, n_seg, tries, x0, v0, method, rtol,
-                atol, rate, m_max, tol, steps_tau, steps_cell, out_stats, out_status,
-                out_period, works, next_cell)
-
-
-#: The parallel cell kernel of each method (the run's method is still passed to it).
-CELL_KERNELS = {METHOD_EXACT: _cells_kernel_exact, METHOD_EVENT: _cells_kernel_event}
+#: The parallel cell kernel of each method (the run's method is still passed to it); the
+#: closed form's needs every plant conditioned.
+CELL_KERNELS = {METHOD_EXACT: cells_kernel(core.advance_exact_ws, "exact"),
+                METHOD_EVENT: cells_kernel(core.advance_event_ws, "event")}

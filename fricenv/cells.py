@@ -21,7 +21,7 @@ import numba
 import numpy as np
 
 from . import calls
-from .cell_kernels import CELL_KERNELS
+from .cell_kernels import CELL_KERNELS, CellOutputs, CellRun, CellSpans
 from .checks import (
     check_bool,
     check_bounded_real,
@@ -423,11 +423,13 @@ def run_cells(P_cells: np.ndarray, t_transient: np.ndarray, t_segment: np.ndarra
              np.ascontiguousarray(n_segment, dtype=np.int64),
              np.ascontiguousarray(tries, dtype=np.int64))
     finished = True
+    cells = CellSpans(P_cells, *kernel_spans)
+    outputs = CellOutputs(out_stats, out_status, out_period)
     try:
         with _Threads(n_threads), parallel_section():
             for cell_method, rows in _method_groups(P_cells, method):
-                finished = _run_group(cell_method, rows, P_cells, kernel_spans, settings,
-                                      out_stats, out_status, out_period, stop_requested)
+                finished = _run_group(rows, cells, _cell_run(settings, cell_method), outputs,
+                                      stop_requested)
                 if not finished:  # stopped on request: the other groups stay unrun
                     break
     except KeyboardInterrupt as stop:
@@ -474,34 +476,39 @@ def _method_groups(P_cells: np.ndarray, method: int) -> list[tuple[int, np.ndarr
             if sel.any()]
 
 
-def _run_group(method: int, rows: np.ndarray, P_cells: np.ndarray,
-               spans: tuple[np.ndarray, ...], settings: SweepSettings, out_stats: np.ndarray,
-               out_status: np.ndarray, out_period: np.ndarray,
+def _cell_run(settings: SweepSettings, method: int) -> CellRun:
+    """What the cell kernels read of ``settings``, with the cells' ``method``."""
+    return CellRun(float(settings.x0), float(settings.v0), int(method), float(settings.rtol),
+                   float(settings.atol), float(settings.max_event_rate), int(settings.m_max),
+                   float(settings.strobe_tol), float(settings.max_steps_per_tau),
+                   float(settings.max_steps))
+
+
+def _run_group(rows: np.ndarray, cells: CellSpans, run: CellRun, outputs: CellOutputs,
                stop_requested: Callable[[], bool] | None) -> bool:
-    """Run the cells ``rows`` by ``method``'s parallel kernel into the outputs' rows, in a
-    worker thread that Ctrl-C or ``stop_requested`` stops (:func:`fricenv.calls.
-    run_stoppable`); whether it ran to its end. A cell depends on its own row only, so
-    which cells share a call changes no result."""
-    whole = rows.size == P_cells.shape[0]
+    """Run the cells ``rows`` by the parallel kernel of ``run.method`` into the outputs'
+    rows, in a worker thread that Ctrl-C or ``stop_requested`` stops
+    (:func:`fricenv.calls.run_stoppable`); whether it ran to its end. A cell depends on its
+    own row only, so which cells share a call changes no result."""
+    whole = rows.size == cells.P.shape[0]
     pick = (lambda a: a) if whole else (lambda a: np.ascontiguousarray(a[rows]))
-    st, status, period = pick(out_stats), pick(out_status), pick(out_period)
+    out = CellOutputs(*(pick(a) for a in outputs))
     works = np.empty((numba.get_num_threads(), N_WORK))  # a workspace row per worker
     next_cell = np.zeros(1, dtype=np.int64)
-    args = (pick(P_cells), *(pick(a) for a in spans), float(settings.x0),
-            float(settings.v0), int(method), float(settings.rtol), float(settings.atol),
-            float(settings.max_event_rate), int(settings.m_max), float(settings.strobe_tol),
-            float(settings.max_steps_per_tau), float(settings.max_steps), st, status, period,
-            works, next_cell)
+    spans = CellSpans(*(pick(a) for a in cells))
+    kernel = CELL_KERNELS[run.method]
 
     def abort() -> None:  # (see cell_kernels._cells_with)
         next_cell[0] = rows.size
         works[:, W_MAX_STEPS_CALL] = calls.ABORT
 
     try:
-        return calls.run_stoppable(lambda: CELL_KERNELS[method](*args), abort, stop_requested)
+        return calls.run_stoppable(lambda: kernel(spans, run, out, works, next_cell), abort,
+                                   stop_requested)
     finally:  # also when stopped: the finished cells are kept
         if not whole:
-            out_stats[rows], out_status[rows], out_period[rows] = st, status, period
+            for dst, src in zip(outputs, out, strict=True):
+                dst[rows] = src
 
 
 # -- the one path from parameters to labels ------------------------------------------------

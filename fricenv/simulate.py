@@ -425,6 +425,8 @@ def simulate(
                                  (budget, capacity, scan_steps + n))
     counts = np.zeros(2, np.int64)
     record = core.kernels_for(code, P).record  # compiles this method's kernels only
+    # a Solver's and a Recording's fields as plain tuples, numba's fastest (see core.api)
+    solver = (code, rtol, atol, max_events)
     S0 = state.to_array()
     S = S0.copy()
     while True:
@@ -437,8 +439,8 @@ def simulate(
             S[:] = S0
             core.reset_stats(stats)
             counts[:] = 0
-            return record(P, S, out_t, stats, code, rtol, atol, max_events, out_x, out_v,
-                          out_mode, ev_t, ev_kind, ev_x, counts, work)
+            rec = (out_t, out_x, out_v, out_mode, ev_t, ev_kind, ev_x, counts)
+            return record(P, S, stats, solver, rec, work)
 
         # (the budget does not charge the steps the grid adds, so count them here: a call
         # with many outputs goes to the worker thread, where Ctrl-C reaches it)
@@ -591,11 +593,12 @@ def run_stats(
     stats = np.empty(N_STATS)
     code = METHOD_EXACT if method == "exact" else METHOD_EVENT
     advance = core.kernels_for(code, P).advance  # compiles this method's kernels only
+    solver = (code, rtol, atol, max_events)  # a Solver's fields, plain (see core.api)
 
     def run(work: np.ndarray) -> int:
         S[:] = S0
         core.reset_stats(stats)
-        return advance(P, S, t_span, stats, code, rtol, atol, max_events, work)
+        return advance(P, S, t_span, stats, solver, work)
 
     status = calls.run_call(run, lambda: calls.new_workspace(budget), scan_steps)
     _raise_status(status, S[S_T], max_events, t_span, P, budget)

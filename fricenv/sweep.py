@@ -45,7 +45,7 @@ import json
 import os
 import time
 from collections.abc import Callable, Iterable
-from dataclasses import fields
+from dataclasses import dataclass, fields
 from pathlib import Path
 
 import numpy as np
@@ -194,21 +194,39 @@ def regime_map(params: OscillatorParams | str, u0: object, nu: object, *,
     # One writer at a time: a second sweep on this path is refused while this one runs.
     with (mapfile.writer_lock(path) if path is not None else contextlib.nullcontext(),
           sweep_signals()):
-        return _fill_map(params, u0, nu, settings, plan, path=path, resume=resume,
-                         chunk_size=chunk_size, n_threads=n_threads, progress=progress,
-                         callback=callback, meta=meta)
+        return _fill_map(_MapRequest(params, u0, nu, settings, plan, path, resume, chunk_size,
+                                     n_threads, progress, callback, meta))
 
 
-def _fill_map(params: OscillatorParams, u0: np.ndarray, nu: np.ndarray,
-              settings: SweepSettings, plan: CellPlan, *, path: Path | None,
-              resume: bool, chunk_size: int | None, n_threads: int | None,
-              progress: bool | None, callback: Callable[[RegimeMap, int], None] | None,
-              meta: dict | None) -> RegimeMap:
-    """The sweep of :func:`regime_map` once its arguments are checked (and, with ``path``,
+@dataclass(frozen=True)
+class _MapRequest:
+    """A :func:`regime_map` call once its arguments are checked: the map (plant, grid,
+    settings and their cell plan) and how the sweep runs (file, chunks, threads, progress,
+    callback, metadata), as :func:`regime_map` documents them."""
+
+    params: OscillatorParams
+    u0: np.ndarray
+    nu: np.ndarray
+    settings: SweepSettings
+    plan: CellPlan
+    path: Path | None
+    resume: bool
+    chunk_size: int | None
+    n_threads: int | None
+    progress: bool | None
+    callback: Callable[[RegimeMap, int], None] | None
+    meta: dict | None
+
+
+def _fill_map(req: _MapRequest) -> RegimeMap:
+    """The sweep of :func:`regime_map` once its arguments are checked (and, with a path,
     its writer lock held): resume or start the map, run the cells not done, save."""
+    params, u0, nu, settings, plan = req.params, req.u0, req.nu, req.settings, req.plan
+    path, meta, chunk_size, n_threads = req.path, req.meta, req.chunk_size, req.n_threads
+    progress, callback = req.progress, req.callback
     rmap = None
     if path is not None:
-        if resume and path.exists():
+        if req.resume and path.exists():
             rmap = RegimeMap.load(path)
             same = (rmap.meta.get("algorithm") == ALGORITHM
                     and _params_key(rmap.params) == _params_key(params)

@@ -377,10 +377,11 @@ def _recorded_vr2(p, t_span: float, rtol: float) -> tuple[float, float]:
     stats = np.zeros(N_STATS)
     core.reset_stats(stats)
     two = np.zeros(2)
-    status = core.record(p.to_array(), S, np.array([0.0, t_span]), stats, METHOD_EVENT, rtol,
-                         rtol, 100, two.copy(), two.copy(), two.copy(), np.zeros(100),
-                         np.zeros(100, dtype=np.int8), np.zeros(100), np.zeros(2, np.int64),
-                         core.new_workspace())
+    rec = core.Recording(np.array([0.0, t_span]), two.copy(), two.copy(), two.copy(),
+                         np.zeros(100), np.zeros(100, dtype=np.int8), np.zeros(100),
+                         np.zeros(2, np.int64))
+    status = core.record(p.to_array(), S, stats, core.Solver(METHOD_EVENT, rtol, rtol, 100),
+                         rec, core.new_workspace())
     assert status == 0
     return stats[ST_VR2_INT], stats[ST_N_STEPS]
 

@@ -1,5 +1,6 @@
 """A Coulomb workload compiles only the closed form (no Taylor or Rosenbrock kernel), each
-kernel once, and a second process loads all of it from the cache.
+kernel once, and a second process loads all of it from the cache (the parallel vector step
+included: a kernel that reads numba's thread count cannot be cached).
 
 Checked in a fresh process with an empty numba cache, where every kernel a workload needs
 is compiled (with a warm cache the callers load whole and compile nothing).
@@ -35,6 +36,9 @@ fricenv.cell_statistics([p], transient_min=1.0, window_min=1.0, q_max=0, n_strob
 env = gym.make("fricenv/StickSlip-v0")
 env.reset(seed=0)
 env.step(env.action_space.sample())
+vec = gym.make_vec("fricenv/StickSlip-v0", num_envs=64, vectorization_mode="vector_entry_point")
+vec.reset(seed=0)  # (64 plants: the parallel step kernel)
+vec.step(vec.action_space.sample())
 kernels = {"taylor._taylor_coeffs": taylor._taylor_coeffs, "taylor._taylor_vr2":
            taylor._taylor_vr2, "taylor._dense_v": taylor._dense_v, "taylor._dense_x":
            taylor._dense_x, "rosenbrock._ros4_step": rosenbrock._ros4_step,
@@ -42,6 +46,8 @@ kernels = {"taylor._taylor_coeffs": taylor._taylor_coeffs, "taylor._taylor_vr2":
 signatures = {f"{m}.{k}": [str(sig) for sig in d.signatures]
               for m in list(sys.modules) if m.startswith("fricenv")
               for k, d in vars(sys.modules[m]).items() if isinstance(d, CPUDispatcher)}
+signatures.update({f"partial_kernel.{k}": [str(sig) for sig in d.signatures]
+                   for k, d in fricenv.core.partial_kernels().items()})
 print(json.dumps({"taylor": {name: len(k.signatures) for name, k in kernels.items()},
                   "compiles": sum(1 for _, e in compiles.buffer if e.is_start),
                   "signatures": signatures}))

@@ -15,7 +15,7 @@ import pytest
 
 import fricenv
 from fricenv import _numba_cache, core
-from fricenv.envs import batch
+from fricenv.envs import steppers
 
 _INIT = """\
 import os
@@ -44,7 +44,7 @@ def test_fricenv_kernels_are_keyed_on_the_whole_package():
     root = Path(fricenv.__file__).parent
     assert _numba_cache.installed_for(root)
     digest = _numba_cache.source_digest(root)
-    for kernel in (core.advance, batch.step_batch, batch.step_batch_parallel):
+    for kernel in (core.advance, steppers.ANY.step_batch, steppers.ANY.step_batch_parallel):
         assert kernel._cache._impl.locator.get_source_stamp() == digest
 
 

@@ -29,7 +29,9 @@ Public kernels (all compiled by :func:`fricenv.jit.kernel`, allocation-free in t
 loops): ``reset_stats``, ``initial_state``, the stats-only ``advance`` / ``advance_ws`` and
 the recording ``record`` used by :mod:`fricenv.simulate`. Each method also has its own
 entry kernels (``advance_exact``, ``record_event``, ...; :func:`kernels_for` picks them),
-which compile that method's code alone. Array layouts are in :mod:`fricenv.layout`,
+which compile that method's code alone and take the run's settings as one ``Solver``;
+``partial_kernel`` builds the per-method kernels of the sweeps and environments from
+bodies written once. Array layouts are in :mod:`fricenv.layout`,
 :mod:`fricenv.params` and ``workspace``.
 
 Modules: building blocks ``constants``, ``workspace``, ``trig``, ``state``, ``context``,
@@ -43,7 +45,9 @@ and tolerances included, is imported from the module that defines it.
 from .api import (
     ENTRY_KERNELS,
     EntryKernels,
+    Solver,
     advance,
+    advance_any_ws,
     advance_event,
     advance_event_ws,
     advance_exact,
@@ -52,6 +56,8 @@ from .api import (
     always_conditioned,
     kernels_for,
     method_for,
+    partial_kernel,
+    partial_kernels,
     record,
     record_event,
     record_exact,
@@ -67,11 +73,13 @@ __all__ = [
     "ENTRY_KERNELS",
     "EntryKernels",
     "Recording",
+    "Solver",
     "advance",
     "advance_event",
     "advance_event_ws",
     "advance_exact",
     "advance_exact_ws",
+    "advance_any_ws",
     "advance_ws",
     "always_conditioned",
     "closed_form_conditioned",
@@ -83,6 +91,8 @@ __all__ = [
     "method_for",
     "most_scan_steps",
     "new_workspace",
+    "partial_kernel",
+    "partial_kernels",
     "record",
     "record_event",
     "record_exact",

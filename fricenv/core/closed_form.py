@@ -5,9 +5,11 @@ matrix (any damping) applied to the distance from the particular response to the
 """
 
 import math
+from typing import NamedTuple
 
 from ..jit import kernel
 from .constants import HOMOG_SERIES_MAX
+from .state import Tones
 from .trig import _sincos
 from .workspace import (
     C_C1A,
@@ -34,6 +36,16 @@ from .workspace import (
     C_XA,
     C_XFK,
 )
+
+
+class Point(NamedTuple):
+    """The closed-form slip state at one instant: x, v, v', v'' and the tones' cos/sin."""
+
+    x: float
+    v: float
+    acc: float
+    jerk: float
+    tones: Tones
 
 
 # Closed form of a Coulomb slip step
@@ -92,8 +104,10 @@ def _particular(cx, tau, c1, s1, c2, s2, sd):
     return xp, vp
 
 @kernel
-def _slip_start(cx, x, v, c1, s1, c2, s2, sd):
-    """Start a closed-form slip step at (x, v) with tone phases (c_i, s_i)."""
+def _slip_start(cx, x, v, tones, sd):
+    """Start a closed-form slip step at (x, v) in direction ``sd``, the tones' cos/sin
+    ``tones``."""
+    c1, s1, c2, s2 = tones
     cx[C_XA] = x
     cx[C_VA] = v
     cx[C_C1A] = c1
@@ -134,12 +148,15 @@ def _forcing(cx, c1, s1, c2, s2):
     return g, gd, gdd
 
 @kernel
-def _slip_with(cx, tau, h11, h12, h21, h22, c1, s1, c2, s2):
-    """Closed-form slip state at relative time tau: x, v, acceleration and jerk."""
+def _slip_with(cx, tau, h, tones):
+    """Closed-form slip state at relative time tau: x, v, acceleration and jerk, from the
+    homogeneous transition over tau ``h`` (``_homog``'s 4-tuple) and the tones' cos/sin
+    there."""
+    c1, s1, c2, s2 = tones
     sd = cx[C_SD]
     xp, vp = _particular(cx, tau, c1, s1, c2, s2, sd)
-    x = xp + h11 * cx[C_DX] + h12 * cx[C_DV]
-    v = vp + h21 * cx[C_DX] + h22 * cx[C_DV]
+    x = xp + h[0] * cx[C_DX] + h[1] * cx[C_DV]
+    v = vp + h[2] * cx[C_DX] + h[3] * cx[C_DV]
     g, gd, _ = _forcing(cx, c1, s1, c2, s2)
     acc = -cx[C_LAM] * v - x - sd * cx[C_XFK] + g
     jerk = -cx[C_LAM] * acc - v + gd
@@ -147,20 +164,23 @@ def _slip_with(cx, tau, h11, h12, h21, h22, c1, s1, c2, s2):
 
 @kernel
 def _slip_at(cx, tau):
-    x, v, acc, jerk, _, _, _, _ = _slip_and_phases_at(cx, tau)
-    return x, v, acc, jerk
+    """Closed-form slip state at relative time tau: x, v, acceleration and jerk."""
+    p = _slip_and_phases_at(cx, tau)
+    return p.x, p.v, p.acc, p.jerk
 
 @kernel
 def _slip_and_phases_at(cx, tau):
-    """``_slip_at`` plus the tones' cos/sin there (a switch needs both)."""
-    h11, h12, h21, h22 = _homog(tau, cx[C_LAM], cx[C_P2])
+    """``_slip_at`` plus the tones' cos/sin there (a switch needs both), as a
+    :class:`Point`."""
+    h = _homog(tau, cx[C_LAM], cx[C_P2])
     c1, s1, c2, s2 = _rotate_by(cx, tau)
-    x, v, acc, jerk = _slip_with(cx, tau, h11, h12, h21, h22, c1, s1, c2, s2)
-    return x, v, acc, jerk, c1, s1, c2, s2
+    tones = Tones(c1, s1, c2, s2)
+    x, v, acc, jerk = _slip_with(cx, tau, h, tones)
+    return Point(x, v, acc, jerk, tones)
 
 @kernel
 def _slip_mid_and_end(cx, tau):
-    """v at tau / 2 and the state and tones' cos/sin at tau, from one evaluation at tau / 2:
+    """v at tau / 2 and the state at tau (a :class:`Point`), from one evaluation at tau / 2:
     the transition over tau is its square and the rotations are doubled (a few ulps), so
     a step whose (v - V)^2 quadrature needs its midpoint pays for one evaluation, not two."""
     hm = 0.5 * tau
@@ -168,12 +188,13 @@ def _slip_mid_and_end(cx, tau):
     cm1, sm1 = _sincos(cx[C_W1] * hm)
     cm2, sm2 = _sincos(cx[C_W2] * hm)
     mc1, ms1, mc2, ms2 = _rotate(cx, cm1, sm1, cm2, sm2)
-    _, v_mid, _, _ = _slip_with(cx, hm, m11, m12, m21, m22, mc1, ms1, mc2, ms2)
+    _, v_mid, _, _ = _slip_with(cx, hm, (m11, m12, m21, m22), Tones(mc1, ms1, mc2, ms2))
     c1, s1, c2, s2 = _rotate(cx, cm1 * cm1 - sm1 * sm1, 2.0 * sm1 * cm1, cm2 * cm2 - sm2 * sm2,
                              2.0 * sm2 * cm2)
-    x, v, acc, jerk = _slip_with(cx, tau, m11 * m11 + m12 * m21, m11 * m12 + m12 * m22,
-                                 m21 * m11 + m22 * m21, m21 * m12 + m22 * m22, c1, s1, c2, s2)
-    return v_mid, x, v, acc, jerk, c1, s1, c2, s2
+    tones = Tones(c1, s1, c2, s2)
+    x, v, acc, jerk = _slip_with(cx, tau, (m11 * m11 + m12 * m21, m11 * m12 + m12 * m22,
+                                           m21 * m11 + m22 * m21, m21 * m12 + m22 * m22), tones)
+    return v_mid, Point(x, v, acc, jerk, tones)
 
 @kernel
 def _stick_at(cx, tau):

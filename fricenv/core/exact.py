@@ -2,10 +2,14 @@
 
 The runner is a loop over the output grid's intervals, each split into equal scan steps;
 a step is a slip step (``_slip_step``: trial length, v's extremum, contact search,
-statistics) or a stick step (``_stick_step``), and a switch ends it early.
+statistics) or a stick step (``_stick_step``), and a switch ends it early. A step takes
+the scan's state as a :class:`Motion` and its bounds as a :class:`ScanStep`, and returns a
+:class:`StepEnd`; the step bodies are inlined into the scan (``called_once``), where the
+records cost nothing.
 """
 
 import math
+from typing import NamedTuple
 
 from ..jit import kernel
 from ..layout import (
@@ -24,6 +28,7 @@ from ..layout import (
     STATUS_STEP_BUDGET,
 )
 from .closed_form import (
+    Point,
     _forcing,
     _homog,
     _jerk,
@@ -40,8 +45,8 @@ from .context import _scan_cap, _setup_context
 from .proofs import _extremum_matters, _one_extremum_at_most
 from .recording import _log_event, _write_output, recording
 from .roots import K_SLIP_H, K_SLIP_V, _extremum_closed, _root_closed
-from .state import _end_call, _note_v, _note_x
-from .stats import _slip_stats, _x_turn_closed
+from .state import Phases, Tones, _end_call, _note_v, _note_x
+from .stats import _slip_stats
 from .stick import _stick_exit_time, _stick_start, _stick_trial
 from .trig import _renorm, _sincos, _wrap
 from .whole_interval import _whole_interval
@@ -94,6 +99,79 @@ from .workspace import (
 )
 
 
+class Motion(NamedTuple):
+    """The scan's state between two steps: the mode (-1/+1: slip below/above the belt, 0:
+    stick), x, v, the slip acceleration v' (carried from a step's end to the next one's
+    start) and the tones' cos/sin."""
+
+    mode: float
+    x: float
+    v: float
+    acc: float
+    tones: Tones
+
+
+class ScanStep(NamedTuple):
+    """What bounds a scan step: its length ``L`` at most, the scan's cap, and whether it is a
+    regular step of the output grid (``on_grid``), whose transition ``reg`` and tones'
+    rotation ``rot`` are cached (4-tuples, see ``_regular_step``)."""
+
+    L: float
+    cap: float
+    on_grid: bool
+    reg: tuple[float, float, float, float]
+    rot: tuple[float, float, float, float]
+
+
+class StepEnd(NamedTuple):
+    """A scan step's outcome: its length ``tau``, whether it was halved, whether it is still
+    a regular grid step (``on_grid``), the switch that ended it (``layout.EVENT_*``, 0:
+    none) and the motion at its end."""
+
+    tau: float
+    halved: bool
+    on_grid: bool
+    kind: int
+    motion: Motion
+
+
+class Trend(NamedTuple):
+    """h = sd (v - V) and its first two derivatives at an instant."""
+
+    h: float
+    d: float
+    q: float
+
+
+class Curvature(NamedTuple):
+    """Bounds on v's second and third derivatives over a slip step, in absolute value."""
+
+    vdd: float
+    vddd: float
+
+
+class Trial(NamedTuple):
+    """A slip step's length once tried (``_slip_trial``): ``L``, whether it was halved,
+    whether it is still a regular grid step, v at its midpoint (0 on the grid, where the
+    caller takes it from the cached half step) and the state at its end."""
+
+    L: float
+    halved: bool
+    on_grid: bool
+    v_mid: float
+    end: Point
+
+
+class Extremum(NamedTuple):
+    """v's interior extremum on a slip step: its time ``t`` (-1 if not searched), v, h and
+    h'' there."""
+
+    t: float
+    v: float
+    h: float
+    q: float
+
+
 @kernel
 def _start_phases(S, cx):
     """The tones' cos/sin at the call's start: from the workspace's cache when the phase
@@ -108,7 +186,7 @@ def _start_phases(S, cx):
         c2, s2 = cx[W_C2], cx[W_S2]
     else:
         c2, s2 = math.cos(ph2), math.sin(ph2)
-    return c1, s1, c2, s2
+    return Tones(c1, s1, c2, s2)
 
 
 @kernel
@@ -126,12 +204,12 @@ def _run_exact(P, S, t_span, stats, max_events, rec, cx):
     _setup_context(P, cx)
     if cx[W_T_KEY + T_NEAR_RES] != 0.0 or cx[W_T_KEY2 + T_NEAR_RES] != 0.0:
         return _STATUS_NEAR_RESONANCE
-    c1, s1, c2, s2 = _start_phases(S, cx)
+    tones = _start_phases(S, cx)
     cap = _scan_cap(P, cx[W_SKIP_EXTREMA] == 1.0)
     if (not recording(rec) and cx[W_SKIP_EXTREMA] == 1.0 and (t_span > cap or S[S_MODE] == 0.0)
-            and _whole_interval(cx, S, t_span, stats, c1, s1, c2, s2)):
+            and _whole_interval(cx, S, t_span, stats, tones.c1, tones.s1, tones.c2, tones.s2)):
         return STATUS_OK
-    return _scan_exact(S, t_span, stats, max_events, rec, cx, cap, c1, s1, c2, s2)
+    return _scan_exact(S, t_span, stats, max_events, rec, cx, cap, tones)
 
 
 @kernel
@@ -199,42 +277,47 @@ def _closed_acc(cx, mode, x, v, c1, c2):
 
 
 @kernel(called_once=True)
-def _slip_trial(cx, L, cap, on_grid, reg, rot, sd, h0, d0, j0, vdd, vddd):
-    """Length of a closed-form slip step from the start in ``cx`` (``_slip_start``): L,
-    halved until the step may go to the contact search (``_one_extremum_at_most``).
+def _slip_trial(cx, step, sd, start, bound):
+    """The :class:`Trial` of a closed-form slip step from the start in ``cx``
+    (``_slip_start``; h there: the :class:`Trend` ``start``): ``step.L``, halved until the
+    step may go to the contact search (``_one_extremum_at_most``, with the
+    :class:`Curvature` bounds ``bound``).
 
-    ``on_grid``: a regular scan step, whose transition ``reg`` and rotation ``rot`` are
-    cached; off the grid (and once halved) both are computed, with v at the midpoint for
-    the quadrature (else 0: the caller takes it from the cached half step). Returns (L,
-    halved, on_grid, v_mid and the state, its derivatives and the tones' cos/sin at L).
+    On the grid (``step.on_grid``) the cached transition and rotation are used; off it (and
+    once halved) both are computed, with v at the midpoint for the quadrature.
     """
     V = cx[C_V]
+    L = step.L
+    on_grid = step.on_grid
     halved = False
     v_mid = 0.0
     while True:
         if on_grid:
+            rot = step.rot
             nc1, ns1, nc2, ns2 = _rotate(cx, rot[0], rot[1], rot[2], rot[3])
             nc1, ns1 = _renorm(nc1, ns1)
             nc2, ns2 = _renorm(nc2, ns2)
-            x1, v1, a1, j1 = _slip_with(cx, L, reg[0], reg[1], reg[2], reg[3], nc1, ns1, nc2,
-                                        ns2)
+            tones = Tones(nc1, ns1, nc2, ns2)
+            x1, v1, a1, j1 = _slip_with(cx, L, step.reg, tones)
+            end = Point(x1, v1, a1, j1, tones)
         else:
-            v_mid, x1, v1, a1, j1, nc1, ns1, nc2, ns2 = _slip_mid_and_end(cx, L)
-        h1 = sd * (v1 - V)
-        d1 = sd * a1
-        if _one_extremum_at_most(h0, d0, h1, d1, sd * j0, sd * j1, L, vdd, vddd, cap):
+            v_mid, end = _slip_mid_and_end(cx, L)
+        h1 = sd * (end.v - V)
+        d1 = sd * end.acc
+        if _one_extremum_at_most(start.h, start.d, h1, d1, start.q, sd * end.jerk, L,
+                                 bound.vdd, bound.vddd, step.cap):
             break
         L *= 0.5
         halved = True
         on_grid = False
-    return L, halved, on_grid, v_mid, x1, v1, a1, j1, nc1, ns1, nc2, ns2
+    return Trial(L, halved, on_grid, v_mid, end)
 
 
 @kernel(called_once=True)
-def _slip_v_extremum(cx, stats, sd, L, v, v1, acc, a1, j0, j1, h0, h1, vdd, c1, s1, c2, s2,
-                     nc1, ns1, nc2, ns2):
-    """v's interior extremum on a slip step where the contact search or the statistics
-    need it: (t_ext, v_ext, h_ext, h'' there), t_ext = -1 if not searched.
+def _slip_v_extremum(cx, stats, sd, L, p0, p1, vdd):
+    """v's interior extremum on a slip step of length L from ``p0`` to ``p1``
+    (:class:`~fricenv.core.closed_form.Point`), where the contact search or the statistics
+    need it: an :class:`Extremum` (its time -1 if not searched).
 
     A caller that reads no extrema needs v's extremum only to tell whether and where h
     first reaches 0: not when h changes sign over the step, as h (one extremum at most)
@@ -242,76 +325,97 @@ def _slip_v_extremum(cx, stats, sd, L, v, v1, acc, a1, j0, j1, h0, h1, vdd, c1, 
     """
     V = cx[C_V]
     lam = cx[C_LAM]
+    acc = p0.acc
+    a1 = p1.acc
+    j0 = p0.jerk
+    j1 = p1.jerk
+    h0 = sd * (p0.v - V)
+    h1 = sd * (p1.v - V)
     t_ext = -1.0
     v_ext = 0.0
     h_ext = 0.0
     q_ext = 0.0
     crossing = h0 > 0.0 and h1 < 0.0 and cx[W_SKIP_EXTREMA] == 1.0
-    if acc * a1 < 0.0 and not crossing and _extremum_matters(cx, stats, sd, v, v1, acc, a1, L,
-                                                             V, vdd):
+    if acc * a1 < 0.0 and not crossing and _extremum_matters(cx, stats, sd, p0.v, p1.v, acc,
+                                                             a1, L, V, vdd):
         # third derivative of v: -lam v'' - v' + g''
-        _, _, gdd0 = _forcing(cx, c1, s1, c2, s2)
-        _, _, gdd1 = _forcing(cx, nc1, ns1, nc2, ns2)
+        t0 = p0.tones
+        t1 = p1.tones
+        _, _, gdd0 = _forcing(cx, t0.c1, t0.s1, t0.c2, t0.s2)
+        _, _, gdd1 = _forcing(cx, t1.c1, t1.s1, t1.c2, t1.s2)
         t_ext = _extremum_closed(cx, K_SLIP_V, 0.0, L, acc, a1, j0, j1,
                                  gdd0 - lam * j0 - acc, gdd1 - lam * j1 - a1)
         _, v_ext, _, j_ext = _slip_at(cx, t_ext)
         h_ext = sd * (v_ext - V)
         q_ext = sd * j_ext
-    return t_ext, v_ext, h_ext, q_ext
+    return Extremum(t_ext, v_ext, h_ext, q_ext)
 
 
 @kernel(called_once=True)
-def _slip_step(cx, stats, fresh, L, cap, on_grid, reg, rot, x, v, acc, c1, s1, c2, s2, sd):
-    """One closed-form slip step of at most L from (x, v) in direction ``sd``, tones at
-    (c_i, s_i), up to a contact if one comes first.
-
-    Returns (tau, halved, on_grid, event kind (0: none), mode, x, v, v', tones' cos/sin)
-    at the step's end, tau its length.
-    """
+def _slip_step(cx, stats, fresh, step, m):
+    """One closed-form slip step from the :class:`Motion` ``m`` (direction ``m.mode``),
+    bounded by the :class:`ScanStep` ``step``, up to a contact if one comes first; its
+    :class:`StepEnd`."""
     V = cx[C_V]
-    _slip_start(cx, x, v, c1, s1, c2, s2, sd)
+    sd = m.mode
+    x = m.x
+    v = m.v
+    acc = m.acc
+    tones = m.tones
+    _slip_start(cx, x, v, tones, sd)
     h0 = sd * (v - V)
     d0 = _start_slope(cx, fresh, h0, sd * acc, x, v)
-    j0 = _jerk(cx, v, acc, s1, s2)
+    j0 = _jerk(cx, v, acc, tones.s1, tones.s2)
     r_h = math.sqrt(cx[C_DX] * cx[C_DX] + cx[C_DV] * cx[C_DV])
     vdd = cx[C_VDD_P] + cx[C_VDD_H] * r_h  # bounds |v''| on the step
     vddd = cx[C_VDDD_P] + cx[C_VDDD_H] * r_h  # bounds |v'''|
-    L, halved, on_grid, v_mid, x1, v1, a1, j1, nc1, ns1, nc2, ns2 = _slip_trial(
-        cx, L, cap, on_grid, reg, rot, sd, h0, d0, j0, vdd, vddd)
-    h1 = sd * (v1 - V)
-    d1 = sd * a1
-    t_ext, v_ext, h_ext, q_ext = _slip_v_extremum(cx, stats, sd, L, v, v1, acc, a1, j0, j1,
-                                                  h0, h1, vdd, c1, s1, c2, s2, nc1, ns1, nc2,
-                                                  ns2)
-    te = _contact_time(_root_closed, cx, K_SLIP_H, L, (h0, d0, sd * j0), (h1, d1, sd * j1),
-                       (t_ext, h_ext, q_ext))
+    trial = _slip_trial(cx, step, sd, Trend(h0, d0, sd * j0), Curvature(vdd, vddd))
+    L = trial.L
+    p0 = Point(x, v, acc, j0, tones)
+    p1 = trial.end
+    h1 = sd * (p1.v - V)
+    d1 = sd * p1.acc
+    ext = _slip_v_extremum(cx, stats, sd, L, p0, p1, vdd)
+    te = _contact_time(_root_closed, cx, K_SLIP_H, L, (h0, d0, sd * j0),
+                       (h1, d1, sd * p1.jerk), (ext.t, ext.h, ext.q))
+    if te >= 0.0:  # the step ends at the contact, where v = V
+        v_mid, pe = _slip_mid_and_end(cx, te)
+        tau = te
+        p_end = Point(pe.x, V, pe.acc, pe.jerk, pe.tones)
+    else:
+        tau = L
+        p_end = p1
+        v_mid = trial.v_mid
+        if trial.on_grid:
+            mc1, ms1, mc2, ms2 = _rotate(cx, cx[W_MC1], cx[W_MS1], cx[W_MC2], cx[W_MS2])
+            _, v_mid, _, _ = _slip_with(cx, 0.5 * L,
+                                        (cx[W_M11], cx[W_M12], cx[W_M21], cx[W_M22]),
+                                        Tones(mc1, ms1, mc2, ms2))
+    _slip_stats(cx, stats, tau, ext, p0, p_end, v_mid)
     if te >= 0.0:
-        v_mid, xe, _, ae, je, ec1, es1, ec2, es2 = _slip_mid_and_end(cx, te)
-        _slip_stats(_x_turn_closed, cx, stats, te, t_ext, v_ext, v, acc, j0, V, ae, je, xe,
-                    v_mid, V)
-        new_mode, kind = _contact_outcome(cx, stats, xe, ec1, es1, ec2, es2, sd)
-        return (te, halved, False, kind, new_mode, xe, V,
-                _closed_acc(cx, new_mode, xe, V, ec1, ec2), ec1, es1, ec2, es2)
-    if on_grid:
-        mc1, ms1, mc2, ms2 = _rotate(cx, cx[W_MC1], cx[W_MS1], cx[W_MC2], cx[W_MS2])
-        _, v_mid, _, _ = _slip_with(cx, 0.5 * L, cx[W_M11], cx[W_M12], cx[W_M21], cx[W_M22],
-                                    mc1, ms1, mc2, ms2)
-    _slip_stats(_x_turn_closed, cx, stats, L, t_ext, v_ext, v, acc, j0, v1, a1, j1, x1, v_mid,
-                V)
+        xe = p_end.x
+        te_tones = p_end.tones
+        new_mode, kind = _contact_outcome(cx, stats, xe, te_tones.c1, te_tones.s1, te_tones.c2,
+                                          te_tones.s2, sd)
+        a_new = _closed_acc(cx, new_mode, xe, V, te_tones.c1, te_tones.c2)
+        return StepEnd(te, trial.halved, False, kind, Motion(new_mode, xe, V, a_new, te_tones))
     # a slip state has sd (v - V) >= 0; v1 may be a few ulps short of V where
     # _unresolved_return saw no contact
-    v_end = v1 if sd * (v1 - V) >= 0.0 else V
-    return L, halved, on_grid, 0, sd, x1, v_end, a1, nc1, ns1, nc2, ns2
+    v_end = p1.v if sd * (p1.v - V) >= 0.0 else V
+    return StepEnd(L, trial.halved, trial.on_grid, 0, Motion(sd, p1.x, v_end, p1.acc, p1.tones))
 
 
 @kernel(called_once=True)
-def _stick_step(cx, stats, L, cap, on_grid, rot, x, v, acc, c1, s1, c2, s2, mode):
-    """One exact stick step of at most L from x, tones at (c_i, s_i), up to the stick's
-    end if it comes first; returns as ``_slip_step``."""
+def _stick_step(cx, stats, step, m):
+    """One exact stick step from the :class:`Motion` ``m``, bounded by the
+    :class:`ScanStep` ``step``, up to the stick's end if it comes first; its
+    :class:`StepEnd`."""
     V = cx[C_V]
-    f0, fd0, gdd0 = _stick_start(cx, x, c1, s1, c2, s2)
+    x = m.x
+    tones = m.tones
+    f0, fd0, gdd0 = _stick_start(cx, x, tones.c1, tones.s1, tones.c2, tones.s2)
     L, halved, on_grid, held, x1, f1, fd1, gdd1, nc1, ns1, nc2, ns2 = _stick_trial(
-        cx, L, cap, on_grid, rot, True, f0, fd0, gdd0)
+        cx, step.L, step.cap, step.on_grid, step.rot, True, f0, fd0, gdd0)
     te = -1.0 if held else _stick_exit_time(cx, L, f0, fd0, gdd0, f1, fd1, gdd1)
     if te >= 0.0:
         xe = x + V * te
@@ -320,18 +424,20 @@ def _stick_step(cx, stats, L, cap, on_grid, rot, x, v, acc, c1, s1, c2, s2, mode
         _note_v(stats, V)
         ec1, es1, ec2, es2 = _rotate_by(cx, te)
         mode = _stick_outcome(cx, stats, xe, ec1, ec2)
-        return (te, halved, False, EVENT_SLIP, mode, xe, V,
-                _closed_acc(cx, mode, xe, V, ec1, ec2), ec1, es1, ec2, es2)
+        a_new = _closed_acc(cx, mode, xe, V, ec1, ec2)
+        return StepEnd(te, halved, False, EVENT_SLIP,
+                       Motion(mode, xe, V, a_new, Tones(ec1, es1, ec2, es2)))
     stats[ST_STICK_TIME] += L
     _note_x(stats, x1)
     _note_v(stats, V)
-    return L, halved, on_grid, 0, mode, x1, v, acc, nc1, ns1, nc2, ns2
+    return StepEnd(L, halved, on_grid, 0, Motion(m.mode, x1, m.v, m.acc,
+                                                  Tones(nc1, ns1, nc2, ns2)))
 
 
 @kernel
-def _scan_exact(S, t_span, stats, max_events, rec, cx, cap, c1, s1, c2, s2):
+def _scan_exact(S, t_span, stats, max_events, rec, cx, cap, tones):
     """The closed-form scan of ``_run_exact``, from its context (``cx``), the scan cap and
-    the tones' cos/sin at the start.
+    the tones' cos/sin at the start (:class:`~fricenv.core.state.Tones`).
 
     Steps are aligned with the output grid (``rec.out_t``, or the single interval [t, t +
     t_span] when ``rec`` is empty), each output interval split into equal scan steps whose
@@ -368,7 +474,8 @@ def _scan_exact(S, t_span, stats, max_events, rec, cx, cap, c1, s1, c2, s2):
     _note_v(stats, v)
     _note_x(stats, x)
     _write_output(rec, 0, x, v, mode)
-    acc = _closed_acc(cx, mode, x, v, c1, c2)  # at the step start (slip), carried
+    # acc: at the step start (slip), carried
+    m = Motion(mode, x, v, _closed_acc(cx, mode, x, v, tones.c1, tones.c2), tones)
     for j in range(n_int):
         ta, tb = _grid_interval(rec, j, n_int, origin, t_stop)
         length = tb - ta
@@ -376,12 +483,12 @@ def _scan_exact(S, t_span, stats, max_events, rec, cx, cap, c1, s1, c2, s2):
             continue
         regular_interval = abs(length - dt_reg) <= GRID_REL_TOL * dt_reg
         if regular_interval:
-            m = m_reg
+            n_steps = m_reg
         else:
-            m = max(1, int(math.ceil(length / cap - COUNT_SLACK)))
-        hk = length / m
-        for k in range(1, m + 1):
-            tk = tb if k == m else ta + k * hk
+            n_steps = max(1, int(math.ceil(length / cap - COUNT_SLACK)))
+        hk = length / n_steps
+        for k in range(1, n_steps + 1):
+            tk = tb if k == n_steps else ta + k * hk
             on_grid = regular_interval
             while t < tk:
                 n_call += 1.0
@@ -394,26 +501,27 @@ def _scan_exact(S, t_span, stats, max_events, rec, cx, cap, c1, s1, c2, s2):
                         break
                     n_check = n_call + (n_next - n_used)
                 stats[ST_N_STEPS] += 1.0
-                if mode != 0.0:
-                    tau, halved, on_grid, kind, mode, x, v, acc, c1, s1, c2, s2 = _slip_step(
-                        cx, stats, fresh, tk - t, cap, on_grid, reg, rot, x, v, acc, c1, s1,
-                        c2, s2, mode)
+                step = ScanStep(tk - t, cap, on_grid, reg, rot)
+                if m.mode != 0.0:
+                    end = _slip_step(cx, stats, fresh, step, m)
                 else:
-                    tau, halved, on_grid, kind, mode, x, v, acc, c1, s1, c2, s2 = _stick_step(
-                        cx, stats, tk - t, cap, on_grid, rot, x, v, acc, c1, s1, c2, s2, mode)
+                    end = _stick_step(cx, stats, step, m)
+                m = end.motion
+                on_grid = end.on_grid
+                tau = end.tau
                 ph1 = _wrap(ph1 + w1 * tau)
                 ph2 = _wrap(ph2 + w2 * tau)
-                if kind != 0:
+                if end.kind != 0:
                     t = t + tau
                     fresh = True
                     n_events += 1
-                    status = _log_event(rec, t_start + t, kind, x, n_events, max_events)
+                    status = _log_event(rec, t_start + t, end.kind, m.x, n_events, max_events)
                     if status != STATUS_OK:
                         break
                     continue
-                t = t + tau if halved else tk
+                t = t + tau if end.halved else tk
                 fresh = False
-                if not (math.isfinite(x) and math.isfinite(v)):
+                if not (math.isfinite(m.x) and math.isfinite(m.v)):
                     status = STATUS_NONFINITE
                     break
             if status != STATUS_OK:
@@ -421,9 +529,9 @@ def _scan_exact(S, t_span, stats, max_events, rec, cx, cap, c1, s1, c2, s2):
         if status != STATUS_OK:
             break
         if recording(rec):
-            _write_output(rec, j + 1, x, v, mode)
+            _write_output(rec, j + 1, m.x, m.v, m.mode)
             rec.counts[1] = j + 2
-            n_grid += max(0.0, m - length / cap)
+            n_grid += max(0.0, n_steps - length / cap)
     stats[ST_DURATION] += t
-    _end_call(S, cx, t_start + t, x, v, mode, ph1, c1, s1, ph2, c2, s2)
+    _end_call(S, cx, t_start + t, m.x, m.v, m.mode, Phases(ph1, ph2, m.tones))
     return status

@@ -7,6 +7,8 @@ own compiled searches: the closed form of a Coulomb slip step and the exact stic
 an event step (``..._dense``). A Coulomb run thus compiles no Taylor code.
 """
 
+from typing import NamedTuple
+
 from ..jit import kernel
 from .closed_form import _slip_at, _stick_at
 from .constants import EVENT_REL_TOL, EXTREMUM_REL_TOL, MAX_ROOT_ITER, TINY
@@ -19,6 +21,20 @@ K_SLIP_V = 1  # slip (closed form): v
 K_STICK_F = 2  # stick: f = -lam V - x + g
 K_DENSE_H = 3  # slip (Taylor polynomial of the step): h = sd * (v - V)
 K_DENSE_V = 4  # slip (Taylor polynomial of the step): v
+
+
+class Bracket(NamedTuple):
+    """A bracket [lo, hi] of a root of F: F at both ends (opposite signs, or ``fhi`` 0), and
+    F' and F'' there (NaN if unknown), which place the search's first point."""
+
+    lo: float
+    hi: float
+    flo: float
+    fhi: float
+    dlo: float
+    dhi: float
+    qlo: float
+    qhi: float
 
 
 @kernel
@@ -75,20 +91,23 @@ def _hermite_root(flo, fhi, dlo, dhi, qlo, qhi, H):
 
 
 @kernel(takes_kernels=True)
-def _bracket_with(feval, cx, kind, deriv, offset, lo, hi, flo, fhi, dlo, dhi, qlo, qhi,
-                  rel_tol):
-    """Shrink a bracket [lo, hi] of a root of F to rounding level; return (lo, hi).
+def _bracket_with(feval, cx, kind, deriv, offset, br, rel_tol):
+    """Shrink the :class:`Bracket` ``br`` of a root of F to rounding level; return (lo, hi).
 
     ``feval(cx, kind, tau)`` gives the searched function's value and first two derivatives
     (a family's evaluator: ``_feval_closed`` or ``_feval_dense``). F is ``value - offset``
     (deriv = 0) or the first derivative (deriv = 1) of ``kind``;
-    ``flo`` and ``fhi`` have opposite signs or ``fhi`` is 0; F' and F'' at the ends
-    (``dlo``, ``dhi``, ``qlo``, ``qhi``, NaN if unknown) place the first point. Halley
+    ``br.flo`` and ``br.fhi`` have opposite signs or ``fhi`` is 0; F' and F'' at the ends
+    (NaN if unknown) place the first point. Halley
     steps (Newton steps for a derivative's root) from the last point, kept inside the
     bracket, fall back to bisection; once a step is below half the
     tolerance the next point is placed just past the root so the bracket closes from both
     sides. The returned ``hi`` is on ``fhi``'s side of the root.
     """
+    lo = br.lo
+    hi = br.hi
+    flo = br.flo
+    fhi = br.fhi
     if fhi == 0.0:
         return hi, hi
     if flo == 0.0:
@@ -98,7 +117,7 @@ def _bracket_with(feval, cx, kind, deriv, offset, lo, hi, flo, fhi, dlo, dhi, ql
     # off the ends): a step is short against the curvature, so either is already close
     # and Halley needs few iterations (measured, self_excited: 2.5 evaluations a contact
     # search and 2.4 a stick exit's, instead of 4.2 and 4.1 from the secant point)
-    frac = _hermite_root(flo, fhi, dlo, dhi, qlo, qhi, hi - lo)
+    frac = _hermite_root(flo, fhi, br.dlo, br.dhi, br.qlo, br.qhi, hi - lo)
     if not 0.0 < frac < 1.0:
         frac = min(0.95, max(0.05, flo / (flo - fhi)))
     t = lo + (hi - lo) * frac
@@ -137,24 +156,22 @@ def _bracket_with(feval, cx, kind, deriv, offset, lo, hi, flo, fhi, dlo, dhi, ql
 
 
 @kernel
-def _bracket_closed(cx, kind, deriv, offset, lo, hi, flo, fhi, dlo, dhi, qlo, qhi, rel_tol):
+def _bracket_closed(cx, kind, deriv, offset, br, rel_tol):
     """``_bracket_with`` on the closed form (K_SLIP_H, K_SLIP_V, K_STICK_F)."""
-    return _bracket_with(_feval_closed, cx, kind, deriv, offset, lo, hi, flo, fhi, dlo, dhi,
-                         qlo, qhi, rel_tol)
+    return _bracket_with(_feval_closed, cx, kind, deriv, offset, br, rel_tol)
 
 
 @kernel
-def _bracket_dense(cx, kind, deriv, offset, lo, hi, flo, fhi, dlo, dhi, qlo, qhi, rel_tol):
+def _bracket_dense(cx, kind, deriv, offset, br, rel_tol):
     """``_bracket_with`` on a Taylor step's polynomial (K_DENSE_H, K_DENSE_V)."""
-    return _bracket_with(_feval_dense, cx, kind, deriv, offset, lo, hi, flo, fhi, dlo, dhi,
-                         qlo, qhi, rel_tol)
+    return _bracket_with(_feval_dense, cx, kind, deriv, offset, br, rel_tol)
 
 
 @kernel
 def _root_closed(cx, kind, offset, lo, hi, flo, fhi, dlo, dhi, qlo, qhi):
     """Point of a bracket of a root of ``kind`` - offset on ``fhi``'s side (where the
     switch has happened); its derivatives at the ends as in ``_bracket_with``."""
-    _, b = _bracket_closed(cx, kind, 0, offset, lo, hi, flo, fhi, dlo, dhi, qlo, qhi,
+    _, b = _bracket_closed(cx, kind, 0, offset, Bracket(lo, hi, flo, fhi, dlo, dhi, qlo, qhi),
                            EVENT_REL_TOL)
     return b
 
@@ -162,7 +179,7 @@ def _root_closed(cx, kind, offset, lo, hi, flo, fhi, dlo, dhi, qlo, qhi):
 @kernel
 def _root_dense(cx, kind, offset, lo, hi, flo, fhi, dlo, dhi, qlo, qhi):
     """``_root_closed`` on a Taylor step's polynomial."""
-    _, b = _bracket_dense(cx, kind, 0, offset, lo, hi, flo, fhi, dlo, dhi, qlo, qhi,
+    _, b = _bracket_dense(cx, kind, 0, offset, Bracket(lo, hi, flo, fhi, dlo, dhi, qlo, qhi),
                           EVENT_REL_TOL)
     return b
 
@@ -171,7 +188,7 @@ def _root_dense(cx, kind, offset, lo, hi, flo, fhi, dlo, dhi, qlo, qhi):
 def _extremum_closed(cx, kind, lo, hi, dlo, dhi, ddlo, ddhi, dddlo, dddhi):
     """Relative time of the extremum of ``kind`` in [lo, hi], from its derivative's signs
     (``dlo``, ``dhi``), and its second and third derivatives there (NaN if unknown)."""
-    a, b = _bracket_closed(cx, kind, 1, 0.0, lo, hi, dlo, dhi, ddlo, ddhi, dddlo, dddhi,
+    a, b = _bracket_closed(cx, kind, 1, 0.0, Bracket(lo, hi, dlo, dhi, ddlo, ddhi, dddlo, dddhi),
                            EXTREMUM_REL_TOL)
     return 0.5 * (a + b)
 
@@ -179,6 +196,6 @@ def _extremum_closed(cx, kind, lo, hi, dlo, dhi, ddlo, ddhi, dddlo, dddhi):
 @kernel
 def _extremum_dense(cx, kind, lo, hi, dlo, dhi, ddlo, ddhi, dddlo, dddhi):
     """``_extremum_closed`` on a Taylor step's polynomial."""
-    a, b = _bracket_dense(cx, kind, 1, 0.0, lo, hi, dlo, dhi, ddlo, ddhi, dddlo, dddhi,
+    a, b = _bracket_dense(cx, kind, 1, 0.0, Bracket(lo, hi, dlo, dhi, ddlo, ddhi, dddlo, dddhi),
                           EXTREMUM_REL_TOL)
     return 0.5 * (a + b)

@@ -1,6 +1,7 @@
 """The state vector S and the statistics: initial mode, stick force, extrema, write-back."""
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 
@@ -8,6 +9,23 @@ from ..jit import kernel
 from ..layout import S_MODE, S_PHI1, S_PHI2, S_T, S_V, S_X, ST_V_MAX, ST_V_MIN, ST_X_MAX, ST_X_MIN
 from ..params import P_LAM, P_U1, P_U2, P_V, P_XFS
 from .workspace import W_C1, W_C2, W_PH1, W_PH2, W_S1, W_S2
+
+
+class Tones(NamedTuple):
+    """The cos and sin of both tones' phases at one instant."""
+
+    c1: float
+    s1: float
+    c2: float
+    s2: float
+
+
+class Phases(NamedTuple):
+    """Both tones' phase angles (wrapped) and their cos/sin: what a call ends on."""
+
+    ph1: float
+    ph2: float
+    tones: Tones
 
 
 @kernel
@@ -63,14 +81,17 @@ def initial_mode(P, x, v, phi1, phi2):
     return 1.0 if f > 0.0 else -1.0
 
 @kernel
-def _end_call(S, cx, t, x, v, mode, ph1, c1, s1, ph2, c2, s2):
+def _end_call(S, cx, t, x, v, mode, phases):
     """Write the state reached back to S, and the tones' cos/sin to the workspace's cache
     (keyed on the phase angles, so the next call starting there skips four libm calls)."""
+    ph1 = phases.ph1
+    ph2 = phases.ph2
+    tones = phases.tones
     S[S_T] = t
     S[S_X] = x
     S[S_V] = v
     S[S_MODE] = mode
     S[S_PHI1] = ph1
     S[S_PHI2] = ph2
-    cx[W_PH1], cx[W_C1], cx[W_S1] = ph1, c1, s1
-    cx[W_PH2], cx[W_C2], cx[W_S2] = ph2, c2, s2
+    cx[W_PH1], cx[W_C1], cx[W_S1] = ph1, tones.c1, tones.s1
+    cx[W_PH2], cx[W_C2], cx[W_S2] = ph2, tones.c2, tones.s2

@@ -6,44 +6,47 @@ from ..jit import kernel
 from ..layout import ST_VR2_INT, ST_X_MAX, ST_X_MIN
 from .closed_form import _slip_at
 from .constants import EXTREMUM_REL_TOL, REACH_SLACK
-from .roots import K_DENSE_V, K_SLIP_V, _bracket_closed, _bracket_dense
+from .roots import K_DENSE_V, K_SLIP_V, Bracket, _bracket_closed, _bracket_dense
 from .state import _note_v, _note_x
 from .taylor import _dense_x
-from .workspace import C_XA, W_SKIP_EXTREMA, W_SKIP_VR2
+from .workspace import C_V, C_XA, W_SKIP_EXTREMA, W_SKIP_VR2
+
+NAN = math.nan
 
 
 @kernel
-def _x_turn_closed(cx, a, b, va, vb):
-    """x where v of the closed-form slip step changes sign in [a, b] (v = va, vb there)."""
-    t = _bracket_closed(cx, K_SLIP_V, 0, 0.0, a, b, va, vb, math.nan, math.nan, math.nan,
-                        math.nan, EXTREMUM_REL_TOL)[1]
+def _x_turn_closed(cx, piece):
+    """x where v of the closed-form slip step changes sign in ``piece`` (see
+    ``_x_extrema_between``)."""
+    t = _bracket_closed(cx, K_SLIP_V, 0, 0.0, piece, EXTREMUM_REL_TOL)[1]
     x, _, _, _ = _slip_at(cx, t)
     return x
 
 
 @kernel
-def _x_turn_dense(cx, a, b, va, vb):
-    """x where v of the current Taylor step changes sign in [a, b] (v = va, vb there)."""
-    t = _bracket_dense(cx, K_DENSE_V, 0, 0.0, a, b, va, vb, math.nan, math.nan, math.nan,
-                       math.nan, EXTREMUM_REL_TOL)[1]
+def _x_turn_dense(cx, piece):
+    """x where v of the current Taylor step changes sign in ``piece`` (see
+    ``_x_extrema_between``)."""
+    t = _bracket_dense(cx, K_DENSE_V, 0, 0.0, piece, EXTREMUM_REL_TOL)[1]
     return _dense_x(cx, t)
 
 
 @kernel(takes_kernels=True)
-def _x_extrema_between(x_turn, cx, stats, a, b, va, vb, vabs):
-    """Displacement extremum where v changes sign on a monotone piece [a, b] of v
-    (``x_turn``: ``_x_turn_closed`` or ``_x_turn_dense``, the step's family).
+def _x_extrema_between(x_turn, cx, stats, piece, vabs):
+    """Displacement extremum where v changes sign on a monotone piece of v: ``piece`` is
+    the :class:`~fricenv.core.roots.Bracket` [lo, hi] with v at its ends, ``x_turn``
+    (``_x_turn_closed`` or ``_x_turn_dense``, the step's family) finds x there.
 
-    ``vabs`` bounds |v| over the whole step, so |x - x(0)| <= vabs * b: when that cannot
+    ``vabs`` bounds |v| over the whole step, so |x - x(0)| <= vabs * hi: when that cannot
     reach past the recorded extrema the search is skipped (it matters once the motion
     has decayed to rounding noise, where v flips sign every step).
     """
-    if va * vb < 0.0:
+    if piece.flo * piece.fhi < 0.0:
         x0 = cx[C_XA]
-        reach = vabs * b * REACH_SLACK
+        reach = vabs * piece.hi * REACH_SLACK
         if x0 + reach <= stats[ST_X_MAX] and x0 - reach >= stats[ST_X_MIN]:
             return
-        _note_x(stats, x_turn(cx, a, b, va, vb))
+        _note_x(stats, x_turn(cx, piece))
 
 
 @kernel(takes_kernels=True)
@@ -57,25 +60,37 @@ def _slip_extrema(x_turn, cx, stats, tau_e, t_ext, v_ext, v0, v1, x1):
     elif 0.0 <= t_ext <= tau_e:
         _note_v(stats, v_ext)
         vabs = max(abs(v0), abs(v_ext), abs(v1))
-        _x_extrema_between(x_turn, cx, stats, 0.0, t_ext, v0, v_ext, vabs)
-        _x_extrema_between(x_turn, cx, stats, t_ext, tau_e, v_ext, v1, vabs)
+        # (the pieces with v at their ends; v' and v'' there are not needed)
+        _x_extrema_between(x_turn, cx, stats, Bracket(0.0, t_ext, v0, v_ext, NAN, NAN, NAN,
+                                                      NAN), vabs)
+        _x_extrema_between(x_turn, cx, stats, Bracket(t_ext, tau_e, v_ext, v1, NAN, NAN, NAN,
+                                                      NAN), vabs)
     else:
-        _x_extrema_between(x_turn, cx, stats, 0.0, tau_e, v0, v1, max(abs(v0), abs(v1)))
+        _x_extrema_between(x_turn, cx, stats, Bracket(0.0, tau_e, v0, v1, NAN, NAN, NAN, NAN),
+                           max(abs(v0), abs(v1)))
 
-@kernel(takes_kernels=True)
-def _slip_stats(x_turn, cx, stats, tau_e, t_ext, v_ext, v0, a0, j0, v1, a1, j1, x1, v_mid, V):
-    """Extrema and the (v - V)^2 integral over a slip step [0, tau_e].
+@kernel(called_once=True)
+def _slip_stats(cx, stats, tau_e, ext, p0, p1, v_mid):
+    """Extrema and the (v - V)^2 integral over a closed-form slip step [0, tau_e] (the
+    event method's steps have their own: ``_slip_extrema`` and the series' integral).
 
-    v, v', v'' at both ends, and v at the midpoint unless ``v_mid`` is NaN.
+    ``p0``, ``p1``: the states at both ends (``closed_form.Point``: v, v', v'' are read,
+    and x at the end); ``ext``: v's interior extremum (``exact.Extremum``: its time, < 0
+    if none, and v); v at the midpoint ``v_mid`` unless NaN.
     """
-    _slip_extrema(x_turn, cx, stats, tau_e, t_ext, v_ext, v0, v1, x1)
+    _slip_extrema(_x_turn_closed, cx, stats, tau_e, ext.t, ext.v, p0.v, p1.v, p1.x)
     if cx[W_SKIP_VR2] == 1.0:
         return
     # Hermite quadrature of y = (v - V)^2 from y, y', y'' at both ends and, if given, y at
     # the midpoint: exact for degree 7 (5 without the midpoint). y' = 2 (v - V) a and
     # y'' = 2 (a^2 + (v - V) j), with a = v', j = v''.
-    r0 = v0 - V
-    r1 = v1 - V
+    V = cx[C_V]
+    a0 = p0.acc
+    j0 = p0.jerk
+    a1 = p1.acc
+    j1 = p1.jerk
+    r0 = p0.v - V
+    r1 = p1.v - V
     dy0 = 2.0 * r0 * a0
     dy1 = 2.0 * r1 * a1
     ddy0 = 2.0 * (a0 * a0 + r0 * j0)

@@ -36,7 +36,7 @@ from ..layout import (
 from .closed_form import _homog, _particular
 from .constants import E1_SERIES_MAX_R2, I_MARGIN, I_P2_MIN, TWO_PI
 from .proofs import _stays_positive
-from .state import _end_call, _note_v, _note_x
+from .state import Phases, Tones, _end_call, _note_v, _note_x
 from .trig import _INV, _renorm, _sincos_long, _wrap
 from .workspace import (
     C_KC1,
@@ -291,6 +291,7 @@ def _whole_interval(cx, S, T, stats, c1, s1, c2, s2):
     _note_x(stats, x)
     _note_v(stats, v1)
     _note_x(stats, x1)
-    _end_call(S, cx, S[S_T] + T, x1, v1, sd, _wrap(S[S_PHI1] + w1 * T), nc1, ns1,
-              _wrap(S[S_PHI2] + w2 * T), nc2, ns2)
+    _end_call(S, cx, S[S_T] + T, x1, v1, sd, Phases(_wrap(S[S_PHI1] + w1 * T),
+                                                    _wrap(S[S_PHI2] + w2 * T),
+                                                    Tones(nc1, ns1, nc2, ns2)))
     return True

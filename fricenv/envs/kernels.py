@@ -2,9 +2,10 @@
 
 The single environment and the native vector environment call the same inner functions, so
 they agree bit for bit. The step kernels allocate nothing of their own (only
-``sample_interval``, used for rendering, works on copies) and run on the physics core's
-stats-only path (``core.advance``): an environment step integrates to the next control
-instant and keeps no trajectory.
+``sample_interval_with``, used for rendering, works on copies) and run on the physics
+core's stats-only path (an entry kernel such as ``core.advance_exact_ws``, passed in): an
+environment step integrates to the next control instant and keeps no trajectory. A plant's
+arrays travel between the kernels as one :class:`Plant`.
 
 Kernels that allocate nothing are compiled without numba's reference-counting runtime
 (``_nrt=False``, see ``fricenv.jit``): otherwise every per-plant call does atomic count
@@ -17,12 +18,12 @@ package's source (``fricenv._numba_cache``), so editing the core recompiles them
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 
 from fricenv.core import (
-    advance,
-    advance_ws,
+    Solver,
     fresh_workspace,
     initial_mode,
     initial_state,
@@ -85,6 +86,7 @@ from fricenv.envs.tables import (  # noqa: F401
     IV_MODE,
     IV_N_EMPTY,
     IV_N_RESET,
+    IV_N_TASKS,
     N_CFG,
     N_COUNTERS,
     N_FLAGS,
@@ -220,21 +222,37 @@ def _method(P, cfg) -> int:
     return METHOD_EVENT
 
 
+class Plant(NamedTuple):
+    """One plant's arrays, as the step kernels pass them on: parameters ``P`` (layout
+    ``params.P_*``), state ``S``, excitation setting ``ctrl`` (u0, nu), the last interval's
+    ``stats`` and the core's workspace ``work``. Built inside the kernels from their array
+    arguments (a record passed from Python costs its call about 0.6 us more to dispatch)."""
+
+    P: np.ndarray
+    S: np.ndarray
+    ctrl: np.ndarray
+    stats: np.ndarray
+    work: np.ndarray
+
+
 @kernel(takes_kernels=True)
-def control_interval(advance_ws, P, S, ctrl, cfg, a, stats, res, work) -> int:
-    """Apply action ``a``, advance one control interval by the core's entry kernel
-    ``advance_ws`` (see :mod:`fricenv.envs.steppers`), fill the reward terms in ``res``.
+def control_interval(advance_ws, plant, cfg, a, res) -> int:
+    """Apply action ``a``, advance ``plant`` one control interval by the core's entry
+    kernel ``advance_ws`` (see :mod:`fricenv.envs.steppers`), fill the reward terms in
+    ``res``.
 
     Returns the core's status (non-zero: the interval failed and ``res`` is meaningless).
     """
-    apply_action(ctrl, cfg, a)
-    set_excitation(P, ctrl, cfg)
+    P = plant.P
+    S = plant.S
+    stats = plant.stats
+    apply_action(plant.ctrl, cfg, a)
+    set_excitation(P, plant.ctrl, cfg)
     dt = cfg[C_DT]
     x_start = S[S_X]
     reset_stats(stats)
-    status = advance_ws(
-        P, S, dt, stats, _method(P, cfg), cfg[C_RTOL], cfg[C_ATOL], int(cfg[C_MAX_EVENTS]), work
-    )
+    solver = Solver(_method(P, cfg), cfg[C_RTOL], cfg[C_ATOL], int(cfg[C_MAX_EVENTS]))
+    status = advance_ws(P, S, dt, stats, solver, plant.work)
     if status != 0:
         return status
     V = P[P_V]
@@ -290,8 +308,12 @@ def write_obs(P, S, ctrl, cfg, obs, work) -> bool:
 
 
 @kernel
-def start_episode(P, S, ctrl, cfg, P_new, init, obs, work) -> None:
-    """Begin an episode from a sampled parameter vector and starting vector."""
+def start_episode(plant, cfg, P_new, init, obs) -> None:
+    """Begin ``plant``'s episode (a :class:`Plant`) from a sampled parameter vector and
+    starting vector; write its first observation to ``obs``."""
+    P = plant.P
+    S = plant.S
+    ctrl = plant.ctrl
     for k in range(P.shape[0]):
         P[k] = P_new[k]
     ctrl[0] = init[I_U0]
@@ -302,7 +324,7 @@ def start_episode(P, S, ctrl, cfg, P_new, init, obs, work) -> None:
     S[S_PHI2] = init[I_PHI2]
     # initial_state chose the mode with zero phases; redo it with the drawn ones.
     S[S_MODE] = initial_mode(P, S[S_X], S[S_V], S[S_PHI1], S[S_PHI2])
-    write_obs(P, S, ctrl, cfg, obs, work)
+    write_obs(P, S, ctrl, cfg, obs, plant.work)
 
 
 @kernel
@@ -358,61 +380,55 @@ def episode_from_uniforms(u, bounds, cfg, P_out, init_out) -> None:
 
 @kernel(takes_kernels=True)
 def step_single_with(advance_ws, P, S, ctrl, cfg, a, stats, obs, res, work) -> int:
-    """One step of the single environment (one dispatch per step keeps it cheap)."""
+    """One step of the single environment (one dispatch per step keeps it cheap: its
+    arrays come one by one, which numba dispatches fastest, see :class:`Plant`)."""
     if not actions_finite(a):
         return STATUS_BAD_ACTION
-    status = control_interval(advance_ws, P, S, ctrl, cfg, a, stats, res, work)
+    status = control_interval(advance_ws, Plant(P, S, ctrl, stats, work), cfg, a, res)
     if status != 0:
         return status
     res[R_TERM] = 1.0 if write_obs(P, S, ctrl, cfg, obs, work) else 0.0
     return 0
 
 
-@kernel(takes_kernels=True, allocates=True)
-def sample_interval_with(advance, P, S, ctrl, cfg, a, stats, t_out, v_out, stick_out) -> int:
-    """The coming interval's velocity at ``len(t_out)`` instants (the renderer's trace and
-    ``StickSlipEnv.sample_interval``).
+class Trace(NamedTuple):
+    """What ``sample_interval`` writes at each of its instants: time, velocity and whether
+    the block sticks."""
 
-    Works on copies, so sampling never perturbs the dynamics of the real step.
+    t: np.ndarray
+    v: np.ndarray
+    stick: np.ndarray
+
+
+@kernel(takes_kernels=True, allocates=True)
+def sample_interval_with(advance, plant, cfg, a, trace) -> int:
+    """The coming interval's velocity at ``len(trace.t)`` instants (the renderer's trace
+    and ``StickSlipEnv.sample_interval``), by the core's entry kernel ``advance``.
+
+    Works on copies of ``plant`` (its workspace is not read), so sampling never perturbs
+    the dynamics of the real step; ``plant.stats`` holds the last piece's statistics.
     """
-    Pc = P.copy()
-    Sc = S.copy()
-    cc = ctrl.copy()
+    Pc = plant.P.copy()
+    Sc = plant.S.copy()
+    cc = plant.ctrl.copy()
+    stats = plant.stats
     apply_action(cc, cfg, a)
     set_excitation(Pc, cc, cfg)
-    n = t_out.shape[0]
+    n = trace.t.shape[0]
     h = cfg[C_DT] / n
-    m = _method(Pc, cfg)
+    solver = Solver(_method(Pc, cfg), cfg[C_RTOL], cfg[C_ATOL], int(cfg[C_MAX_EVENTS]))
     t0 = Sc[S_T]
     work = fresh_workspace()
     for k in range(n):
         reset_stats(stats)
-        status = advance(Pc, Sc, h, stats, m, cfg[C_RTOL], cfg[C_ATOL],
-                         int(cfg[C_MAX_EVENTS]), work)
+        status = advance(Pc, Sc, h, stats, solver, work)
         if status != 0:
             return status
-        t_out[k] = t0 + (k + 1) * h
-        v_out[k] = Sc[S_V]
-        stick_out[k] = Sc[S_MODE] == 0.0
+        trace.t[k] = t0 + (k + 1) * h
+        trace.v[k] = Sc[S_V]
+        trace.stick[k] = Sc[S_MODE] == 0.0
     return 0
 
 
 def empty_cfg() -> np.ndarray:
     return np.zeros(N_CFG)
-
-
-# ----------------------------------------------------------------------------------------
-# Entry kernels taking the core's method at run time (METHOD_AUTO: by the plant's law);
-# they compile every method. fricenv.envs.steppers has one set per method.
-# ----------------------------------------------------------------------------------------
-@kernel
-def step_single(P, S, ctrl, cfg, a, stats, obs, res, work) -> int:
-    """``step_single_with`` by ``core.advance_ws`` (the method from ``cfg``)."""
-    return step_single_with(advance_ws, P, S, ctrl, cfg, a, stats, obs, res, work)
-
-
-@kernel(allocates=True)
-def sample_interval(P, S, ctrl, cfg, a, stats, t_out, v_out, stick_out) -> int:
-    """``sample_interval_with`` by ``core.advance``."""
-    return sample_interval_with(advance, P, S, ctrl, cfg, a, stats, t_out, v_out, stick_out)
-

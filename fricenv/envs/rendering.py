@@ -30,7 +30,7 @@ class Trace:
 
     def __init__(self, dt: float, window: float = TRACE_WINDOW):
         n_sub = SAMPLES_PER_INTERVAL
-        self.buf_t = np.zeros(n_sub)  # filled by kernels.sample_interval
+        self.buf_t = np.zeros(n_sub)  # filled by Steppers.sample_interval
         self.buf_v = np.zeros(n_sub)
         self.buf_s = np.zeros(n_sub, dtype=np.bool_)
         cap = n_sub * (int(math.ceil(window / dt)) + 2)

@@ -14,22 +14,27 @@ a rollout scores the plant, as the reward does.
 A sample ends early if its interval fails (its status is the core's code) or its state
 leaves the observation box (the env would terminate the episode there); rewards and stick
 fractions after its last interval are 0.
+
+The kernels take the rollout's inputs and buffers as two records (:class:`RolloutJob`,
+:class:`RolloutBuffers`); the body is written once over the core's entry kernel and
+``fricenv.core.partial_kernel`` builds each method's kernels from it.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 from numba import prange
 
 from fricenv.checks import check_bool, check_int, got
-from fricenv.core import advance_event_ws, advance_exact_ws, advance_ws
+from fricenv.core import partial_kernel
 from fricenv.envs import kernels as K
+from fricenv.envs.kernels import Plant
 from fricenv.envs.sensors import actuate, no_actuator
 from fricenv.envs.state import N_PLANT, PL_CTRL, PL_P, PL_S, PL_WORK, PlantState
-from fricenv.envs.steppers import steppers_for_plants
+from fricenv.envs.steppers import Steppers, steppers_for_plants
 from fricenv.jit import kernel, parallel_section
 from fricenv.layout import N_STATS, S_V, S_X
 from fricenv.params import P_V
@@ -42,150 +47,134 @@ MAX_HORIZON = 1 << 16
 STATUS_LEFT_BOX = -2
 
 
+class RolloutJob(NamedTuple):
+    """What a batch rollout starts from and runs: ``plants`` (M, N_PLANT) start plant
+    vectors and ``cmds`` (M, 2) their actuator commands; ``src`` (K,) int64, the start row
+    of each sample; ``cfg``, the kernels' configuration (incremental when ``actuated``);
+    ``ucfg``, the env's own (maps actions to commands); ``act``, the actuator's parameters
+    (``sensors.A_*``); ``A`` (K, H, n_act) float64 actions; ``actuated``: whether actions
+    go through the actuator."""
+
+    plants: np.ndarray
+    cmds: np.ndarray
+    src: np.ndarray
+    cfg: np.ndarray
+    ucfg: np.ndarray
+    act: np.ndarray
+    A: np.ndarray
+    actuated: bool
+
+
+class RolloutBuffers(NamedTuple):
+    """A batch rollout's scratch, one row per sample: ``table`` (K, N_PLANT), ``cmd``
+    (K, 2), ``stats`` (K, N_STATS), ``res`` (K, N_RES); ``zero`` (n_act,) zeros, the
+    kernels' action with an actuator. Its outputs: ``rewards`` and ``stick`` (K, H),
+    ``length`` and ``status`` (K,) int64."""
+
+    table: np.ndarray
+    cmd: np.ndarray
+    stats: np.ndarray
+    res: np.ndarray
+    zero: np.ndarray
+    rewards: np.ndarray
+    stick: np.ndarray
+    length: np.ndarray
+    status: np.ndarray
+
+
 @kernel
 def _left_box(P, S, cfg) -> bool:
     """The env's termination test (``kernels.write_obs``) on the state alone."""
     return abs(S[S_X]) > cfg[K.C_X_LIM] or abs(S[S_V] - P[P_V]) > cfg[K.C_V_LIM]
 
 
-@kernel(takes_kernels=True)
-def _sample_with(advance_ws, k, plants, cmds, src, cfg, ucfg, act, actuated, A, table,
-                 cmd_rows, stats, res, zero, rewards, stick, length, status) -> None:
-    """Roll sample ``k`` out by the core's entry kernel ``advance_ws`` (the body of the
-    rollout kernels; see ``_rollout_with`` for the other parameters)."""
-    row = table[k]
-    s = src[k]
+@kernel(called_once=True)
+def _start_sample(k, job, buf):
+    """Copy sample ``k``'s start plant and command into its rows; zero its outputs."""
+    row = buf.table[k]
+    s = job.src[k]
     for j in range(row.shape[0]):
-        row[j] = plants[s, j]
-    cmd = cmd_rows[k]
-    cmd[0] = cmds[s, 0]
-    cmd[1] = cmds[s, 1]
-    P = row[PL_P:PL_S]
-    S = row[PL_S:PL_CTRL]
-    ctrl = row[PL_CTRL:PL_WORK]
-    work = row[PL_WORK:]
-    H = A.shape[1]
-    status[k] = 0
-    length[k] = H
-    for h in range(H):
-        rewards[k, h] = 0.0
-        stick[k, h] = 0.0
-    for h in range(H):
-        if actuated:
-            actuate(ctrl, cmd, ucfg, A[k, h], act)
-            code = K.control_interval(advance_ws, P, S, ctrl, cfg, zero, stats[k], res[k], work)
+        row[j] = job.plants[s, j]
+    buf.cmd[k, 0] = job.cmds[s, 0]
+    buf.cmd[k, 1] = job.cmds[s, 1]
+    buf.status[k] = 0
+    buf.length[k] = job.A.shape[1]
+    for h in range(job.A.shape[1]):
+        buf.rewards[k, h] = 0.0
+        buf.stick[k, h] = 0.0
+
+
+@kernel(takes_kernels=True)
+def _sample_with(advance_ws, k, job, buf) -> None:
+    """Roll sample ``k`` of the :class:`RolloutJob` ``job`` out by the core's entry kernel
+    ``advance_ws``, in its rows of the :class:`RolloutBuffers` ``buf`` (the body of the
+    rollout kernels)."""
+    _start_sample(k, job, buf)
+    row = buf.table[k]
+    cmd = buf.cmd[k]
+    res = buf.res[k]
+    plant = Plant(row[PL_P:PL_S], row[PL_S:PL_CTRL], row[PL_CTRL:PL_WORK], buf.stats[k],
+                  row[PL_WORK:])
+    cfg = job.cfg
+    for h in range(job.A.shape[1]):
+        if job.actuated:
+            actuate(plant.ctrl, cmd, job.ucfg, job.A[k, h], job.act)
+            code = K.control_interval(advance_ws, plant, cfg, buf.zero, res)
         else:
-            code = K.control_interval(advance_ws, P, S, ctrl, cfg, A[k, h], stats[k], res[k],
-                                      work)
+            code = K.control_interval(advance_ws, plant, cfg, job.A[k, h], res)
         if code != 0:
-            status[k] = code
-            length[k] = h
+            buf.status[k] = code
+            buf.length[k] = h
             return
-        rewards[k, h] = res[k, K.R_REWARD]
-        stick[k, h] = res[k, K.R_STICK]
-        if _left_box(P, S, cfg):
-            status[k] = STATUS_LEFT_BOX
-            length[k] = h + 1
+        buf.rewards[k, h] = res[K.R_REWARD]
+        buf.stick[k, h] = res[K.R_STICK]
+        if _left_box(plant.P, plant.S, cfg):
+            buf.status[k] = STATUS_LEFT_BOX
+            buf.length[k] = h + 1
             return
-
-
-@kernel
-def _sample_exact(k, plants, cmds, src, cfg, ucfg, act, actuated, A, table, cmd_rows, stats,
-                  res, zero, rewards, stick, length, status) -> None:
-    _sample_with(advance_exact_ws, k, plants, cmds, src, cfg, ucfg, act, actuated, A, table,
-                 cmd_rows, stats, res, zero, rewards, stick, length, status)
-
-
-@kernel
-def _sample_event(k, plants, cmds, src, cfg, ucfg, act, actuated, A, table, cmd_rows, stats,
-                  res, zero, rewards, stick, length, status) -> None:
-    _sample_with(advance_event_ws, k, plants, cmds, src, cfg, ucfg, act, actuated, A, table,
-                 cmd_rows, stats, res, zero, rewards, stick, length, status)
-
-
-@kernel
-def _sample_any(k, plants, cmds, src, cfg, ucfg, act, actuated, A, table, cmd_rows, stats,
-                res, zero, rewards, stick, length, status) -> None:
-    _sample_with(advance_ws, k, plants, cmds, src, cfg, ucfg, act, actuated, A, table,
-                 cmd_rows, stats, res, zero, rewards, stick, length, status)
 
 
 @kernel(takes_kernels=True)
-def _rollout_with(sample, plants, cmds, src, cfg, ucfg, act, actuated, A, table, cmd_rows,
-                  stats, res, zero, rewards, stick, length, status) -> None:
-    """Roll every sample out with ``sample`` (one of ``_sample_*``), in parallel.
+def _rollout_with(sample, job, buf) -> None:
+    """Roll every sample out with ``sample`` (a ``_sample_with`` of its own), in parallel.
 
-    Parameters: ``plants`` (M, N_PLANT) start plant vectors and ``cmds`` (M, 2) their
-    actuator commands; ``src`` (K,) int64, the start row of each sample; ``cfg``, the
-    kernels' configuration (incremental when ``actuated``); ``ucfg``, the env's own
-    (maps actions to commands); ``act``, the actuator's parameters (``sensors.A_*``);
-    ``actuated``: whether actions go through the actuator; ``A`` (K, H, n_act) float64
-    actions. Scratch, one row per sample: ``table`` (K, N_PLANT), ``cmd_rows`` (K, 2),
-    ``stats`` (K, N_STATS), ``res`` (K, N_RES); ``zero`` (n_act,) zeros, the kernels'
-    action with an actuator. Outputs: ``rewards`` and ``stick`` (K, H), ``length`` and
-    ``status`` (K,) int64.
-    """
-    for k in prange(A.shape[0]):
-        sample(k, plants, cmds, src, cfg, ucfg, act, actuated, A, table, cmd_rows, stats, res,
-               zero, rewards, stick, length, status)
+    ``job`` and ``buf``: a :class:`RolloutJob` and :class:`RolloutBuffers`, as plain tuples
+    (numba types a plain tuple of arrays from Python from its fingerprint, a named one
+    field by field in Python: 6 us more per call). They are named here, before the loop,
+    by their classes (numba's parallel lowering rebuilds a record the loop uses by the
+    name of the call that made it)."""
+    named_job = RolloutJob(*job)
+    named_buf = RolloutBuffers(*buf)
+    for k in prange(named_job.A.shape[0]):
+        sample(k, named_job, named_buf)
 
 
 @kernel(takes_kernels=True)
-def _serial_with(sample, plants, cmds, src, cfg, ucfg, act, actuated, A, table, cmd_rows,
-                 stats, res, zero, rewards, stick, length, status) -> None:
+def _serial_with(sample, job, buf) -> None:
     """``_rollout_with`` on the calling thread (for callers that run plants in threads of
     their own, and for timing one core)."""
-    for k in range(A.shape[0]):
-        sample(k, plants, cmds, src, cfg, ucfg, act, actuated, A, table, cmd_rows, stats, res,
-               zero, rewards, stick, length, status)
+    named_job = RolloutJob(*job)
+    named_buf = RolloutBuffers(*buf)
+    for k in range(named_job.A.shape[0]):
+        sample(k, named_job, named_buf)
 
 
-@kernel(parallel=True)
-def _rollout_exact(plants, cmds, src, cfg, ucfg, act, actuated, A, table, cmd_rows, stats, res,
-                   zero, rewards, stick, length, status) -> None:
-    _rollout_with(_sample_exact, plants, cmds, src, cfg, ucfg, act, actuated, A, table,
-                  cmd_rows, stats, res, zero, rewards, stick, length, status)
+#: The (parallel, serial) rollout kernels made so far, by ``Steppers.name``.
+_KERNELS: dict[str, tuple[Any, Any]] = {}
 
 
-@kernel(parallel=True)
-def _rollout_event(plants, cmds, src, cfg, ucfg, act, actuated, A, table, cmd_rows, stats, res,
-                   zero, rewards, stick, length, status) -> None:
-    _rollout_with(_sample_event, plants, cmds, src, cfg, ucfg, act, actuated, A, table,
-                  cmd_rows, stats, res, zero, rewards, stick, length, status)
-
-
-@kernel(parallel=True)
-def _rollout_any(plants, cmds, src, cfg, ucfg, act, actuated, A, table, cmd_rows, stats, res,
-                 zero, rewards, stick, length, status) -> None:
-    _rollout_with(_sample_any, plants, cmds, src, cfg, ucfg, act, actuated, A, table, cmd_rows,
-                  stats, res, zero, rewards, stick, length, status)
-
-
-@kernel
-def _serial_exact(plants, cmds, src, cfg, ucfg, act, actuated, A, table, cmd_rows, stats, res,
-                  zero, rewards, stick, length, status) -> None:
-    _serial_with(_sample_exact, plants, cmds, src, cfg, ucfg, act, actuated, A, table, cmd_rows,
-                 stats, res, zero, rewards, stick, length, status)
-
-
-@kernel
-def _serial_event(plants, cmds, src, cfg, ucfg, act, actuated, A, table, cmd_rows, stats, res,
-                  zero, rewards, stick, length, status) -> None:
-    _serial_with(_sample_event, plants, cmds, src, cfg, ucfg, act, actuated, A, table, cmd_rows,
-                 stats, res, zero, rewards, stick, length, status)
-
-
-@kernel
-def _serial_any(plants, cmds, src, cfg, ucfg, act, actuated, A, table, cmd_rows, stats, res,
-                zero, rewards, stick, length, status) -> None:
-    _serial_with(_sample_any, plants, cmds, src, cfg, ucfg, act, actuated, A, table, cmd_rows,
-                 stats, res, zero, rewards, stick, length, status)
-
-
-#: (parallel, serial) rollout kernels per set of the environments' entry kernels
-#: (``steppers.Steppers.name``): a rollout of Coulomb plants compiles no Taylor code.
-_KERNELS = {"exact": (_rollout_exact, _serial_exact), "event": (_rollout_event, _serial_event),
-            "any": (_rollout_any, _serial_any)}
+def _rollout_kernels(steppers: Steppers) -> tuple[Any, Any]:
+    """The (parallel, serial) rollout kernels built on the core's entry kernel of
+    ``steppers``: a rollout of Coulomb plants compiles no Taylor code. Each sample runs a
+    kernel of its own (``_sample_<name>``), compiled once and called by both."""
+    made = _KERNELS.get(steppers.name)
+    if made is None:
+        name = steppers.name
+        sample = partial_kernel(_sample_with, steppers.advance_ws, f"_sample_{name}")
+        made = _KERNELS[name] = (
+            partial_kernel(_rollout_with, sample, f"_rollout_{name}", parallel=True),
+            partial_kernel(_serial_with, sample, f"_serial_{name}"))
+    return made
 
 
 @dataclass(frozen=True)
@@ -239,15 +228,12 @@ class BatchRollout:
         self.act = inst.actuator_params(setup.cfg) if self.actuated else no_actuator()
         self.n_act = setup.action_space.shape[0]
         k, h = self.n_samples, self.horizon
-        self._table = np.zeros((k, N_PLANT))
-        self._cmd = np.zeros((k, 2))
-        self._stats = np.zeros((k, N_STATS))
-        self._res = np.zeros((k, K.N_RES))
-        self._zero = np.zeros(self.n_act)
-        self._rewards = np.zeros((k, h))
-        self._stick = np.zeros((k, h))
-        self._length = np.zeros(k, dtype=np.int64)
-        self._status = np.zeros(k, dtype=np.int64)
+        self._buf = RolloutBuffers(
+            table=np.zeros((k, N_PLANT)), cmd=np.zeros((k, 2)), stats=np.zeros((k, N_STATS)),
+            res=np.zeros((k, K.N_RES)), zero=np.zeros(self.n_act), rewards=np.zeros((k, h)),
+            stick=np.zeros((k, h)), length=np.zeros(k, dtype=np.int64),
+            status=np.zeros(k, dtype=np.int64))
+        self._buf_fields = tuple(self._buf)
         self._src0 = np.zeros(k, dtype=np.int64)
 
     def run(self, start: PlantState | tuple[np.ndarray, np.ndarray], actions: np.ndarray,
@@ -272,13 +258,14 @@ class BatchRollout:
                                  f"{src.min()}..{src.max()}")
             src = np.ascontiguousarray(src, dtype=np.int64)
         A = self._actions(actions)
-        name = steppers_for_plants(self.cfg[K.C_METHOD], plants[:, PL_P:PL_S]).name
-        run = _KERNELS[name][0 if self.parallel else 1]
+        steppers = steppers_for_plants(self.cfg[K.C_METHOD], plants[:, PL_P:PL_S])
+        run = _rollout_kernels(steppers)[0 if self.parallel else 1]
+        # a RolloutJob's and the RolloutBuffers' fields as plain tuples (see _rollout_with)
+        job = (plants, cmds, src, self.cfg, self.ucfg, self.act, A, self.actuated)
         with parallel_section(self.parallel):
-            run(plants, cmds, src, self.cfg, self.ucfg, self.act, self.actuated, A,
-                self._table, self._cmd, self._stats, self._res, self._zero, self._rewards,
-                self._stick, self._length, self._status)
-        return RolloutResult(self._rewards, self._stick, self._length, self._status)
+            run(job, self._buf_fields)
+        buf = self._buf
+        return RolloutResult(buf.rewards, buf.stick, buf.length, buf.status)
 
     def end_states(self) -> tuple[np.ndarray, np.ndarray]:
         """The plant vectors (n_samples, N_PLANT) and actuator commands (n_samples, 2) each
@@ -287,9 +274,10 @@ class BatchRollout:
         the state its failing interval left. These are this object's buffers, overwritten by
         the next call (copy what you keep). Without an actuator the command is the applied
         setting, as in ``StickSlipVectorEnv.state_arrays()``."""
+        buf = self._buf
         if not self.actuated:  # (the kernels moved the setting in the table only)
-            self._cmd[:] = self._table[:, PL_CTRL:PL_WORK]
-        return self._table, self._cmd
+            buf.cmd[:] = buf.table[:, PL_CTRL:PL_WORK]
+        return buf.table, buf.cmd
 
     def _starts(self, start: Any) -> tuple[np.ndarray, np.ndarray]:
         if isinstance(start, PlantState):

@@ -1,12 +1,12 @@
 """The environments' entry kernels for each core method, and which one an environment runs.
 
-Numba compiles a kernel with everything it calls. The step kernels that take the core's
-method at run time (``kernels.step_single``, ``batch.step_batch``, ...) therefore compile
-the closed form, the Taylor steps and the Rosenbrock steps, whatever the plant. An
-environment instead runs the kernels of the one method its plants need (:func:`steppers_for`):
-a Coulomb scene compiles no Taylor or Rosenbrock code, and its first step comes that much
-sooner from an empty cache. The bodies are written once (``*_with``); each set below only
-names the core's entry kernel it is built on.
+Numba compiles a kernel with everything it calls. Step kernels that took the core's method
+at run time would compile the closed form, the Taylor steps and the Rosenbrock steps,
+whatever the plant. An environment instead runs the kernels of the one method its plants
+need (:func:`steppers_for`): a Coulomb scene compiles no Taylor or Rosenbrock code, and its
+first step comes that much sooner from an empty cache. The bodies are written once
+(``*_with`` in :mod:`fricenv.envs.kernels` and :mod:`fricenv.envs.batch`);
+:func:`steppers_on` builds a set from the core's entry kernel of a method.
 """
 
 from __future__ import annotations
@@ -17,103 +17,59 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from fricenv.core import (
-    advance_event,
+    advance_any_ws,
     advance_event_ws,
-    advance_exact,
     advance_exact_ws,
     always_conditioned,
+    partial_kernel,
 )
 from fricenv.envs import batch
 from fricenv.envs import kernels as K
 from fricenv.friction import closed_form_rows, polynomial_laws_in
-from fricenv.jit import kernel
 from fricenv.layout import METHOD_EVENT, METHOD_EXACT
 from fricenv.params import P_LAM, P_LAW
 
 
-@kernel
-def step_single_exact(P, S, ctrl, cfg, a, stats, obs, res, work) -> int:
-    return K.step_single_with(advance_exact_ws, P, S, ctrl, cfg, a, stats, obs, res, work)
-
-
-@kernel
-def step_single_event(P, S, ctrl, cfg, a, stats, obs, res, work) -> int:
-    return K.step_single_with(advance_event_ws, P, S, ctrl, cfg, a, stats, obs, res, work)
-
-
-@kernel
-def _step_range_exact(lo, hi, table, cfg, A, obs, res, flags, counters, draws, bounds,
-                      max_steps, mode) -> None:
-    batch.step_range_with(advance_exact_ws, lo, hi, table, cfg, A, obs, res, flags, counters,
-                          draws, bounds, max_steps, mode)
-
-
-@kernel
-def _step_range_event(lo, hi, table, cfg, A, obs, res, flags, counters, draws, bounds,
-                      max_steps, mode) -> None:
-    batch.step_range_with(advance_event_ws, lo, hi, table, cfg, A, obs, res, flags, counters,
-                          draws, bounds, max_steps, mode)
-
-
-@kernel
-def step_batch_exact(table, cfg, A, obs, res, flags, counters, draws, bounds, ivars) -> int:
-    return batch.step_batch_with(_step_range_exact, table, cfg, A, obs, res, flags, counters,
-                                 draws, bounds, ivars)
-
-
-@kernel
-def step_batch_event(table, cfg, A, obs, res, flags, counters, draws, bounds, ivars) -> int:
-    return batch.step_batch_with(_step_range_event, table, cfg, A, obs, res, flags, counters,
-                                 draws, bounds, ivars)
-
-
-@kernel(parallel=True)
-def step_batch_parallel_exact(table, cfg, A, obs, res, flags, counters, draws, bounds,
-                              ivars) -> int:
-    return batch.step_batch_parallel_with(advance_exact_ws, table, cfg, A, obs, res, flags,
-                                          counters, draws, bounds, ivars)
-
-
-@kernel(parallel=True)
-def step_batch_parallel_event(table, cfg, A, obs, res, flags, counters, draws, bounds,
-                              ivars) -> int:
-    return batch.step_batch_parallel_with(advance_event_ws, table, cfg, A, obs, res, flags,
-                                          counters, draws, bounds, ivars)
-
-
-@kernel(allocates=True)
-def sample_interval_exact(P, S, ctrl, cfg, a, stats, t_out, v_out, stick_out) -> int:
-    return K.sample_interval_with(advance_exact, P, S, ctrl, cfg, a, stats, t_out, v_out,
-                                  stick_out)
-
-
-@kernel(allocates=True)
-def sample_interval_event(P, S, ctrl, cfg, a, stats, t_out, v_out, stick_out) -> int:
-    return K.sample_interval_with(advance_event, P, S, ctrl, cfg, a, stats, t_out, v_out,
-                                  stick_out)
-
-
 class Steppers(NamedTuple):
-    """One set of an environment's entry kernels (the arguments of ``kernels.step_single``,
-    ``batch.step_batch``, ``batch.step_batch_parallel``, ``kernels.sample_interval``)."""
+    """One set of an environment's entry kernels, all built on the core's entry kernel
+    ``advance_ws`` (``(P, S, t_span, stats, solver, work)``), which batch rollouts build
+    theirs on too. Arguments: ``step_single`` and ``step_batch_parallel`` those of
+    ``kernels.step_single_with`` and ``batch.step_batch_parallel_with``, ``step_batch``
+    those of ``batch.step_batch_with``, ``sample_interval`` those of
+    ``kernels.sample_interval_with``, each but the first."""
 
     name: str
     step_single: Callable[..., Any]
     step_batch: Callable[..., Any]
     step_batch_parallel: Callable[..., Any]
     sample_interval: Callable[..., Any]
+    advance_ws: Callable[..., Any]
+
+
+def steppers_on(advance_ws: Any, name: str) -> Steppers:
+    """The entry kernels of the environments built on the core's entry kernel
+    ``advance_ws``, named after ``name`` (``step_single_exact``, ...): both batch steps
+    call one plant-range kernel of their own (``_step_range_<name>``), the serial one over
+    every plant, the parallel one per share of ``batch.TASKS_PER_THREAD`` per thread."""
+    step_range = partial_kernel(batch.step_range_with, advance_ws, f"_step_range_{name}")
+    return Steppers(
+        name,
+        partial_kernel(K.step_single_with, advance_ws, f"step_single_{name}"),
+        partial_kernel(batch.step_batch_with, step_range, f"step_batch_{name}"),
+        partial_kernel(batch.step_batch_parallel_with, step_range,
+                       f"step_batch_parallel_{name}", parallel=True),
+        partial_kernel(K.sample_interval_with, advance_ws, f"sample_interval_{name}",
+                       allocates=True),
+        advance_ws)
 
 
 #: The closed form alone: every plant Coulomb and conditioned (``steppers_for``).
-EXACT = Steppers("exact", step_single_exact, step_batch_exact, step_batch_parallel_exact,
-                 sample_interval_exact)
+EXACT = steppers_on(advance_exact_ws, "exact")
 #: The event method alone.
-EVENT = Steppers("event", step_single_event, step_batch_event, step_batch_parallel_event,
-                 sample_interval_event)
+EVENT = steppers_on(advance_event_ws, "event")
 #: The method chosen per plant and step at run time (``kernels._method``), the closed form
 #: falling back to the event method near resonance: compiles both.
-ANY = Steppers("any", K.step_single, batch.step_batch, batch.step_batch_parallel,
-               K.sample_interval)
+ANY = steppers_on(advance_any_ws, "any")
 
 
 def steppers_for(method: int, lam_min: float, coulomb: bool, friction: bool) -> Steppers:

@@ -2,7 +2,8 @@
 
 Structured like Gymnasium's classic-control ``pendulum.py``. The physics lives in
 ``fricenv.core`` (which knows nothing of Gymnasium); one environment step is one call of a
-numba kernel (``kernels.step_single``) that integrates exactly to the next control instant.
+numba kernel (``Steppers.step_single``, built from ``kernels.step_single_with``) that
+integrates exactly to the next control instant.
 """
 
 from __future__ import annotations
@@ -406,9 +407,8 @@ class StickSlipEnv(gym.Env):
             if rng is not None and state is not None:  # (both or neither)
                 rng.bit_generator.state = state
             raise
-        K.start_episode(
-            self._P, self._S, self._ctrl, self._cfg, self._P_new, self._init, self._obs, self._work
-        )
+        K.start_episode(K.Plant(self._P, self._S, self._ctrl, self._stats, self._work),
+                        self._cfg, self._P_new, self._init, self._obs)
         self._fit_steppers()
         self._needs_reset = False
         self._steps = 0
@@ -580,8 +580,8 @@ class StickSlipEnv(gym.Env):
     def _sample_into(self, a: np.ndarray, t: np.ndarray, v: np.ndarray,
                      stuck: np.ndarray, ctrl: np.ndarray | None = None) -> int:
         ctrl = self._ctrl if ctrl is None else ctrl
-        return self._steppers.sample_interval(self._P, self._S, ctrl, self._cfg, a,
-                                              self._stats, t, v, stuck)
+        plant = K.Plant(self._P, self._S, ctrl, self._stats, self._work)
+        return self._steppers.sample_interval(plant, self._cfg, a, K.Trace(t, v, stuck))
 
     def _record_trace(self, a: np.ndarray) -> None:
         r = self._renderer

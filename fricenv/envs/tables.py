@@ -67,10 +67,11 @@ O_X, O_VR, O_STICK, O_COS1, O_SIN1, O_COS2, O_SIN2, O_U0, O_NU = (OBS.offsets()[
     "O_X", "O_VR", "O_STICK", "O_COS1", "O_SIN1", "O_COS2", "O_SIN2", "O_U0", "O_NU"))
 N_OBS = OBS.size
 
-# Slots of the vector kernel's int64 ``ivars``: two inputs and two counts it writes.
+# Slots of the vector kernel's int64 ``ivars``: three inputs (the parallel kernel's task
+# count last) and two counts it writes.
 IVARS = Layout("ivars")
-IV_MAX_STEPS, IV_MODE, IV_N_RESET, IV_N_EMPTY = IVARS.group(
-    "IV_MAX_STEPS", "IV_MODE", "IV_N_RESET", "IV_N_EMPTY")
+IV_MAX_STEPS, IV_MODE, IV_N_RESET, IV_N_EMPTY, IV_N_TASKS = IVARS.group(
+    "IV_MAX_STEPS", "IV_MODE", "IV_N_RESET", "IV_N_EMPTY", "IV_N_TASKS")
 N_IVARS = IVARS.size
 
 # Vector kernels' arrays. The batch is laid out in few arrays, because numba's dispatch and

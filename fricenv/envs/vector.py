@@ -24,7 +24,7 @@ from gymnasium.vector.utils import batch_space
 from fricenv.checks import check_dict, check_int, got, is_int, items_of
 from fricenv.core import new_workspace
 from fricenv.envs import kernels as K
-from fricenv.envs.batch import first_bad_action, start_batch
+from fricenv.envs.batch import TASKS_PER_THREAD, first_bad_action, start_batch
 from fricenv.envs.scenes import N_INIT, check_episode_cost
 from fricenv.envs.sensors import NO_DELAY, NO_SCALE, split_sensor_options
 from fricenv.envs.settings import EnvKwargs, EnvSettings, settings_signature
@@ -52,7 +52,7 @@ from fricenv.envs.vector_draws import (
 from fricenv.envs.vector_instruments import PlantInstruments
 from fricenv.envs.vector_render import PlantFrames, plant_snapshot
 from fricenv.friction import polynomial_laws_in
-from fricenv.jit import parallel_section
+from fricenv.jit import num_threads, parallel_section
 from fricenv.layout import METHOD_EXACT, STATUS_DIVERGED
 
 _AUTORESET = {
@@ -209,6 +209,7 @@ class StickSlipVectorEnv(VectorEnv):
         self._serial_kernel = steppers.step_batch
         parallel = self.num_envs >= PARALLEL_MIN_ENVS
         self._step_kernel = steppers.step_batch_parallel if parallel else steppers.step_batch
+        self._ivars[K.IV_N_TASKS] = TASKS_PER_THREAD * num_threads()
 
     def _fit_steppers(self) -> None:
         """The entry kernels of the plants now in the table (after resets with options, or
@@ -521,8 +522,8 @@ class StickSlipVectorEnv(VectorEnv):
             raise_status(K.STATUS_BAD_ACTION, a[bad], f" {bad}")
         # a plant the step restarts instead of stepping (next-step mode) keeps its trace
         skip = self._autoreset if self._autoreset_mode == AutoresetMode.NEXT_STEP else None
-        frames.record(self._steppers, self._P, self._S, self._ctrl, self._stats, self._cfg, a,
-                      skip)
+        plants = K.Plant(self._P, self._S, self._ctrl, self._stats, self._work)
+        frames.record(self._steppers, plants, self._cfg, a, skip)
 
     def _instruments_after_step(self, inst: PlantInstruments) -> np.ndarray:
         """The sensors read what the kernel left (``PlantInstruments.after_step``)."""

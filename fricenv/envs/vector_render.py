@@ -36,18 +36,18 @@ class PlantFrames:
         for i in np.asarray(plants).tolist():
             self.traces[i].clear(S[i, S_T], S[i, S_V], S[i, S_MODE] == 0)
 
-    def record(self, steppers: Steppers, P: np.ndarray, S: np.ndarray, ctrl: np.ndarray,
-               stats: np.ndarray, cfg: np.ndarray, a: np.ndarray,
+    def record(self, steppers: Steppers, plants: K.Plant, cfg: np.ndarray, a: np.ndarray,
                skip: np.ndarray | None) -> None:
         """Extend each plant's trace by the coming interval under its action ``a[i]``,
         sampled on copies with the step's kernels, except where ``skip`` is True (a plant
         the step restarts instead of stepping) or the action is not finite (the step
-        refuses it)."""
+        refuses it). ``plants``: the batch's arrays, a row per plant."""
         for i, tr in enumerate(self.traces):
             if (skip is not None and skip[i]) or not K.actions_finite(a[i]):
                 continue
-            status = steppers.sample_interval(P[i], S[i], ctrl[i], cfg, a[i], stats[i],
-                                              tr.buf_t, tr.buf_v, tr.buf_s)
+            plant = K.Plant(*(rows[i] for rows in plants))
+            status = steppers.sample_interval(plant, cfg, a[i],
+                                              K.Trace(tr.buf_t, tr.buf_v, tr.buf_s))
             if status == 0:
                 tr.push()
 
