@@ -31,7 +31,7 @@ from .checks import (
     got,
     real_array,
 )
-from .core import conditioned_rows, initial_mode
+from .core import conditioned_rows
 from .core.constants import MAX_STEPS_PER_CALL, MAX_STEPS_PER_TAU
 from .core.workspace import N_WORK, W_MAX_STEPS_CALL
 from .divergence import diverged
@@ -41,11 +41,7 @@ from .layout import (
     METHOD_EVENT,
     METHOD_EXACT,
     METHODS,
-    N_STATE,
     N_STATS,
-    S_MODE,
-    S_V,
-    S_X,
     ST_DURATION,
     ST_N_REVERSAL,
     ST_N_SLIP,
@@ -105,7 +101,8 @@ class SweepSettings:
     :func:`fricenv.run_stats`, ``max_steps`` spent over the transient and all windows
     together; a cell past it is UNRESOLVED with ``STATUS_STEP_BUDGET``); ``q_max, m_max,
     n_strobe, strobe_tol, lock_extensions``: periodicity test. ``lyapunov``: also measure
-    each cell's largest Lyapunov exponent over its window (:func:`lyapunov_of_cells`).
+    each cell's largest Lyapunov exponent over its window
+    (:func:`fricenv.stability.lyapunov_of_cells`).
     ``x0, v0`` lie within
     ``PARAM_LIMIT`` like every parameter; ``q_max`` and ``m_max`` are at most
     ``MAX_PERIOD``, ``lock_extensions`` at most ``MAX_LOCK_EXTENSIONS`` and ``n_strobe`` at
@@ -630,33 +627,6 @@ def cell_inputs(base: OscillatorParams, values: Mapping[str, object],
     return CellInputs(P, t_tr, t_seg, n_seg, tries, method, nu, q)
 
 
-def lyapunov_of_cells(cells: CellInputs, settings: SweepSettings, status: np.ndarray
-                      ) -> np.ndarray:
-    """The largest Lyapunov exponent of each cell that ran with status OK, from the same
-    start (``settings.x0, v0``), transient and window (all its segments) as its regime, by
-    the event method's exact tangent (:func:`fricenv.stability.lyapunov_exponent`),
-    renormalised every period of the faster tone (at most 10); NaN elsewhere, and where the
-    tangent's run fails."""
-    from .stability import lyapunov_of_rows
-
-    out = np.full(status.shape[0], np.nan)
-    ok = np.flatnonzero(status == STATUS_OK)
-    if not ok.size:
-        return out
-    P = np.ascontiguousarray(cells.P[ok])
-    S = np.zeros((ok.size, N_STATE))
-    S[:, S_X] = settings.x0
-    S[:, S_V] = settings.v0
-    S[:, S_MODE] = [initial_mode(row, settings.x0, settings.v0, 0.0, 0.0) for row in P]
-    fast = np.maximum(P[:, P_W1], P[:, P_W2])
-    renorm = np.minimum(10.0, 2.0 * np.pi / np.where(fast > 0.0, fast, np.inf))
-    spans = np.stack([cells.t_transient[ok], cells.t_segment[ok] * cells.n_segment[ok],
-                      np.where(renorm > 0.0, renorm, 10.0)], axis=1)
-    res = lyapunov_of_rows(P, S, spans, (settings.rtol, settings.atol))
-    out[ok] = np.where(res[:, 2] == STATUS_OK, res[:, 0], np.nan)
-    return out
-
-
 def measure_cells(base: OscillatorParams, values: Mapping[str, object],
                   settings: SweepSettings, n_threads: int | None = None,
                   stop_requested: Callable[[], bool] | None = None) -> CellResults:
@@ -697,6 +667,8 @@ def measure_cells(base: OscillatorParams, values: Mapping[str, object],
     labels[status == STATUS_NOT_RUN] = NOT_COMPUTED
     exponent = np.full(n, np.nan)
     if settings.lyapunov and stopped is None:
+        from .stability import lyapunov_of_cells
+
         exponent = lyapunov_of_cells(cells, settings, status)
     results = CellResults(stats, status, period, labels, exponent)
     if stopped is not None:

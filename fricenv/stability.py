@@ -16,11 +16,14 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from fractions import Fraction
+from typing import Any
 
 import numpy as np
 
 from .checks import check_finite_real, check_int, got
-from .params import OscillatorParams
+from .core import initial_mode
+from .layout import N_STATE, S_MODE, S_V, S_X, STATUS_OK
+from .params import P_W1, P_W2, OscillatorParams
 from .simulate import OscillatorState, SimulationError, run_stats, simulate
 
 #: Largest denominator q of nu = p / q that :func:`forcing_period` recognises.
@@ -213,3 +216,30 @@ def lyapunov_rows(params: Sequence[OscillatorParams], states: Sequence[Oscillato
         raise SimulationError(f"the Lyapunov run of plant {i} stopped with status "
                               f"{int(out[i, 2])} by t = {S[i, 0]:.6g}", int(out[i, 2]))
     return out, S
+
+
+def lyapunov_of_cells(cells: Any, settings: Any, status: np.ndarray) -> np.ndarray:
+    """The largest Lyapunov exponent of each cell (``cells``: a
+    :class:`fricenv.cells.CellInputs`; ``settings``: its sweep's
+    :class:`fricenv.SweepSettings`; typed loosely, since the sweeps import this module)
+    that ran with status OK, from the same
+    start (``settings.x0, v0``), transient and window (all its segments) as its regime, by
+    the event method's exact tangent (:func:`fricenv.stability.lyapunov_exponent`),
+    renormalised every period of the faster tone (at most 10); NaN elsewhere, and where the
+    tangent's run fails."""
+    out = np.full(status.shape[0], np.nan)
+    ok = np.flatnonzero(status == STATUS_OK)
+    if not ok.size:
+        return out
+    P = np.ascontiguousarray(cells.P[ok])
+    S = np.zeros((ok.size, N_STATE))
+    S[:, S_X] = settings.x0
+    S[:, S_V] = settings.v0
+    S[:, S_MODE] = [initial_mode(row, settings.x0, settings.v0, 0.0, 0.0) for row in P]
+    fast = np.maximum(P[:, P_W1], P[:, P_W2])
+    renorm = np.minimum(10.0, 2.0 * np.pi / np.where(fast > 0.0, fast, np.inf))
+    spans = np.stack([cells.t_transient[ok], cells.t_segment[ok] * cells.n_segment[ok],
+                      np.where(renorm > 0.0, renorm, 10.0)], axis=1)
+    res = lyapunov_of_rows(P, S, spans, (settings.rtol, settings.atol))
+    out[ok] = np.where(res[:, 2] == STATUS_OK, res[:, 0], np.nan)
+    return out
