@@ -60,6 +60,8 @@ DEFAULT_NOISE_STD = 0.5
 DEFAULT_TEMPERATURE = 0.1
 #: Each later iteration's perturbations are this fraction of the previous ones.
 NOISE_DECAY = 0.5
+#: The MPPI settings a scene's defaults fix, in the order tables list them.
+SETTINGS = ("horizon", "samples", "iterations", "temperature", "noise_std")
 #: First plant seed of the episodes the settings were tuned on: after the best-constant
 #: search's block, below no evaluation seed (``fricenv_agents.layout``'s seed layout).
 TUNE_SEED_BASE = SEARCH_SEED_BASE + MAX_PLANTS
