@@ -146,7 +146,8 @@ def write_rliable(rows: list[dict[str, Any]], path: Path, metric: str = "ret") -
         if scenes != tasks:  # (a condition on fewer scenes: its own keys would mislead)
             continue
         out.update({f"{cond}/{k}": m for k, m in mats.items()})
+    keys = sorted(out)
     out["tasks"] = np.array(tasks or [])
     # (numpy's stub types savez's keywords as its one flag, not as arrays)
     np.savez(path, **out)  # type: ignore[arg-type]
-    return sorted(out)
+    return keys

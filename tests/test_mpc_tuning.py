@@ -108,3 +108,12 @@ def test_the_published_search_page_is_its_json(tmp_path: Path) -> None:
     (tmp_path / "mpc_tuning.json").write_bytes((RESULTS / "mpc_tuning.json").read_bytes())
     T.main(["--out", str(tmp_path), "--page-only"])
     assert (tmp_path / "mpc_tuning.md").read_text() == (RESULTS / "mpc_tuning.md").read_text()
+
+
+def test_the_published_comparison_is_what_the_shipped_episodes_give(tmp_path: Path) -> None:
+    (tmp_path / C.CSV_NAME).write_bytes((RESULTS / C.CSV_NAME).read_bytes())
+    page = C.main(["--out", str(tmp_path)])
+    assert page.read_text() == (RESULTS / "mpc_compare.md").read_text()
+    tuned = read_episodes(RESULTS / C.CSV_NAME)
+    assert {r["plant_seed"] for r in tuned} == set(eval_seeds(10, 5))
+    assert len(tuned) == 4 * 50
