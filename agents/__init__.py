@@ -8,8 +8,11 @@ Modules by concern: ``layout`` (names, seed layout), ``config`` (hyperparameter 
 folders, loading models), ``callbacks`` (training callbacks), ``cli`` (shared command-line
 pieces), ``scoring`` (the evaluation's tables and plots), ``statistics`` (interquartile
 means, bootstrap intervals, performance profiles), ``imitation`` (warm starts from the
-MPC), ``throughput`` (plant-steps and PPO samples per second), and ``baselines``, ``mpc``,
-``benchmark`` (with its ``benchmark_figures``, ``benchmark_records`` and
-``benchmark_workers``). ``train`` and ``evaluate`` import numba, torch and stable-baselines3 only
-after parsing their command line, so that their ``--help`` stays quick.
+MPC), ``throughput`` (plant-steps and PPO samples per second), ``mpc_tuning`` (the search
+behind the MPC's per-scene settings), ``mpc_compare`` (PPO against the tuned MPC on the
+benchmark's episodes), ``noise_report`` (returns under noise and delay), and
+``baselines``, ``mpc``, ``benchmark`` (with its ``benchmark_figures``,
+``benchmark_records`` and ``benchmark_workers``). ``train`` and
+``evaluate`` import numba, torch and stable-baselines3 only after parsing their command
+line, so that their ``--help`` stays quick.
 """

@@ -27,10 +27,13 @@ apply to it), except under noise, where it plans from the noisy, delayed observa
 filtered MPC plans from its particle filter's estimate instead.
 
 Statistics (``fricenv_agents.statistics``): each cell is the interquartile mean over all
-models and episodes with a 95 % stratified bootstrap interval; gaps, cuts and retentions
+models and episodes with a 95 % bootstrap interval (training seeds, then episodes in
+blocks of plant seeds); gaps, cuts and retentions
 are paired over the shared episodes. Writes ``control_benchmark.md``,
 ``control_benchmark.json``, ``control_benchmark_episodes.csv`` (one row per episode, with
-the versions of the software that ran it) and three figures to ``--out`` (and the
+the versions of the software that ran it), ``control_benchmark_rliable.npz`` (the returns
+as the ``(runs x tasks)`` matrices rliable reads, ``benchmark_records.write_rliable``)
+and three figures to ``--out`` (and the
 best-constant searches' caches, as ``fricenv_agents.evaluate`` does); the page ends with
 the throughput of the vector env and of PPO training (``fricenv_agents.throughput``).
 """
@@ -51,7 +54,7 @@ from fricenv.checks import check_output_dir
 
 from . import statistics as S
 from .benchmark_figures import plot_generalisation, plot_profiles, plot_returns
-from .benchmark_records import versions, write_episodes
+from .benchmark_records import read_episodes, versions, write_episodes, write_rliable
 from .benchmark_rows import (
     ALL_CONDITIONS,
     BENCH_SCENES,
@@ -177,9 +180,10 @@ def main_tables(rows: Sequence[Row], results: Results, n_seeds: int,
               f"{episodes} episodes (n = "
               f"{n_seeds * episodes} for a controller without training seeds), every trained "
               f"model on each of them (n = models × {n_seeds * episodes}). IQM: the mean of "
-              "the middle half of all those episodes' values; 95 % CI: stratified bootstrap "
-              "(2000 replicates) over training seeds, then episodes within each evaluation "
-              "seed (`fricenv_agents.statistics`)." + (f" Best constants: {best}." if best
+              "the middle half of all those episodes' values; 95 % CI: bootstrap (2000 "
+              "replicates) resampling training seeds, then episodes within each evaluation "
+              "seed's block of plant seeds, the same episodes for every model "
+              "(`fricenv_agents.statistics`)." + (f" Best constants: {best}." if best
                                                        else ""), ""]
     return lines
 
@@ -397,7 +401,9 @@ def main(argv: Sequence[str] | None = None, rows: Sequence[Row] = ROWS) -> Path:
         json.dumps(to_json(results, gen, summary, meta), indent=1, default=str))
     runs = [(sc, NOMINAL, r) for sc, r in results.items()]
     runs += [(sc, c, es) for sc, conds in gen.items() for c, es in conds.items()]
-    write_episodes(args.out / "control_benchmark_episodes.csv", runs)
+    csv_path = args.out / "control_benchmark_episodes.csv"
+    write_episodes(csv_path, runs)
+    write_rliable(read_episodes(csv_path), args.out / "control_benchmark_rliable.npz")
     return args.out / "control_benchmark.md"
 
 

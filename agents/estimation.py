@@ -57,11 +57,6 @@ from fricenv.envs.rollout import MAX_SAMPLES, BatchRollout
 from fricenv.envs.setup import EnvSetup
 
 from .mpc import (
-    DEFAULT_HORIZON,
-    DEFAULT_ITERATIONS,
-    DEFAULT_NOISE_STD,
-    DEFAULT_SAMPLES,
-    DEFAULT_TEMPERATURE,
     MPPIController,
     observation_batch,
 )
@@ -468,7 +463,8 @@ class FilteredMPC(MPPIController):
 
     ``scene`` and ``env_kwargs`` make the model and the filter's noise model
     (``obs_noise``, ``obs_delay``, ``observe``) and prior (``randomize``), as they make
-    the environment it controls. The MPPI settings are ``MPPIController``'s; ``particles``,
+    the environment it controls. The MPPI settings are ``MPPIController``'s (left ``None``:
+    the scene's tuned ones, the same as the bound MPC's); ``particles``,
     ``resample_below`` and ``roughening`` are the filter's; ``seed`` seeds both.
     ``plan_from="mean"`` starts every MPPI sample from the posterior mean,
     ``"posterior"`` each from its own draw of the posterior (see ``PLAN_FROM``). It never
@@ -479,9 +475,9 @@ class FilteredMPC(MPPIController):
     label = "MPC (MPPI, exact model) + particle filter"
 
     def __init__(self, scene: Any = "self_excited", env_kwargs: dict | None = None, *,
-                 horizon: int = DEFAULT_HORIZON, samples: int = DEFAULT_SAMPLES,
-                 iterations: int = DEFAULT_ITERATIONS, noise_std: float = DEFAULT_NOISE_STD,
-                 temperature: float = DEFAULT_TEMPERATURE, seed: int | None = 0,
+                 horizon: int | None = None, samples: int | None = None,
+                 iterations: int | None = None, noise_std: float | None = None,
+                 temperature: float | None = None, seed: int | None = 0,
                  parallel: bool = True, particles: int = DEFAULT_PARTICLES,
                  resample_below: float = DEFAULT_RESAMPLE_BELOW,
                  roughening: float = DEFAULT_ROUGHENING, plan_from: str = PLAN_FROM[0]):

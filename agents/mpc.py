@@ -23,11 +23,12 @@ the plant's state:
   noise it plans from the noisy state as if it were exact, and under a delay from the
   delayed one (no filter, no predictor).
 
-Defaults (horizon 12 intervals = one natural period, 256 samples, two iterations) come
-from the sweep of return against compute in ``scripts/mpc_sweep.py``
-(``docs/results/mpc_sweep.md``): shorter horizons lose the forced paper scene, longer
-ones need more samples than they are worth; fewer samples lose return in every scene; at
-the same compute a second iteration beats twice the samples.
+Defaults: per scene, the settings the search of ``fricenv_agents.mpc_tuning`` picked on
+tuning episodes disjoint from every evaluation episode (``TUNED``;
+``docs/results/mpc_tuning.md`` has its table and the compute of each setting). A scene it
+did not tune (a custom ``Scene``) gets the generic ``DEFAULT_*`` values, the earlier
+defaults from the one-at-a-time sweep of ``scripts/mpc_sweep.py``
+(``docs/results/mpc_sweep.md``). Any setting passed explicitly wins over both.
 
 An observation no environment of the controller's settings can give (NaN, a value outside
 the observation box, a stick flag other than 0 or 1, an empty batch) is refused with a
@@ -48,10 +49,10 @@ from fricenv.envs.setup import EnvSetup
 
 from .layout import MAX_PLANTS, SEARCH_SEED_BASE
 
+#: The generic settings (a scene without tuned ones): horizon 12 intervals is one natural
+#: period.
 DEFAULT_HORIZON = 12
 DEFAULT_SAMPLES = 256
-#: A second iteration gained more return than twice the samples at the same compute, in
-#: every scene of the sweep (docs/results/mpc_sweep.md).
 DEFAULT_ITERATIONS = 2
 #: Standard deviation of the perturbations, in normalised action units (range [-1, 1]).
 DEFAULT_NOISE_STD = 0.5
@@ -60,9 +61,41 @@ DEFAULT_NOISE_STD = 0.5
 DEFAULT_TEMPERATURE = 0.1
 #: Each later iteration's perturbations are this fraction of the previous ones.
 NOISE_DECAY = 0.5
+#: The MPPI settings a scene's defaults fix, in the order tables list them.
+SETTINGS = ("horizon", "samples", "iterations", "temperature", "noise_std")
+#: Each scene's settings, picked by ``fricenv_agents.mpc_tuning`` (the highest mean return
+#: on 4 tuning episodes over iterations x temperature x samples, then the horizon around
+#: the best; docs/results/mpc_tuning.md). Four iterations won on every scene, temperature
+#: 0.03 on three of four, 512 samples on paper and stribeck, a horizon of 8 on viscous and
+#: stribeck.
+TUNED: dict[str, dict[str, Any]] = {
+    "self_excited": {"horizon": 12, "samples": 256, "iterations": 4, "temperature": 0.03,
+                     "noise_std": 0.5},
+    "paper": {"horizon": 12, "samples": 512, "iterations": 4, "temperature": 0.03,
+              "noise_std": 0.5},
+    "viscous": {"horizon": 8, "samples": 256, "iterations": 4, "temperature": 0.03,
+                "noise_std": 0.5},
+    "stribeck": {"horizon": 8, "samples": 512, "iterations": 4, "temperature": 0.1,
+                 "noise_std": 0.5},
+}
 #: First plant seed of the episodes the settings were tuned on: after the best-constant
 #: search's block, below no evaluation seed (``fricenv_agents.layout``'s seed layout).
 TUNE_SEED_BASE = SEARCH_SEED_BASE + MAX_PLANTS
+
+
+def scene_settings(scene: str | Scene, **given: Any) -> dict[str, Any]:
+    """The MPPI settings for ``scene``: those passed in ``given`` (``None`` meaning not
+    passed), else the scene's tuned ones (``TUNED``), else the generic ``DEFAULT_*``.
+    ``ValueError`` naming an unknown setting."""
+    unknown = set(given) - set(SETTINGS)
+    if unknown:
+        raise ValueError(f"unknown MPPI settings {sorted(unknown)}; expected {list(SETTINGS)}")
+    name = scene if isinstance(scene, str) else getattr(scene, "name", "")
+    generic = {"horizon": DEFAULT_HORIZON, "samples": DEFAULT_SAMPLES,
+               "iterations": DEFAULT_ITERATIONS, "temperature": DEFAULT_TEMPERATURE,
+               "noise_std": DEFAULT_NOISE_STD}
+    base = {**generic, **TUNED.get(name, {})}
+    return {k: base[k] if given.get(k) is None else given[k] for k in SETTINGS}
 
 
 def observation_batch(observation: Any, setup: EnvSetup) -> tuple[np.ndarray, np.ndarray]:
@@ -83,7 +116,8 @@ class MPPIController:
     """MPPI on the exact plant (see the module docstring), with SB3's ``predict``.
 
     ``scene`` and ``env_kwargs`` make the model, as they make the environment it controls
-    (``max_episode_steps`` is ignored). ``seed`` seeds the perturbations. With
+    (``max_episode_steps`` is ignored). The MPPI settings left ``None`` are the scene's
+    (``scene_settings``). ``seed`` seeds the perturbations. With
     ``exact_state=False`` it ignores ``bind`` and always plans from the observation (the
     benchmark's MPC under sensor noise).
     """
@@ -91,20 +125,23 @@ class MPPIController:
     label = "MPC (MPPI, exact model)"
 
     def __init__(self, scene: str | Scene = "self_excited", env_kwargs: dict | None = None, *,
-                 horizon: int = DEFAULT_HORIZON, samples: int = DEFAULT_SAMPLES,
-                 iterations: int = DEFAULT_ITERATIONS, noise_std: float = DEFAULT_NOISE_STD,
-                 temperature: float = DEFAULT_TEMPERATURE, seed: int | None = 0,
+                 horizon: int | None = None, samples: int | None = None,
+                 iterations: int | None = None, noise_std: float | None = None,
+                 temperature: float | None = None, seed: int | None = 0,
                  parallel: bool = True, exact_state: bool = True):
         kwargs = dict(env_kwargs or {})
         kwargs.pop("max_episode_steps", None)
         self.setup = EnvSetup.build(scene, **kwargs)
         self.scene = self.setup.scene
         self.action_space = self.setup.action_space
-        self.horizon = check_int("horizon", horizon, 1)
-        self.samples = check_int("samples", samples, 2)
-        self.iterations = check_int("iterations", iterations, 1)
-        self.noise_std = check_finite_real("noise_std", noise_std)
-        self.temperature = check_finite_real("temperature", temperature)
+        c = scene_settings(self.scene, horizon=horizon, samples=samples,
+                           iterations=iterations, noise_std=noise_std,
+                           temperature=temperature)
+        self.horizon = check_int("horizon", c["horizon"], 1)
+        self.samples = check_int("samples", c["samples"], 2)
+        self.iterations = check_int("iterations", c["iterations"], 1)
+        self.noise_std = check_finite_real("noise_std", c["noise_std"])
+        self.temperature = check_finite_real("temperature", c["temperature"])
         if self.noise_std <= 0.0 or self.temperature <= 0.0:
             raise ValueError(f"noise_std and temperature must be > 0, got {noise_std!r} and "
                              f"{temperature!r}")

@@ -87,8 +87,9 @@ class Entry:
         return values.reshape(shape)
 
     def interval(self, name: str) -> Interval:
-        """The IQM of metric ``name`` over all models and episodes, with its stratified
-        bootstrap 95 % interval (evaluation seeds as strata; computed once)."""
+        """The IQM of metric ``name`` over all models and episodes, with its 95 %
+        bootstrap interval (training runs, then episodes within each evaluation seed's
+        block of plant seeds; computed once)."""
         if name not in self.intervals:
             self.intervals[name] = iqm_ci(self.matrix(name), strata=self.n_seeds)
         return self.intervals[name]

@@ -1,7 +1,8 @@
 """Aggregate scores of few training runs the way deep-RL evaluation recommends: the
-interquartile mean (IQM) with a stratified bootstrap confidence interval, and performance
-profiles with a bootstrap band (Agarwal et al., "Deep reinforcement learning at the edge
-of the statistical precipice", NeurIPS 2021). numpy only.
+interquartile mean (IQM) with a bootstrap confidence interval that resamples training runs
+and, in blocks of plant seeds, episodes, and performance profiles with a bootstrap band
+(Agarwal et al., "Deep reinforcement learning at the edge of the statistical precipice",
+NeurIPS 2021). numpy only.
 
 A benchmark cell is a matrix of scores: one row per training run (a controller without
 training seeds has one row) and one column per evaluation episode, the columns grouped by
@@ -15,7 +16,13 @@ The bootstrap has two stages, applied together to every replicate:
    controller;
 2. within each evaluation seed's block, resample the columns (episodes) with replacement:
    plants are random draws too, and each evaluation seed keeps its number of episodes, as
-   in the experiment (a stratified bootstrap, as over the tasks of a suite in rliable).
+   in the experiment.
+
+This is not rliable's "stratified bootstrap", which resamples the runs of each task on
+their own and knows no episodes: here training runs and episodes are resampled together,
+the episodes in blocks of plant seeds (one block per evaluation seed), because every run
+faces the same plants. :func:`score_matrix` gives a cell in the ``(runs x tasks)`` form
+rliable reads, for anyone who wants its statistics instead.
 
 The resampled columns are the same for every resampled row. Episodes are crossed with the
 training runs, not nested in them (every model faces the same plants), so a plant that is
@@ -189,7 +196,8 @@ def _check_boot(n_boot: int, confidence: float, per_replicate: int = 1,
 def bootstrap_indices(n_rows: int, strata: Strata, n_cols: int, n_boot: int,
                       rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
     """Row indices ``(n_boot, n_rows)`` and column indices ``(n_boot, n_cols)`` of the
-    two-stage stratified bootstrap (see the module's docstring). Column ``j`` of a
+    two-stage bootstrap (training runs, then episodes within each block of plant seeds;
+    see the module's docstring). Column ``j`` of a
     replicate comes from the stratum of original column ``j``, so each stratum keeps its
     size and place."""
     labels = stratum_labels(strata, n_cols)
@@ -227,8 +235,9 @@ Aggregate = Callable[..., "np.ndarray | float"]
 def iqm_ci(scores: np.ndarray, strata: Strata = None, n_boot: int = N_BOOT,
            confidence: float = CONFIDENCE, seed: int = 0,
            aggregate: Aggregate = iqm) -> Interval:
-    """``aggregate`` (the IQM) of all of a cell's scores with its stratified bootstrap
-    interval. ``scores``: a ``(runs, episodes)`` matrix (a 1-D array is one run);
+    """``aggregate`` (the IQM) of all of a cell's scores with its bootstrap interval
+    (training runs, then episodes within each evaluation seed's block of plant seeds).
+    ``scores``: a ``(runs, episodes)`` matrix (a 1-D array is one run);
     ``strata``: the episodes' evaluation seeds (see :func:`stratum_labels`)."""
     cell = _matrix(scores)
     _check_boot(n_boot, confidence, sum(cell.shape) + 2 * cell.size, cell.shape)
@@ -328,3 +337,62 @@ def performance_profile(costs: np.ndarray, taus: np.ndarray, strata: Strata = No
     reps = np.einsum("bi,bit->bt", _counts(rows, r), per_row) / (r * c)
     lo, hi = _percentiles(reps, confidence)
     return Profile(taus, below.mean(axis=(0, 1)), lo, hi)
+
+
+# -- tails, wins and rliable's form -----------------------------------------------------------
+def cvar(values: np.ndarray, share: float = 0.05, axis: int | None = None
+         ) -> np.ndarray | float:
+    """The mean of the worst ``share`` of the values (the lowest: returns, where higher is
+    better), at least one value: the conditional value at risk of the left tail.
+
+    The IQM drops the tails by design; a controller that fails badly on one plant in
+    twenty is then indistinguishable from one that never does, so a table that ranks by
+    IQM shows this beside it. ``ceil(share * n)`` values are averaged (``axis=None``: all
+    values; else along ``axis``).
+    """
+    if (isinstance(share, bool) or not isinstance(share, (int, float, np.number))
+            or not 0.0 < share <= 1.0):
+        raise ValueError(f"share must be a number in (0, 1], got {share!r}")
+    a, axis = _values(values, axis)
+    n = a.shape[axis]
+    if n == 0:
+        raise ValueError("cvar needs at least one value, got an empty array")
+    k = max(1, int(np.ceil(share * n - 1e-9)))
+    out = np.take(np.sort(a, axis=axis), np.arange(k), axis=axis).mean(axis=axis)
+    return float(out) if np.ndim(out) == 0 else out
+
+
+def win_share(cell: np.ndarray, ref: np.ndarray) -> np.ndarray | float:
+    """The share of paired episodes in which ``cell`` scores above ``ref`` (ties count
+    half): each row (training run) of ``cell`` against the reference's episode on the same
+    plant. ``ref`` has one row (a controller without training seeds) or as many as
+    ``cell``. Reduces the last two axes, so it also takes :func:`paired_ci`'s replicates.
+    """
+    c, r = np.asarray(cell, dtype=float), np.asarray(ref, dtype=float)
+    if c.ndim < 2 or r.ndim < 2 or c.shape[-1] != r.shape[-1]:
+        raise ValueError(f"cell and ref must be (runs, episodes) matrices with the same "
+                         f"episodes, got shapes {c.shape} and {r.shape}")
+    if r.shape[-2] not in (1, c.shape[-2]):
+        raise ValueError(f"ref must have one row or as many as cell ({c.shape[-2]}), got "
+                         f"{r.shape[-2]}")
+    wins = (c > r).astype(float) + 0.5 * (c == r)
+    return np.asarray(wins.mean(axis=(-2, -1)))
+
+
+def score_matrix(cells: Sequence[np.ndarray]) -> np.ndarray:
+    """Cells of one controller on several tasks (scenes), each ``(runs, episodes)`` on the
+    same episodes, as the ``(runs x tasks)`` matrix rliable reads: row ``i * episodes + j``
+    holds training run ``i``'s score on episode ``j`` of every task.
+
+    rliable's aggregates (``rliable.metrics.aggregate_iqm``: ``scipy.stats.trim_mean(x,
+    0.25)`` over the flattened matrix) then pool a task's column exactly as :func:`iqm`
+    pools the cell. Its interval differs: rliable resamples each task's rows on its own,
+    while :func:`iqm_ci` resamples training runs and plant blocks together.
+    """
+    mats = [_matrix(c, f"cells[{t}]") for t, c in enumerate(cells)]
+    if not mats:
+        raise ValueError("score_matrix needs the cell of at least one task, got none")
+    if any(m.shape != mats[0].shape for m in mats):
+        raise ValueError(f"every task's cell must have the same (runs, episodes) shape, got "
+                         f"{[m.shape for m in mats]}")
+    return np.stack([m.ravel() for m in mats], axis=1)

@@ -1,4 +1,5 @@
-"""Return against compute for the MPC's settings: the sweep behind its defaults.
+"""Return against compute for the MPC's settings, one at a time: the sweep behind its
+generic settings (each scene's tuned ones come from ``fricenv_agents.mpc_tuning``).
 
     python scripts/mpc_sweep.py [--scenes stribeck self_excited] [--episodes 8]
                                 [--out out/mpc-sweep]
@@ -124,8 +125,10 @@ def markdown(rows: list[dict[str, Any]], episodes: int, centre: dict[str, Any]) 
             f"{r['iterations']} | {r['temperature']:g} | {r['noise_std']:g} | "
             f"{r['return_mean']:.2f} ± {r['return_std']:.2f} | {r['stick_fraction']:.4f} | "
             f"{r['intervals_per_decision']} | {r['decision_ms']:.2f} |")
-    lines += ["", "The MPC's defaults (`fricenv_agents.mpc`): "
-              + ", ".join(f"{k} = {v}" for k, v in DEFAULTS.items()) + ".", "",
+    lines += ["", "The MPC's generic settings (`fricenv_agents.mpc.DEFAULT_*`, for a scene "
+              "without tuned ones): " + ", ".join(f"{k} = {v}" for k, v in DEFAULTS.items())
+              + ". Each benchmark scene's own defaults come from the search of "
+              "[mpc_tuning.md](mpc_tuning.md).", "",
               "![mpc_sweep.png](mpc_sweep.png)", ""]
     return "\n".join(lines)
 

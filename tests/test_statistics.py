@@ -1,5 +1,6 @@
-"""The benchmark's statistics: interquartile mean, stratified bootstrap intervals and
-performance profiles, against slow loop-by-loop references and by their properties."""
+"""The benchmark's statistics: interquartile mean, bootstrap intervals over runs and blocks
+of plant seeds and performance profiles, against slow loop-by-loop references and by their
+properties."""
 
 from __future__ import annotations
 
@@ -203,3 +204,60 @@ def test_bad_arguments_get_named_errors():
         S.tau_grid([x], n=2.5)  # type: ignore[arg-type]
     with pytest.raises(ValueError, match=r"taus must be"):
         S.performance_profile(x, np.array([1.0, np.nan]), n_boot=10)
+
+
+# -- tails, wins and rliable's form -----------------------------------------------------------
+def test_cvar_is_the_mean_of_the_worst_share_and_at_least_one_value() -> None:
+    v = np.arange(40.0)  # the worst 5 % of 40: the two lowest
+    assert S.cvar(v, 0.05) == pytest.approx(0.5)
+    assert S.cvar(np.array([3.0, -7.0, 1.0]), 0.05) == -7.0  # (one value at least)
+    assert S.cvar(v, 1.0) == pytest.approx(v.mean())
+    assert S.cvar(v, 0.05) <= S.iqm(v)
+    with pytest.raises(ValueError, match="share"):
+        S.cvar(v, 0.0)
+    with pytest.raises(ValueError, match="NaN"):
+        S.cvar(np.array([1.0, np.nan]))
+
+
+def test_win_share_pairs_each_run_with_the_reference_on_the_same_plant() -> None:
+    ref = np.array([[0.0, 1.0, 2.0, 3.0]])
+    cell = np.array([[1.0, 0.0, 2.0, 4.0],   # wins 2, tie 1, loses 1
+                     [9.0, 9.0, 9.0, 9.0]])  # wins 4
+    assert S.win_share(cell, ref) == pytest.approx((2.5 + 4.0) / 8.0)
+    assert S.win_share(ref, ref) == pytest.approx(0.5)
+    # paired_ci hands it every replicate at once and gets one share each
+    iv = S.paired_ci(S.win_share, [cell, ref], strata=2, n_boot=200)
+    assert 0.0 <= iv.lo <= iv.estimate <= iv.hi <= 1.0
+    with pytest.raises(ValueError, match="same episodes"):
+        S.win_share(cell, ref[:, :3])
+
+
+def test_score_matrix_pools_each_task_as_the_iqm_pools_its_cell() -> None:
+    """rliable's IQM (``rliable.metrics.aggregate_iqm``) is scipy.stats.trim_mean(x, 0.25)
+    over the flattened matrix: on one task's column it must equal the cell's IQM. Checked
+    against rliable itself where it is installed (the ``dev`` extra), and against its
+    documented definition always."""
+    from scipy.stats import trim_mean
+
+    rng = np.random.default_rng(3)
+    cells = [rng.normal(t, 1 + t, size=(5, 50)) for t in range(3)]
+    m = S.score_matrix(cells)
+    assert m.shape == (250, 3)
+    assert m[1 * 50 + 7, 2] == cells[2][1, 7]  # row: run i, episode j
+    for t, cell in enumerate(cells):
+        assert trim_mean(m[:, t], 0.25) == pytest.approx(S.iqm(cell), rel=1e-12)
+    assert trim_mean(m, 0.25, axis=None) == pytest.approx(S.iqm(np.concatenate(cells)))
+    try:
+        from rliable import metrics
+    except ImportError:
+        return
+    for t, cell in enumerate(cells):
+        assert metrics.aggregate_iqm(m[:, [t]]) == pytest.approx(S.iqm(cell), rel=1e-12)
+    assert metrics.aggregate_iqm(m) == pytest.approx(S.iqm(m), rel=1e-12)
+
+
+def test_score_matrix_refuses_tasks_of_different_shapes() -> None:
+    with pytest.raises(ValueError, match="same"):
+        S.score_matrix([np.zeros((5, 50)), np.zeros((5, 40))])
+    with pytest.raises(ValueError, match="at least one"):
+        S.score_matrix([])
