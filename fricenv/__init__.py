@@ -24,7 +24,9 @@ if TYPE_CHECKING:
     from . import atlas as atlas
     from .atlas.store import open_atlas as open_atlas
     from .calls import SweepInterrupted
-    from .identification import Design, IdentificationResult, design_excitation, identify
+    from .identification.design import Design, design_excitation
+    from .identification.identify import IdentificationResult
+    from .identification.identify import identify as identify
     from .jit import threading_info
     from .mapfile import MapInUseError
     from .params import FRICTION_LAWS, OscillatorParams

@@ -35,7 +35,8 @@ Z95 = 1.959963984540054
 #: Residual given to a trial point where the simulator refuses to run (a divergent plant):
 #: large, finite, so that the trust region shrinks its step instead of failing.
 _PENALTY = 1e3
-#: Forcing periods of the record's start that each start is first fitted to.
+#: Forcing periods of the record's start that each start is first fitted to (then twice,
+#: four times as many, ... up to the whole record).
 SHORT_PERIODS = 2.0
 
 
@@ -170,31 +171,64 @@ class _Objective:
 
 
 def _solve(obj: _Objective, starts: list[np.ndarray], max_nfev: int,
-           short: _Objective | None = None) -> tuple[Any, list[float]]:
+           horizons: Sequence[_Objective] = ()) -> tuple[Any, list[float]]:
     """least_squares from each start, until two starts agree on the lowest cost; the best
     result, and the final cost of every start run.
 
-    With ``short`` (the same fit on the record's first forcing periods), each start is
-    first fitted there, from its v0 and from v0 mirrored about the belt speed, and the
-    better of the two starts the fit of the whole record: the start velocity a noisy
-    record suggests is poor, and v0 cannot cross V smoothly (a start at v0 = V sticks)."""
+    With ``horizons`` (the same fit on growing prefixes of the record, shortest first),
+    each start is first fitted on the shortest (:func:`_short_start`), then carried
+    through the longer ones: the stick/slip sequence of a long record is caught one
+    switch at a time, where a fit of the whole record from afar lands on a sequence with
+    switches missing."""
     lo, hi = obj.model.bounds()
     best, costs = None, []
     for z0 in starts:
         if best is not None and sum(abs(c - best.cost) <= 1e-5 * best.cost for c in costs) >= 2:
             break  # two starts agree on the lowest cost: the rest would find it again
         z0 = np.clip(z0, lo, hi)
-        if short is not None:
-            mirrored = z0.copy()
-            mirrored[-1] = 2.0 * obj.model.base.V - z0[-1]
-            pre = [_least_squares(short, z, lo, hi, max(20, max_nfev // 2))
-                   for z in (z0, mirrored)]
-            z0 = min(pre, key=lambda sol: sol.cost).x
+        if horizons:
+            z0 = _short_start(horizons[0], z0, lo, hi, max_nfev)
+            for h in horizons[1:]:
+                z0 = np.asarray(_least_squares(h, z0, lo, hi, max_nfev).x)
         sol = _least_squares(obj, z0, lo, hi, max_nfev)
         costs.append(float(sol.cost))
         if best is None or sol.cost < best.cost:
             best = sol
     return best, costs
+
+
+def _reversal_forces(model: LawModel, values: dict[str, float], tr: Any) -> np.ndarray:
+    """The friction force that would have held the block at each reversal through the
+    belt speed of ``tr`` (the block passes v = V without sticking only where it exceeds
+    xfs)."""
+    ev = tr.events
+    rev = ev[ev["kind"] == 3]
+    p = model.plant(values)
+    return np.abs(p.amp1 * np.cos(p.omega1 * rev["t"]) + p.amp2 * np.cos(p.omega2 * rev["t"])
+                  - rev["x"] - p.lam * p.V)
+
+
+#: Start velocities tried on the short record, relative to the belt speed (in units of
+#: max(1, |V|)), beside the one the record's first samples suggest and its mirror about V.
+V0_OFFSETS = (-1.5, -0.75, -0.25, 0.25, 0.75, 1.5)
+
+
+def _short_start(short: _Objective, z0: np.ndarray, lo: np.ndarray, hi: np.ndarray,
+                 max_nfev: int) -> np.ndarray:
+    """A start refined on the record's first periods. The start velocity that a noisy
+    record's first samples suggest is poor (at 30 dB, off by 1 from 1.4), and a fit
+    cannot carry v0 across the belt speed: the derivative by v0 vanishes at v0 = V, where
+    the block starts stuck. So several v0 on both sides of V are scored, and the two
+    best are fitted on the short record; the better fit starts the whole record's."""
+    V = short.model.base.V
+    cands = []
+    for v0 in (z0[-1], 2.0 * V - z0[-1], *(V + d * max(1.0, abs(V)) for d in V0_OFFSETS)):
+        z = z0.copy()
+        z[-1] = v0
+        cands.append((float(np.sum(short.residuals(z) ** 2)), z))
+    cands.sort(key=lambda c: c[0])
+    fits = [_least_squares(short, z, lo, hi, max(20, max_nfev // 2)) for _, z in cands[:2]]
+    return np.asarray(min(fits, key=lambda sol: sol.cost).x)
 
 
 def _least_squares(obj: _Objective, z0: np.ndarray, lo: np.ndarray, hi: np.ndarray,
@@ -220,14 +254,21 @@ def fit_law(law: str, t: np.ndarray, x: np.ndarray, v: np.ndarray | None,
     weights = (1.0 / max(float(np.std(x)), 1e-12),
                1.0 / max(float(np.std(v)), 1e-12) if v is not None else 0.0)
     obj = _Objective(model, t, x, v, weights)
-    m = int(np.searchsorted(t, t[0] + SHORT_PERIODS * first_period(known)))
-    short = (_Objective(model, t[:m], x[:m], None if v is None else v[:m], weights)
-             if m < 0.7 * t.size and m >= 8 else None)
-    sol, costs = _solve(obj, _starts(model, x0v0, n_starts, rng, seeds), max_nfev, short)
+    horizons = []
+    periods = SHORT_PERIODS
+    while True:
+        m = int(np.searchsorted(t, t[0] + periods * first_period(known)))
+        if m >= 0.7 * t.size:
+            break
+        if m >= 8:
+            horizons.append(_Objective(model, t[:m], x[:m], None if v is None else v[:m],
+                                       weights))
+        periods *= 2.0
+    sol, costs = _solve(obj, _starts(model, x0v0, n_starts, rng, seeds), max_nfev, horizons)
     sigma = _sigmas(model, sol.x, t, x, v)
     if v is not None:  # refine with the channels weighted by their noise levels
         obj.w = (1.0 / sigma["x"], 1.0 / sigma["v"])
-        sol2, _ = _solve(obj, [sol.x], max_nfev)
+        sol2, _ = _solve(obj, [np.asarray(sol.x)], max_nfev)
         sol = sol2
         sigma = _sigmas(model, sol.x, t, x, v)
     return _assemble(model, obj, sol, sigma, t, x, v, costs, len(costs),
@@ -328,13 +369,16 @@ def _identifiability(model: LawModel, values: dict[str, float], se: dict[str, fl
             and Z95 * se[n] > max(abs(values[n]), SCALE_FLOOR.get(n, 0.1))]
     combos: list[dict[str, Any]] = []
     for i in weak:
-        partner, best = None, 0.0
+        # the partner: the most correlated (|r| > 0.95) other parameter, one that is itself
+        # undetermined first (lam with b1 where lam, b1, xfk and xfs all move together)
+        partner, best, rank = None, 0.0, (-1, 0.0)
         for j in range(len(names)):
             if j == i or j in dead or names[j] in ("x0", "v0") and names[i] not in ("x0", "v0"):
                 continue
             corr = cov[i, j] / math.sqrt(cov[i, i] * cov[j, j])
-            if abs(corr) > max(0.95, abs(best)):
-                partner, best = j, corr
+            key = (int(j in weak), abs(corr))
+            if abs(corr) > 0.95 and key > rank:
+                partner, best, rank = j, corr, key
         rel = se[names[i]] / max(abs(values[names[i]]), 1e-300)
         if partner is None:
             flags[names[i]] = (f"its 95 % interval (+-{Z95 * se[names[i]]:.3g}, "
@@ -346,7 +390,7 @@ def _identifiability(model: LawModel, values: dict[str, float], se: dict[str, fl
                            f"({combo['name']} = {combo['value']:.4g} +- {combo['se']:.2g}; "
                            f"correlation {best:+.3f}); along the other direction the record "
                            "is nearly flat")
-        if all(c["name"] != combo["name"] for c in combos):
+        if all(set(c["coefficients"]) != set(combo["coefficients"]) for c in combos):
             combos.append(combo)
     return flags, combos
 
@@ -409,14 +453,7 @@ def _combination(names: tuple[str, ...], values: dict[str, float], cov: np.ndarr
 
 
 def _reversal_bound(model: LawModel, values: dict[str, float], tr: Any) -> float:
-    """The smallest friction force a reversal through the belt speed needed (the block
-    passes v = V without sticking only where the other forces exceed xfs): an upper bound
-    on xfs; inf without reversals."""
-    ev = tr.events
-    rev = ev[ev["kind"] == 3]
-    if rev.size == 0:
-        return math.inf
-    p = model.plant(values)
-    force = (p.amp1 * np.cos(p.omega1 * rev["t"]) + p.amp2 * np.cos(p.omega2 * rev["t"])
-             - rev["x"] - p.lam * p.V)
-    return float(np.min(np.abs(force)))
+    """The smallest friction force a reversal through the belt speed needed: an upper
+    bound on xfs (inf without reversals)."""
+    forces = _reversal_forces(model, values, tr)
+    return float(forces.min()) if forces.size else math.inf

@@ -127,7 +127,7 @@ def check_record(t: object, x: object, v: object, known: Mapping[str, float]
             raise ValueError(f"{name} must be a 1-d array of samples, got shape {a.shape}")
         bad = np.flatnonzero(~np.isfinite(a))
         if bad.size:
-            raise ValueError(f"{name}[{bad[0]}] = {a[bad[0]]!r} is not finite (NaN or inf): "
+            raise ValueError(f"{name}[{bad[0]}] = {float(a[bad[0]])!r} is not finite (NaN or inf): "
                              f"drop or repair the sample first")
         arrays.append(a)
     ta, xa, va = arrays[0], arrays[1], arrays[2]
