@@ -23,6 +23,7 @@ import numpy as np
 
 from ..params import OscillatorParams
 from .model import (
+    LOWER,
     SCALE_FLOOR,
     LawModel,
     SimulationError,
@@ -159,7 +160,37 @@ class _Objective:
                 J.append(res.dv @ self.M * self.w[1])
             self._r, self._J = np.concatenate(r), np.vstack(J)
             self.n_singular = res.n_singular
+            if res.undefined is not None:
+                self._secant_rows(z, res.undefined)
         self._key = key
+
+    def _secant_rows(self, z: np.ndarray, undefined: np.ndarray) -> None:
+        """Central differences (step 1e-5 of each parameter's scale) for the samples past
+        a point where the exact derivative does not exist (a tangential break-away, a
+        grazing contact). There the cost has a kink; a Jacobian of zeros would tell the
+        optimiser that a quarter of the record does not depend on the parameters, and it
+        would stall on the kink (measured: a viscous fit stopped at cost 1.113 against
+        1.054 at the truth)."""
+        rows = np.concatenate([undefined] * (1 if self.v is None else 2))
+        lo, hi = self.model.bounds()
+        for j, name in enumerate(self.model.names):
+            h = 1e-5 * max(abs(z[j]), SCALE_FLOOR.get(name, 0.1))
+            zp, zm = z.copy(), z.copy()
+            zp[j] = min(z[j] + h, hi[j])
+            zm[j] = max(z[j] - h, lo[j])
+            cols = []
+            for zz in (zp, zm):
+                try:
+                    res = response(self.model, self.model.to_natural(zz), self.t,
+                                   jacobian=False)
+                except (SimulationError, ValueError):
+                    break
+                r = [(res.x - self.x) * self.w[0]]
+                if self.v is not None:
+                    r.append((res.v - self.v) * self.w[1])
+                cols.append(np.concatenate(r))
+            if len(cols) == 2 and zp[j] > zm[j]:
+                self._J[rows, j] = (cols[0] - cols[1])[rows] / (zp[j] - zm[j])
 
     def residuals(self, z: np.ndarray) -> np.ndarray:
         self._eval(z)
@@ -305,6 +336,9 @@ def _assemble(model: LawModel, obj: _Objective, sol: Any, sigma: dict[str, float
     undetermined, combos = _identifiability(model, values, se, cov, dead, res.trajectory, ci)
     if combos:
         _widen_along_valley(model, obj, sol.x, cov, ci, t.size)
+    for name, low in LOWER.items():  # an interval never reaches below a valid value
+        if name in ci:
+            ci[name] = (max(ci[name][0], low), max(ci[name][1], low))
     n_obs = t.size * (1 if v is None else 2)
     loglik = -0.5 * sum(t.size * (math.log(2 * math.pi * s * s) + 1.0) for s in sigma.values())
     k = model.k + len(sigma)

@@ -219,6 +219,9 @@ class Response:
     dv: np.ndarray
     n_singular: int
     trajectory: object
+    #: Samples past a point where the derivative does not exist (their rows of ``dx``,
+    #: ``dv`` are zero here, the simulator's NaN replaced).
+    undefined: np.ndarray | None = None
 
 
 def response(model: LawModel, values: Mapping[str, float], t: np.ndarray,
@@ -244,11 +247,12 @@ def response(model: LawModel, values: Mapping[str, float], t: np.ndarray,
     dx[:, cols] = tr.dx_dp
     dv[:, cols] = tr.dv_dp
     n_sing = 0 if tr.singular is None else int(len(tr.singular))
-    # past a grazing contact the derivative does not exist (NaN): those samples carry no
-    # first-order information, and the residual itself stays exact
+    # past a grazing contact or a tangential break-away the derivative does not exist
+    # (NaN); the caller decides what those rows get
+    undefined = ~(np.isfinite(dx).all(axis=1) & np.isfinite(dv).all(axis=1))
     np.nan_to_num(dx, copy=False, nan=0.0, posinf=0.0, neginf=0.0)
     np.nan_to_num(dv, copy=False, nan=0.0, posinf=0.0, neginf=0.0)
-    return Response(tr.x, tr.v, dx, dv, n_sing, tr)
+    return Response(tr.x, tr.v, dx, dv, n_sing, tr, undefined if undefined.any() else None)
 
 
 def noise_sigma(x: np.ndarray, snr_db: float) -> float:
