@@ -275,8 +275,11 @@ def _least_squares(obj: _Objective, z0: np.ndarray, lo: np.ndarray, hi: np.ndarr
 def fit_law(law: str, t: np.ndarray, x: np.ndarray, v: np.ndarray | None,
             known: Mapping[str, float], *, n_starts: int = 3, max_nfev: int = 100,
             rng: np.random.Generator | None = None,
-            seeds: Sequence[Mapping[str, float]] = ()) -> LawFit:
-    """Fit one candidate law to a checked record (see :func:`identify`)."""
+            seeds: Sequence[Mapping[str, float]] = (),
+            warm: Mapping[str, float] | None = None) -> LawFit:
+    """Fit one candidate law to a checked record (see :func:`identify`). ``warm`` (values
+    of every estimated name) replaces the starts by that one point, fitted on the whole
+    record at once: a refit from a neighbouring law's estimate."""
     t_start = time.perf_counter()
     rng = np.random.default_rng(0) if rng is None else rng
     model = LawModel.make(law, known)
@@ -295,7 +298,11 @@ def fit_law(law: str, t: np.ndarray, x: np.ndarray, v: np.ndarray | None,
             horizons.append(_Objective(model, t[:m], x[:m], None if v is None else v[:m],
                                        weights))
         periods *= 2.0
-    sol, costs = _solve(obj, _starts(model, x0v0, n_starts, rng, seeds), max_nfev, horizons)
+    if warm is not None:
+        sol, costs = _solve(obj, [model.to_internal(warm)], max_nfev)
+    else:
+        sol, costs = _solve(obj, _starts(model, x0v0, n_starts, rng, seeds), max_nfev,
+                            horizons)
     sigma = _sigmas(model, sol.x, t, x, v)
     if v is not None:  # refine with the channels weighted by their noise levels
         obj.w = (1.0 / sigma["x"], 1.0 / sigma["v"])

@@ -75,6 +75,35 @@ class IdentificationResult:
         return result_figure(self)
 
 
+#: The paper's family nests: Coulomb is viscous at b1 = 0, viscous is the cubic law at
+#: b3 = 0. (smaller, larger) pairs.
+NESTED = (("coulomb", "viscous"), ("viscous", "stribeck"), ("coulomb", "stribeck"))
+
+
+def _cross_nested(fits: dict[str, LawFit], t: np.ndarray, x: np.ndarray,
+                  v: np.ndarray | None, known: dict[str, float], max_nfev: int) -> None:
+    """Refit each of two nested laws from the other's estimate and keep the better fit.
+    A larger law fits at least as well as a smaller one it contains, and a smaller one as
+    well as the larger's estimate restricted to it, whenever that estimate sits near the
+    smaller's family; a fit stuck on a kink of the cost (a tangential break-away) is moved
+    off it so. Measured: a viscous record under a designed excitation whose viscous fit
+    stopped 90 BIC units above the cubic fit with b3 = -0.0006."""
+    for small, big in NESTED:
+        if small not in fits or big not in fits:
+            continue
+        a, b = fits[small], fits[big]
+        extra = {n: 0.0 for n in b.names if n not in a.names}
+        pairs = ((big, a.estimates | extra, b), (small, {n: b.estimates[n] for n in a.names}, a))
+        for law, warm, current in pairs:
+            try:
+                refit = fit_law(law, t, x, v, known, max_nfev=max_nfev, warm=warm)
+            except ValueError:  # a restricted estimate outside the law's range
+                continue
+            if refit.loglik > current.loglik + 1e-9:
+                refit.seconds += current.seconds
+                fits[law] = refit
+
+
 def identify(t: Sequence[float] | np.ndarray, x: Sequence[float] | np.ndarray, *,
              known: Mapping[str, float], laws: Sequence[str] = DEFAULT_LAWS,
              v: Sequence[float] | np.ndarray | None = None, n_starts: int = 3,
@@ -115,6 +144,7 @@ def identify(t: Sequence[float] | np.ndarray, x: Sequence[float] | np.ndarray, *
         seeds = [fits["coulomb"].estimates] if "coulomb" in fits else []
         fits[law] = fit_law(law, ta, xa, va, known_, n_starts=n_starts, max_nfev=max_nfev,
                             rng=rng, seeds=seeds)
+    _cross_nested(fits, ta, xa, va, known_, max_nfev)
     fits = {law: fits[law] for law in laws_}
     best = min(fits, key=lambda law: fits[law].bic)
     b = min(f.bic for f in fits.values())

@@ -249,7 +249,7 @@ def response(model: LawModel, values: Mapping[str, float], t: np.ndarray,
     n_sing = 0 if tr.singular is None else int(len(tr.singular))
     # past a grazing contact or a tangential break-away the derivative does not exist
     # (NaN); the caller decides what those rows get
-    undefined = ~(np.isfinite(dx).all(axis=1) & np.isfinite(dv).all(axis=1))
+    undefined: np.ndarray = np.asarray(~(np.isfinite(dx).all(axis=1) & np.isfinite(dv).all(axis=1)))
     np.nan_to_num(dx, copy=False, nan=0.0, posinf=0.0, neginf=0.0)
     np.nan_to_num(dv, copy=False, nan=0.0, posinf=0.0, neginf=0.0)
     return Response(tr.x, tr.v, dx, dv, n_sing, tr, undefined if undefined.any() else None)
