@@ -154,6 +154,16 @@ def test_design_beats_the_default_excitation():
     a = design_excitation(prior, duration=10 * PERIOD, bounds={"u0": (0.5, 5.0)},
                           criterion="A", n_candidates=6)
     assert a.settings.keys() == {"u0"} and a.nu == prior.nu
+    assert a.u1 == a.u2 == a.u0
+    e = design_excitation(prior, duration=10 * PERIOD, bounds={"u1": (0.5, 5.0),
+                                                               "u2": (0.0, 3.0)},
+                          criterion="E", n_candidates=6)
+    assert 0.5 <= e.u1 <= 5.0 and 0.0 <= e.u2 <= 3.0
+    # E maximises the smallest eigenvalue of the relative information: no worse than the
+    # default two-tone forcing on that score
+    assert e.value >= design_excitation(prior, duration=10 * PERIOD,
+                                        bounds={"u1": (1.5, 1.5), "u2": (1.5, 1.5)},
+                                        criterion="E", n_candidates=1).value
 
 
 @pytest.mark.parametrize(("kwargs", "match"), [

@@ -142,8 +142,12 @@ class Design:
     regime: dict[str, Any] = field(default_factory=dict)
 
     def __getattr__(self, name: str) -> float:
-        if name in ("u0", "nu", "eta", "u1", "u2"):
+        """The designed forcing's ``u0``, ``nu``, ``eta`` and the tones' amplitudes
+        ``u1``, ``u2`` (``u0`` where the tone follows it)."""
+        if name in ("u0", "nu", "eta"):
             return float(getattr(self.plant, name))
+        if name in ("u1", "u2"):
+            return float(self.plant.amp1 if name == "u1" else self.plant.amp2)
         raise AttributeError(name)
 
     @property
