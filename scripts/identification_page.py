@@ -185,8 +185,10 @@ def write_page(out: Path, csv_path: Path, designs: dict, command: str) -> Path:
               *targets(rows, designs), "",
               f"- Correct model selection at 30 dB: {100 * np.mean(sel30):.1f} % of "
               f"{len(sel30)} records." if sel30 else "- No 30 dB records yet.",
-              f"- Seconds per record, four laws fitted (warm, one process, `nice -n 10` on "
-              f"the 2-core machine shared with other jobs): median {np.median(secs):.2f}, "
+              f"- Seconds per record, four laws fitted (`identify` alone, anchors excluded; "
+              f"`nice -n 10` on the 2-core machine while other jobs kept its load near 5; "
+              f"the first record of each benchmark process includes compiling the kernels): "
+              f"median {np.median(secs):.2f}, "
               f"90th percentile {np.percentile(secs, 90):.2f}, largest {secs.max():.2f} over "
               f"all {secs.size} records; 20-period records: median {np.median(s20):.2f}, "
               f"largest {s20.max():.2f}." if s20.size else "",
