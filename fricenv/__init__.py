@@ -24,6 +24,9 @@ if TYPE_CHECKING:
     from . import atlas as atlas
     from .atlas.store import open_atlas as open_atlas
     from .calls import SweepInterrupted
+    from .identification.design import Design, design_excitation
+    from .identification.identify import IdentificationResult
+    from .identification.identify import identify as identify
     from .jit import threading_info
     from .mapfile import MapInUseError
     from .params import FRICTION_LAWS, OscillatorParams
@@ -43,8 +46,10 @@ if TYPE_CHECKING:
     from .warmup import warmup
 
 __all__ = [
+    "Design",
     "EVENT_NAMES",
     "FRICTION_LAWS",
+    "IdentificationResult",
     "MAX_STEPS_PER_CALL",
     "MAX_STEPS_PER_TAU",
     "MapInUseError",
@@ -61,7 +66,9 @@ __all__ = [
     "cell_statistics",
     "classify",
     "classify_stats",
+    "design_excitation",
     "forcing_period",
+    "identify",
     "lyapunov_exponent",
     "periodic_orbit",
     "regime_map",
@@ -89,6 +96,8 @@ _HOMES: dict[str, str] = {
                      "periodic_orbit"), "stability"),
     "warmup": "warmup",
     "open_atlas": "atlas.store",
+    **dict.fromkeys(("Design", "IdentificationResult", "design_excitation", "identify"),
+                    "identification"),
 }
 #: Public functions named like the module that defines them: importing that module
 #: (``import fricenv.simulate``) must not rebind ``fricenv.simulate`` to the module.

@@ -244,9 +244,9 @@ def test_block_parser() -> None:
 
 def test_one_documented_command_writes_into_docs_results() -> None:
     """The shipped results are regenerated on purpose only: of all the shell commands the
-    pages show, four name ``docs/results``, the commands that regenerate the published
-    benchmark page, the MPC's per-scene search, the comparison with the tuned MPC and the
-    noise report."""
+    pages show, those that name ``docs/results`` are the commands that regenerate the
+    published pages: the control benchmark, the MPC's per-scene search, the comparison
+    with the tuned MPC, the noise report and the identification benchmark."""
     hits = [(_rel(page), line.strip()) for page in PAGES
             for b in fenced_blocks(page.read_text(encoding="utf-8"), _rel(page))
             if b.lang in ("bash", "sh", "shell", "console")
@@ -256,4 +256,6 @@ def test_one_documented_command_writes_into_docs_results() -> None:
                     ("docs/control.md", "python -m fricenv_agents.mpc_tuning --out docs/results"),
                     ("docs/control.md", "python -m fricenv_agents.mpc_compare --out docs/results"),
                     ("docs/control.md", "python -m fricenv_agents.noise_report --out docs/results"
-                     "   # from the benchmark's CSV, seconds")]
+                     "   # from the benchmark's CSV, seconds"),
+                    ("docs/results/identification.md",
+                     "python scripts/identification_benchmark.py --out docs/results")]

@@ -34,6 +34,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "reproduce": ("fricenv.reproduce", "the paper's Figs. 2-10 and a report of every claim"),
     "bench": ("fricenv.cli.bench", "run a benchmark: solvers, sweep, env or compile"),
     "warmup": ("fricenv.cli.warmup", "compile the kernels into numba's cache ahead of use"),
+    "identify": ("fricenv.cli.identify", "which friction law produced a record: a report"),
+    "design": ("fricenv.cli.design", "the two-tone excitation that reveals the friction best"),
 }
 
 #: Entry-point group of commands from other distributions: ``name = "module:function"``,
