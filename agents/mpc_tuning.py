@@ -84,10 +84,11 @@ def key_of(settings: dict[str, Any]) -> tuple[Any, ...]:
     return tuple(settings[k] for k in SETTINGS)
 
 
-def decisions_per_second(scene: str, settings: dict[str, Any]) -> float:
+def decisions_per_second(scene: str, settings: dict[str, Any], rounds: int = TIMING_ROUNDS,
+                         decisions: int = TIMING_DECISIONS) -> float:
     """Decisions per second for one plant, bound to its exact state, from a plan warmed by
-    20 steps of an episode (median over ``TIMING_ROUNDS`` rounds): the compute the
-    setting costs, measured where it runs."""
+    20 steps of an episode (median over ``rounds`` rounds of ``decisions`` decisions): the
+    compute the setting costs, measured where it runs."""
     from fricenv.envs.vector import StickSlipVectorEnv
 
     vec = StickSlipVectorEnv(num_envs=1, scene=scene)
@@ -99,11 +100,11 @@ def decisions_per_second(scene: str, settings: dict[str, Any]) -> float:
             obs = vec.step(ctrl.predict(obs)[0])[0]
         plants, cmds = vec.state_arrays()
         times = []
-        for _ in range(TIMING_ROUNDS):
+        for _ in range(rounds):
             t = time.perf_counter()
-            for _ in range(TIMING_DECISIONS):
+            for _ in range(decisions):
                 ctrl.plan(plants, cmds)
-            times.append((time.perf_counter() - t) / TIMING_DECISIONS)
+            times.append((time.perf_counter() - t) / decisions)
     finally:
         vec.close()
     return 1.0 / statistics.median(times)

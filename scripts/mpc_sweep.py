@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import statistics
 import time
 from pathlib import Path
 from typing import Any
@@ -30,9 +29,8 @@ from fricenv_agents.mpc import (
     TUNE_SEED_BASE,
     MPPIController,
 )
+from fricenv_agents.mpc_tuning import decisions_per_second
 from fricenv_agents.rollouts import rollout
-
-from fricenv.envs.vector import StickSlipVectorEnv
 
 DEFAULTS = {"horizon": DEFAULT_HORIZON, "samples": DEFAULT_SAMPLES,
             "iterations": DEFAULT_ITERATIONS, "temperature": DEFAULT_TEMPERATURE,
@@ -52,21 +50,7 @@ DECISIONS_PER_ROUND = 20
 def decision_seconds(scene: str, settings: dict[str, Any]) -> float:
     """Median wall time of one decision for one plant, from a state 20 steps into an
     episode (the MPC's plan warm as in a run)."""
-    vec = StickSlipVectorEnv(num_envs=1, scene=scene)
-    obs, _ = vec.reset(seed=TUNE_SEED_BASE)
-    ctrl = MPPIController(scene, **settings)
-    ctrl.bind(vec)
-    for _ in range(20):
-        obs = vec.step(ctrl.predict(obs)[0])[0]
-    plants, cmds = vec.state_arrays()
-    times = []
-    for _ in range(DECISION_ROUNDS):
-        t = time.perf_counter()
-        for _ in range(DECISIONS_PER_ROUND):
-            ctrl.plan(plants, cmds)
-        times.append((time.perf_counter() - t) / DECISIONS_PER_ROUND)
-    vec.close()
-    return statistics.median(times)
+    return 1.0 / decisions_per_second(scene, settings, DECISION_ROUNDS, DECISIONS_PER_ROUND)
 
 
 def configurations() -> list[tuple[str, dict[str, Any]]]:

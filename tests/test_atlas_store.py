@@ -219,27 +219,15 @@ def test_damaged_metadata_is_refused_by_name(fresh, name, damage):
             assert err.value.__cause__ is not None
 
 
-def test_store_of_format_2_is_refused(fresh):
-    _set_json(fresh / "zarr.json", lambda m: m["attributes"].update(format_version=2))
+@pytest.mark.parametrize(("version", "why"), [
+    (1, "whose chunks carry no checksums"),
+    (2, "whose chunks are not bound to their place"),
+    (3, "without the lyapunov variable"),
+])
+def test_store_of_an_older_format_is_refused(fresh, version, why):
+    _set_json(fresh / "zarr.json", lambda m: m["attributes"].update(format_version=version))
     for call in (lambda: fricenv.open_atlas(fresh), lambda: _run(fresh)):
-        with pytest.raises(ValueError, match="format version 2, whose chunks are not bound "
-                                             "to their place.*remove it"):
-            call()
-
-
-def test_store_of_format_3_is_refused(fresh):
-    _set_json(fresh / "zarr.json", lambda m: m["attributes"].update(format_version=3))
-    for call in (lambda: fricenv.open_atlas(fresh), lambda: _run(fresh)):
-        with pytest.raises(ValueError, match="format version 3, without the lyapunov "
-                                             "variable.*remove it"):
-            call()
-
-
-def test_store_of_format_1_is_refused(fresh):
-    _set_json(fresh / "zarr.json", lambda m: m["attributes"].update(format_version=1))
-    for call in (lambda: fricenv.open_atlas(fresh), lambda: _run(fresh)):
-        with pytest.raises(ValueError, match="format version 1, whose chunks carry no "
-                                             "checksums.*remove it"):
+        with pytest.raises(ValueError, match=f"format version {version}, {why}.*remove it"):
             call()
 
 
