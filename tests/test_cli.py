@@ -238,6 +238,39 @@ def test_an_interrupted_command_exits_130_in_one_line(capsys, tmp_path, monkeypa
     assert "Traceback" not in err
 
 
+def test_an_interrupt_swallowed_by_a_c_callback_is_delivered_again(capsys):
+    """Ctrl-C while numba compiled could land in llvmlite's ctypes callback, where Python
+    prints "Exception ignored" and carries on: the command then ran to its end."""
+    import ctypes
+
+    from fricenv.interrupts import interrupts_redelivered
+
+    @ctypes.CFUNCTYPE(ctypes.c_int)
+    def callback() -> int:
+        raise KeyboardInterrupt
+
+    after = []
+    with pytest.raises(KeyboardInterrupt):
+        with interrupts_redelivered():
+            callback()  # (the exception cannot cross the C frame)
+            after.append("the block went on")
+    assert after == ["the block went on"]  # and then raised before it ended
+    assert "Exception ignored" not in capsys.readouterr().err
+
+    def other() -> int:
+        raise ValueError("not an interrupt")
+
+    seen = []
+    previous = sys.unraisablehook
+    sys.unraisablehook = seen.append
+    try:
+        with interrupts_redelivered():
+            ctypes.CFUNCTYPE(ctypes.c_int)(other)()
+    finally:
+        sys.unraisablehook = previous
+    assert [type(u.exc_value) for u in seen] == [ValueError]  # left to the hook in place
+
+
 @pytest.mark.parametrize("command", [
     ["map", "--u0", "geom:0.5:50:40", "--nu", "lin:0.1:3:40", "--no-progress"],
     ["atlas", "--axis", "u0=geom:0.5:50:40", "--axis", "nu=lin:0.1:3:40", "--no-progress"],

@@ -157,9 +157,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         parser.error(f"fricenv {argv[0]} {why}: {PLUGIN_INSTALL}")
     from fricenv import compile_notice
     from fricenv.cli import _notice
+    from fricenv.interrupts import interrupts_redelivered
 
     try:
-        with (_notice.log_to_stderr(quiet="--quiet" in argv[1:]),
+        with (interrupts_redelivered(), _notice.log_to_stderr(quiet="--quiet" in argv[1:]),
               compile_notice.in_command()):
             _notice.announce_command(argv[0], argv[1:])
             status = command_main(argv[0])(argv[1:], prog=f"fricenv {argv[0]}")

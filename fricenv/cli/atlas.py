@@ -37,6 +37,7 @@ from fricenv.cli._args import (
     unique_axes,
 )
 from fricenv.compile_notice import method_for_law
+from fricenv.interrupts import interrupts_redelivered
 
 #: The command's description and examples (``--help``).
 DESCRIPTION = ("Compute the regime of every cell of a grid over any parameters into a "
@@ -177,7 +178,7 @@ def module_main(argv: Sequence[str] | None = None) -> int:
     p = build_parser("python -m fricenv.atlas")
     args = p.parse_args(argv)
     try:
-        with _notice.log_to_stderr(quiet=args.quiet):
+        with interrupts_redelivered(), _notice.log_to_stderr(quiet=args.quiet):
             return run(args)
     except KeyboardInterrupt as e:  # (SweepInterrupted: the finished chunks are stored)
         return interrupted(p.prog, e, f"finished chunks are in {args.out} (rerun to resume)")

@@ -212,11 +212,14 @@ def main(argv: Sequence[str] | None = None, prog: str | None = None) -> int:
     except (TypeError, ValueError) as e:
         ap.error(str(e))
     t0 = time.perf_counter()
+    from fricenv.interrupts import interrupted, interrupts_redelivered
+
     try:
-        path = run(out, quick=a.quick, docs=a.docs, n_threads=a.threads,
-                   progress=not (a.no_progress or a.quiet), only=only, resolution=a.resolution)
+        with interrupts_redelivered():
+            path = run(out, quick=a.quick, docs=a.docs, n_threads=a.threads,
+                       progress=not (a.no_progress or a.quiet), only=only,
+                       resolution=a.resolution)
     except KeyboardInterrupt as e:
-        from fricenv.interrupts import interrupted
 
         return interrupted(ap.prog, e,
                            f"finished maps and cells are kept in {out} (rerun to resume)")
