@@ -48,8 +48,8 @@ def law_of_code(code: float) -> FrictionLaw:
 
 def polynomial_law(b1: float, b3: float) -> FrictionLaw:
     """The law of a plant given by b1 and b3 alone (the paper's family): Coulomb where both
-    are 0, else cubic (``kernels.polynomial_code`` inside the kernels)."""
-    return coulomb.LAW if b1 == 0.0 and b3 == 0.0 else cubic.LAW
+    are 0, else cubic (``cubic.family_code`` decides, here and inside the kernels)."""
+    return law_of_code(cubic.family_code(b1, b3, float(coulomb.CODE)))
 
 
 def polynomial_laws_in(b1_range: tuple[float, float], b3_range: tuple[float, float]
@@ -58,12 +58,9 @@ def polynomial_laws_in(b1_range: tuple[float, float], b3_range: tuple[float, flo
     ranges ``(lo, hi)`` can have: ``coulomb`` where both ranges hold 0, ``cubic`` unless
     both are ``(0, 0)``."""
     (l1, h1), (l3, h3) = b1_range, b3_range
-    out = set()
-    if l1 <= 0.0 <= h1 and l3 <= 0.0 <= h3:
-        out.add(coulomb.LAW.name)
-    if (l1, h1, l3, h3) != (0.0, 0.0, 0.0, 0.0):
-        out.add(cubic.LAW.name)
-    return frozenset(out)
+    # the plant nearest Coulomb each range holds, and whether both ends are that plant
+    nearest = polynomial_law(min(max(0.0, l1), h1), min(max(0.0, l3), h3))
+    return frozenset({nearest.name, polynomial_law(l1, l3).name, polynomial_law(h1, h3).name})
 
 
 def method_for(law: FrictionLaw) -> str:

@@ -21,6 +21,15 @@ from .spec import FrictionLaw, LawParam
 CODE = 1
 
 
+def family_code(b1: float, b3: float, coulomb_code: float) -> float:
+    """The law code of a plant of the paper's family given by ``b1`` and ``b3`` alone:
+    ``coulomb_code`` where both are 0 (the cubic law then is the Coulomb law, which has a
+    closed form), else this law's. The one place that decides a law from its
+    coefficients: plain Python, for :func:`fricenv.friction.polynomial_law`, and compiled
+    for the kernels (``kernels.polynomial_code``)."""
+    return coulomb_code if b1 == 0.0 and b3 == 0.0 else float(CODE)
+
+
 def _force(vr: np.ndarray, values: Mapping[str, float], xfk: float, xfs: float) -> np.ndarray:
     return xfk * np.sign(vr) - values["b1"] * vr + values["b3"] * vr**3
 

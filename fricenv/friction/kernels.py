@@ -42,11 +42,14 @@ def _compiled(law: object, inline: bool) -> tuple:
  ex_taylor_step_cap, ex_tangent_series) = _compiled(exponential, inline=False)
 
 
+_family_code = kernel(cubic.family_code)
+
+
 @kernel
 def polynomial_code(b1, b3):
     """The law of a plant given by b1 and b3 alone (the paper's family): Coulomb where
-    both are 0, else cubic."""
-    return COULOMB if b1 == 0.0 and b3 == 0.0 else CUBIC
+    both are 0, else cubic (``cubic.family_code``)."""
+    return _family_code(b1, b3, COULOMB)
 
 
 @kernel
