@@ -100,7 +100,9 @@ def markdown(rep: dict[str, dict[str, dict[str, Any]]]) -> str:
              "IQM [95 % CI]; change: (noise + delay − in range) / |in range|, paired over the "
              "same plants. Retention: the stick cut under noise + delay over an in-range "
              "cut, its own (for the filtered MPC: the bound MPC's) or the nominal PPO's. The "
-             "MPC rows come from the benchmark run with the MPC's earlier settings.", "",
+             "MPC, bound and filtered, plans with the settings `MPPIController(scene)` "
+             "had when the benchmark ran (each scene's tuned ones since 2026-11-28, "
+             "[the search](mpc_tuning.md)).", "",
              "| scene | controller | return, in range | return, noise + delay | change | "
              "retention of its own cut | retention of the nominal PPO's cut |",
              "|---|---|---:|---:|---:|---:|---:|"]

@@ -69,12 +69,14 @@ def test_the_pick_is_the_best_mean_then_the_cheaper() -> None:
 
 
 def test_the_comparison_says_where_ppo_leads_and_trails_in_one_sentence() -> None:
-    """On the shipped CSV against the benchmark's MPC rows (no compute): the statistics
-    are those of the cells, and the sentence names both sides when they differ."""
+    """On the shipped CSVs against the MPC with its earlier generic settings (no compute):
+    the statistics are those of the cells, and the sentence names both sides when they
+    differ."""
     from fricenv_agents import statistics as S
     from fricenv_agents.benchmark_records import cell_of
 
-    rows = read_episodes(C.DEFAULT_CSV)
+    rows = [r for r in read_episodes(C.DEFAULT_CSV) if r["controller"] != "mpc"]
+    rows += read_episodes(C.GENERIC_CSV)
     r = C.compare_scene(rows, "paper", ref="mpc")
     ppo, mpc = (cell_of(rows, "paper", "nominal", k) for k in ("ppo", "mpc"))
     assert r["iqm_learned"]["estimate"] == pytest.approx(S.iqm(ppo))
@@ -96,12 +98,19 @@ def test_the_comparison_resumes_from_its_csv_without_running(tmp_path: Path) -> 
             if r["controller"] == "mpc" and r["condition"] == "nominal"
             and r["scene"] == "paper"]
     C._write_csv(tmp_path / C.CSV_NAME, rows)
-    page = C.main(["--scenes", "paper", "--out", str(tmp_path)])
+    C._write_csv(tmp_path / "generic.csv", [dict(r, controller="mpc") for r in rows])
+    page = C.main(["--scenes", "paper", "--out", str(tmp_path),
+                   "--generic-csv", str(tmp_path / "generic.csv")])
     text = page.read_text()
     assert "| `paper` |" in text and "On `paper` PPO is" in text
     saved = json.loads((tmp_path / "mpc_compare.json").read_text())
-    # the stand-in is the benchmark's MPC: both comparisons agree
+    # both stand-ins are the benchmark's MPC: both comparisons agree
     assert saved["tuned"]["paper"]["gap_iqm"] == saved["earlier_settings"]["paper"]["gap_iqm"]
+    C.main(["--scenes", "paper", "--out", str(tmp_path),
+            "--generic-csv", str(tmp_path / "absent.csv")])
+    saved = json.loads((tmp_path / "mpc_compare.json").read_text())
+    assert saved["earlier_settings"] == {}  # no file: no reference table
+    assert "For reference" not in (tmp_path / "mpc_compare.md").read_text()
 
 
 def test_the_published_search_page_is_its_json(tmp_path: Path) -> None:
