@@ -109,9 +109,10 @@ def test_the_short_episode_recipes_are_valid_runs_of_their_scenes() -> None:
     """Every entry of ``ppo_short.yml`` passes the training's checks, trains on episodes
     shorter than its scene's, and a warm start labels no more intervals than an episode
     has (``dagger`` would refuse it only after building the model)."""
-    from fricenv.envs import HORIZONS
     from fricenv_agents.config import load_hyperparams, split_hyperparams
     from fricenv_agents.layout import PRETRAINED
+
+    from fricenv.envs import HORIZONS
 
     path = PRETRAINED.parent / "hyperparams" / "ppo_short.yml"
     for scene in G.SCENES:
@@ -120,3 +121,35 @@ def test_the_short_episode_recipes_are_valid_runs_of_their_scenes() -> None:
         assert 0 < steps < HORIZONS[scene]
         if spec.warm_start is not None:
             assert spec.warm_start["steps"] <= steps
+
+
+def test_the_published_page_is_what_the_shipped_runs_episodes_give(tmp_path: Path) -> None:
+    """From the shipped episodes, no model loaded: the page is the published one, and
+    every shipped run's episodes are the benchmark's 50 nominal plants."""
+    (tmp_path / G.CSV_NAME).write_bytes((RESULTS / G.CSV_NAME).read_bytes())
+    page = G.main(["--out", str(tmp_path)])
+    assert page.read_text() == (RESULTS / "mpc_gap.md").read_text()
+    rows = read_episodes(RESULTS / G.CSV_NAME)
+    for scene in G.SCENES:
+        runs = G.scene_runs(G.DEFAULT_RUNS, scene)
+        assert len(runs) == 5
+        for run in runs:
+            seeds = [r["plant_seed"] for r in rows
+                     if r["scene"] == scene and r["training_run"] == run.name]
+            assert sorted(seeds) == sorted(eval_seeds(10, 5)), run
+
+
+def test_the_shipped_runs_trained_with_the_published_recipe() -> None:
+    """Each shipped run's config records the entry of ``ppo_short.yml`` for its scene."""
+    from fricenv_agents.config import load_hyperparams
+    from fricenv_agents.layout import PRETRAINED
+
+    path = PRETRAINED.parent / "hyperparams" / "ppo_short.yml"
+    for scene in G.SCENES:
+        entry = load_hyperparams("ppo", scene, path)
+        for run in G.scene_runs(G.DEFAULT_RUNS, scene):
+            cfg = yaml.safe_load((run / "config.yml").read_text())
+            assert cfg["hyperparams_file"] == "agents/hyperparams/ppo_short.yml"
+            assert cfg["env_kwargs"] == entry["env_kwargs"]
+            assert cfg["timesteps_done"] >= entry["n_timesteps"]
+            assert ("warm_start" in cfg) == ("warm_start" in entry)
