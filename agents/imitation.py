@@ -27,7 +27,8 @@ from typing import Any
 import numpy as np
 
 #: Settings of a warm start, as the hyperparameter file's ``warm_start`` mapping gives them.
-WARM_START_KEYS = ("rounds", "epochs", "batch_size", "learning_rate", "log_std", "value_epochs")
+WARM_START_KEYS = ("rounds", "epochs", "batch_size", "learning_rate", "log_std", "value_epochs",
+                   "steps")
 
 
 @dataclass(frozen=True)
@@ -38,7 +39,11 @@ class WarmStart:
     ``epochs``: passes over the aggregated data per round; ``batch_size`` and
     ``learning_rate``: of the Adam fit; ``log_std``: the policy's exploration noise
     afterwards (natural log of the standard deviation in normalised action units);
-    ``value_epochs``: passes of the critic's fit on the last round's returns.
+    ``value_epochs``: passes of the critic's fit on the last round's returns; ``steps``:
+    control intervals per plant and round, from the episodes' starts (``None``: the whole
+    training episode). Fewer steps put the labels, and the MPC's compute, on the start of
+    the episodes, where the quench of the stick-slip costs most (the critic's targets are
+    then cut at the round's end: PPO's fine-tuning corrects them).
     """
 
     rounds: int = 6
@@ -47,6 +52,7 @@ class WarmStart:
     learning_rate: float = 1e-3
     log_std: float = -1.5
     value_epochs: int = 10
+    steps: int | None = None
 
     @classmethod
     def from_mapping(cls, value: Any) -> WarmStart:
@@ -63,6 +69,10 @@ class WarmStart:
             v = getattr(out, key)
             if isinstance(v, bool) or not isinstance(v, int) or v < 1:
                 raise ValueError(f"warm_start.{key} must be an int >= 1, got {v!r}")
+        if out.steps is not None and (isinstance(out.steps, bool)
+                                      or not isinstance(out.steps, int) or out.steps < 1):
+            raise ValueError(f"warm_start.steps must be an int >= 1 or null, got "
+                             f"{out.steps!r}")
         for key in ("learning_rate", "log_std"):
             v = getattr(out, key)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not np.isfinite(v):
@@ -156,11 +166,15 @@ def dagger(model: Any, venv: Any, scene: str, env_kwargs: dict[str, Any],
     from .mpc import MPPIController  # (numba kernels: loaded only when a warm start runs)
 
     plants = _plant_env(venv)
+    episode = int(plants.max_episode_steps)
+    if settings.steps is not None and settings.steps > episode:
+        raise ValueError(f"warm_start.steps ({settings.steps}) exceeds the training "
+                         f"episodes' {episode} intervals")
+    steps = episode if settings.steps is None else settings.steps
     expert = MPPIController(scene, env_kwargs, seed=seed)
     expert.bind(plants)
     policy = model.policy
     rng = np.random.default_rng(seed)
-    steps = int(plants.max_episode_steps)
     gamma = float(getattr(model, "gamma", 0.99))
     normalize = getattr(venv, "normalize_obs", None)
 
@@ -182,8 +196,8 @@ def dagger(model: Any, venv: Any, scene: str, env_kwargs: dict[str, Any],
                            settings.epochs, rng))
         if log is not None:
             log(f"warm start round {r + 1}/{settings.rounds}: {len(obs_t)} labels, "
-                f"imitation loss {losses[-1]:.4f}, round return "
-                f"{float(np.sum(rew) / max(1, np.sum(done))):.3f} (normalised)")
+                f"imitation loss {losses[-1]:.4f}, return per plant over the round "
+                f"{float(np.sum(rew) / rew.shape[1]):.3f} (normalised)")
     assert rew is not None and done is not None
     returns = torch.as_tensor(_discounted(rew, done, gamma).reshape(-1, 1),
                               dtype=torch.float32)

@@ -245,8 +245,9 @@ def test_block_parser() -> None:
 def test_one_documented_command_writes_into_docs_results() -> None:
     """The shipped results are regenerated on purpose only: of all the shell commands the
     pages show, those that name ``docs/results`` are the commands that regenerate the
-    published pages: the control benchmark, the MPC's per-scene search, the comparison
-    with the tuned MPC, the noise report and the identification benchmark."""
+    published pages: the control benchmark, the MPC's per-scene search, the comparisons
+    with the tuned MPC (of the benchmark's PPO and of PPO on short episodes), the noise
+    report and the identification benchmark."""
     hits = [(_rel(page), line.strip()) for page in PAGES
             for b in fenced_blocks(page.read_text(encoding="utf-8"), _rel(page))
             if b.lang in ("bash", "sh", "shell", "console")
@@ -255,6 +256,7 @@ def test_one_documented_command_writes_into_docs_results() -> None:
                      "python -m fricenv_agents.benchmark --out docs/results --jobs 2"),
                     ("docs/control.md", "python -m fricenv_agents.mpc_tuning --out docs/results"),
                     ("docs/control.md", "python -m fricenv_agents.mpc_compare --out docs/results"),
+                    ("docs/control.md", "python -m fricenv_agents.mpc_gap --out docs/results"),
                     ("docs/control.md", "python -m fricenv_agents.noise_report --out docs/results"
                      "   # from the benchmark's CSV, seconds"),
                     ("docs/results/identification.md",

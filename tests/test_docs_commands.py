@@ -122,7 +122,8 @@ def test_the_command_line_names_how_the_run_was_started():
 
 
 def shipped_configs() -> list[Path]:
-    return sorted([*PRETRAINED.glob("*.yml"), *PRETRAINED.glob("benchmark/*/config.yml")])
+    return sorted([*PRETRAINED.glob("*.yml"), *PRETRAINED.glob("benchmark/*/config.yml"),
+                   *PRETRAINED.glob("short/*/config.yml")])
 
 
 @pytest.mark.parametrize("config", shipped_configs(), ids=lambda p: p.parent.name
