@@ -146,8 +146,9 @@ def _tie(fits: dict[str, LawFit], best: str) -> tuple[tuple[str, ...], str]:
                    "three)")
         elif (extra in fits[big].undetermined
               and fits[big].ci[extra][0] <= 0.0 <= fits[big].ci[extra][1]):
-            why = (f"the {big} fit leaves {extra} undetermined, its 95 % interval holding "
-                   f"{extra} = 0, the {small} law ({fits[big].undetermined[extra]})")
+            lo, hi = fits[big].ci[extra]
+            why = (f"the {big} fit cannot determine {extra}, whose 95 % interval "
+                   f"[{lo:.3g}, {hi:.3g}] holds {extra} = 0, the {small} law")
         else:
             continue
         return (best, other), (
