@@ -111,3 +111,18 @@ def test_perturbed_restarts_find_the_short_stick_a_continuation_misses(monkeypat
     monkeypatch.setattr(fitmod, "RESCUE_DRAWS", 0)
     stuck = fit_law("viscous", rec["t"], rec["x"], None, known, n_starts=1)
     assert stuck.sigma["x"] > 1.3 * noise
+
+
+@pytest.mark.slow
+def test_a_law_far_from_a_record_another_law_explains_gets_one_start():
+    # a low, fast excitation (the benchmark's design for the Coulomb preset, rounded):
+    # the exponential law cannot follow the Coulomb law's sharp static peak
+    p = OscillatorParams.preset("coulomb", u0=0.7, nu=1.94, eta=1.2)
+    rec = simulate_record(p, 20 * PERIOD, snr_db=30, rng=np.random.default_rng(1))
+    known = _known(p)
+    right = fit_law("coulomb", rec["t"], rec["x"], None, known)
+    assert right.residual_ratio < 1.1  # the true law fits down to the noise
+    wrong = fit_law("exponential", rec["t"], rec["x"], None, known, explained=True)
+    assert wrong.residual_ratio > fitmod.FAR_RATIO and wrong.n_starts == 1
+    res = identify(rec["t"], rec["x"], known=known, laws=("coulomb", "exponential"))
+    assert res.best == "coulomb" and res.distinguishable

@@ -59,6 +59,13 @@ RESCUE_DRAWS, RESCUE_SPREAD = 16, (1.5, 4.0)
 #: reaches the noise level within 4-15 (measured on the benchmark's designed records); the
 #: best is then finished with the fit's full budget.
 RESCUE_NFEV = 25
+#: Where another law already fits the record at its noise level, a law whose first start
+#: ends at more than this multiple of the noise level gets no further starts: its BIC is
+#: then hundreds of units behind, and its starts differ only in where they begin (on a
+#: Coulomb record, the exponential law's second start cost a third of identify's time
+#: and ended where the first did). A nested law is refitted from its neighbour's estimate
+#: anyway (``identify``).
+FAR_RATIO = 2.0
 
 
 def _scipy_least_squares() -> Any:
@@ -109,6 +116,16 @@ class LawFit:
     #: The sides of the belt speed on which the fitted motion slips: -1 below it, +1 above
     #: (:func:`slip_sides`).
     slip_sides: tuple[int, ...] = ()
+    #: The record's noise level in x, read off the record without a model
+    #: (:func:`~fricenv.identification.model.noise_level`).
+    noise: float = math.nan
+
+    @property
+    def residual_ratio(self) -> float:
+        """The x residual's RMS over :attr:`noise`: near 1 where the law fits the record
+        down to its noise, far above 1 where it does not (or where the fit stopped at a
+        kink of the cost)."""
+        return self.sigma["x"] / self.noise
 
     @property
     def k(self) -> int:
@@ -243,9 +260,12 @@ class _Objective:
 
 def _solve(obj: _Objective, starts: list[np.ndarray], max_nfev: int,
            horizons: Sequence[_Objective] = (), noise: float | None = None,
-           rng: np.random.Generator | None = None) -> tuple[Any, list[float]]:
+           rng: np.random.Generator | None = None, explained: bool = False
+           ) -> tuple[Any, list[float]]:
     """least_squares from each start, until two starts agree on the lowest cost or one
-    reaches the record's noise level; the best result, and the final cost of every start.
+    reaches the record's noise level (or, where another law is ``explained`` the record,
+    this law's best ends beyond :data:`FAR_RATIO` times it); the best result, and the
+    final cost of every start.
 
     With ``horizons`` (the same fit on growing prefixes of the record, shortest first),
     each start is first fitted on the shortest (:func:`_short_start`), then carried
@@ -260,7 +280,8 @@ def _solve(obj: _Objective, starts: list[np.ndarray], max_nfev: int,
     for z0 in starts:
         if best is not None and (
                 sum(abs(c - best.cost) <= 1e-5 * best.cost for c in costs) >= 2
-                or _at_noise(obj, best, noise)):
+                or _at_noise(obj, best, noise)
+                or explained and noise is not None and obj.rms_x(best) > FAR_RATIO * noise):
             break  # the rest would find the same minimum again
         z0 = np.clip(z0, lo, hi)
         if horizons:
@@ -411,10 +432,11 @@ def fit_law(law: str, t: np.ndarray, x: np.ndarray, v: np.ndarray | None,
             known: Mapping[str, float], *, n_starts: int = 3, max_nfev: int = 100,
             rng: np.random.Generator | None = None,
             seeds: Sequence[Mapping[str, float]] = (),
-            warm: Mapping[str, float] | None = None) -> LawFit:
+            warm: Mapping[str, float] | None = None, explained: bool = False) -> LawFit:
     """Fit one candidate law to a checked record (see :func:`identify`). ``warm`` (values
     of every estimated name) replaces the starts by that one point, fitted on the whole
-    record at once: a refit from a neighbouring law's estimate."""
+    record at once: a refit from a neighbouring law's estimate. ``explained``: another
+    law already fits the record at its noise level (see :data:`FAR_RATIO`)."""
     t_start = time.perf_counter()
     rng = np.random.default_rng(0) if rng is None else rng
     model = LawModel.make(law, known)
@@ -438,15 +460,17 @@ def fit_law(law: str, t: np.ndarray, x: np.ndarray, v: np.ndarray | None,
         sol, costs = _solve(obj, [model.to_internal(warm)], max_nfev)
     else:
         sol, costs = _solve(obj, _starts(model, x0v0, n_starts, rng, seeds), max_nfev,
-                            horizons, noise, rng)
+                            horizons, noise, rng, explained)
     sigma = _sigmas(model, sol.x, t, x, v)
     if v is not None:  # refine with the channels weighted by their noise levels
         obj.w = (1.0 / sigma["x"], 1.0 / sigma["v"])
         sol2, _ = _solve(obj, [np.asarray(sol.x)], max_nfev)
         sol = sol2
         sigma = _sigmas(model, sol.x, t, x, v)
-    return _assemble(model, obj, sol, sigma, t, x, v, costs, len(costs),
-                     time.perf_counter() - t_start)
+    fit = _assemble(model, obj, sol, sigma, t, x, v, costs, len(costs),
+                    time.perf_counter() - t_start)
+    fit.noise = noise
+    return fit
 
 
 def _sigmas(model: LawModel, z: np.ndarray, t: np.ndarray, x: np.ndarray,

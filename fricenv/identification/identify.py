@@ -11,7 +11,7 @@ import numpy as np
 
 from ..checks import check_int, got
 from ..params import OscillatorParams
-from .fit import LawFit, fit_law
+from .fit import RESCUE_RATIO, LawFit, fit_law
 from .model import DEFAULT_LAWS, LAW_UNKNOWNS, check_known, check_laws, check_record
 
 if TYPE_CHECKING:
@@ -195,8 +195,9 @@ def identify(t: Sequence[float] | np.ndarray, x: Sequence[float] | np.ndarray, *
     ordered = sorted(laws_, key=lambda law: law != "coulomb")  # its fit seeds the others
     for law in ordered:
         seeds = [fits["coulomb"].estimates] if "coulomb" in fits else []
+        explained = any(f.residual_ratio <= RESCUE_RATIO for f in fits.values())
         fits[law] = fit_law(law, ta, xa, va, known_, n_starts=n_starts, max_nfev=max_nfev,
-                            rng=rng, seeds=seeds)
+                            rng=rng, seeds=seeds, explained=explained)
     _cross_nested(fits, ta, xa, va, known_, max_nfev)
     fits = {law: fits[law] for law in laws_}
     best = min(fits, key=lambda law: fits[law].bic)
