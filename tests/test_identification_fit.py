@@ -126,3 +126,18 @@ def test_a_law_far_from_a_record_another_law_explains_gets_one_start():
     assert wrong.residual_ratio > fitmod.FAR_RATIO and wrong.n_starts == 1
     res = identify(rec["t"], rec["x"], known=known, laws=("coulomb", "exponential"))
     assert res.best == "coulomb" and res.distinguishable
+
+
+def test_a_flat_direction_stops_at_the_parameter_limit():
+    # only lam - b1 and xfk - b1 V are determined: along the other direction the cost is
+    # flat, and an unbounded fit ran to lam = b1 = 37395 (the plant stiff, each run slow)
+    from fricenv.identification.model import PARAM_LIMIT
+
+    p = OscillatorParams.preset("viscous", **DEFAULT_EXCITATION)
+    rec = simulate_record(p, 10 * PERIOD, snr_db=20, rng=np.random.default_rng(11))
+    res = identify(rec["t"], rec["x"], known=_known(p), laws=("coulomb", "viscous"))
+    fit = res.fits["viscous"]
+    lo, hi = LawModel.make("viscous", _known(p)).bounds()
+    assert np.all(hi[:-2] == PARAM_LIMIT) and np.all(np.isinf(hi[-2:]))
+    assert all(abs(fit.estimates[n]) <= PARAM_LIMIT for n in ("lam", "xfk", "xfs", "b1"))
+    assert "b1" in fit.undetermined and fit.ci["lam"][0] <= p.lam <= fit.ci["lam"][1]

@@ -41,7 +41,9 @@ def summary_text(res: IdentificationResult) -> str:
               *(f"  {n:<5}{fit.estimates[n]:>11.5g} {fit.se[n]:>11.3g}  "
                 f"{_fmt_ci(*fit.ci[n])}" + ("  (undetermined)" if n in fit.undetermined
                                            else "") for n in fit.names),
-              "  noise sigma: " + ", ".join(f"{k} {s:.4g}" for k, s in fit.sigma.items())]
+              "  noise sigma: " + ", ".join(f"{k} {s:.4g}" for k, s in fit.sigma.items())
+              + f" (the record's own noise level in x: {fit.noise:.4g}, residual ratio "
+              f"{fit.residual_ratio:.3f})"]
     if fit.undetermined:
         lines += ["", "not determined by this record:"]
         lines += [f"  {n}: {why}" for n, why in fit.undetermined.items()]
