@@ -255,9 +255,10 @@ def write_page(out: Path, csv_path: Path, designs: dict, command: str) -> Path:
               (f"- Correct model selection at 30 dB on the records that single out a law: "
                f"{_share(ok30, n30)} of {n30} (designed excitation "
                f"{_share(d30[1][0], d30[1][1])}, default {_share(d30[0][0], d30[0][1])}); "
-               f"on the {twin30} records of two laws at once (Coulomb or viscous under the "
-               f"default excitation, which never slip above the belt speed), `identify` named "
-               f"the tie, the truth among the tied laws, on {_share(named30, twin30)}."
+               f"on the {twin30} records of two laws at once (Coulomb or viscous records "
+               f"that never slip above the belt speed once the block has first stuck), "
+               f"`identify` named the tie, the truth among the tied laws, on "
+               f"{_share(named30, twin30)}."
                if n30 + twin30 else "- No 30 dB records yet."),
               (f"- Seconds per record, four laws fitted (`identify` alone, anchors excluded; "
                f"one process under `nice -n 19` on the 2-core machine, shared with other "
@@ -275,7 +276,8 @@ def write_page(out: Path, csv_path: Path, designs: dict, command: str) -> Path:
               "## Model selection", "",
               "Records that single out a law, and records that are, by construction, "
               "records of two laws at once (a Coulomb or viscous plant whose motion never "
-              "slips above the belt speed: its record is also one of the other law):", "",
+              "slips above the belt speed once the block has first stuck: its record is "
+              "also one of the other law):", "",
               *sel_table, "", *confusion(rows),
               "## Designs", "",
               "D-optimal excitation per law and record length at 30 dB, within u0 0.5–5, "
