@@ -46,6 +46,14 @@ from fricenv.identification import (  # noqa: E402
     simulate_record,
 )
 from fricenv.identification.design import fisher_information, marginal_covariance  # noqa: E402
+from fricenv.identification.fit import slip_sides  # noqa: E402
+from fricenv.identification.model import (  # noqa: E402
+    LawModel,
+    check_known,
+    noise_level,
+    start_state,
+)
+from fricenv.simulate import simulate  # noqa: E402
 
 PERIOD = 2 * math.pi / 0.6
 SNRS = (40.0, 30.0, 20.0)
@@ -55,9 +63,10 @@ BOUNDS = {"u0": (0.5, 5.0), "nu": (0.1, 2.0), "eta": (0.3, 1.2)}
 START = (0.3, 1.4)
 CSV_NAME = "identification_trials.csv"
 DESIGNS_NAME = "identification_designs.json"
-FIELDS = ["law", "snr_db", "periods", "excitation", "trial", "seed", "best", "converged",
-          "seconds", "u0", "nu", "eta", "param", "truth", "estimate", "se", "ci_lo", "ci_hi",
-          "crlb", "flagged", "tanh", "sindy"]
+FIELDS = ["law", "snr_db", "periods", "excitation", "trial", "seed", "best", "tie",
+          "true_sides", "converged", "seconds", "cpu_seconds", "residual_ratio", "u0", "nu",
+          "eta", "param", "truth", "estimate", "se", "ci_lo", "ci_hi", "crlb", "flagged",
+          "tanh", "sindy"]
 
 
 def names_of(law: str) -> tuple[str, ...]:
@@ -97,16 +106,31 @@ def seed_of(law: str, snr: float, periods: int, excitation: str, trial: int) -> 
             + EXCITATIONS.index(excitation) * 7 + trial * 7_919_111) % 2**31
 
 
+def true_sides(p: OscillatorParams, law: str, t: np.ndarray) -> str:
+    """The sides of the belt speed on which the clean record slips once the block has
+    first stuck ("-1", "1" or "-1|1"; the start's slip before that, from v = 1.4 above
+    the belt speed, lasts under one time unit): a Coulomb or viscous record that slips on
+    one side only is, but for those first samples, a record of both laws."""
+    model = LawModel.make(law, check_known({"eta": p.eta, "nu": p.nu, "u0": p.u0, "V": p.V}))
+    values = {n: float(getattr(p, n)) for n in model.names if n not in ("x0", "v0")}
+    tr = simulate(p, state=start_state(p, 0.0, *START), t_eval=t)
+    ev = tr.events
+    first = float(ev["t"][ev["kind"] == 1][0]) if np.any(ev["kind"] == 1) else -math.inf
+    return "|".join(str(s) for s in slip_sides(model, values, tr, since=first))
+
+
 def run_trial(law, snr, periods, excitation, trial, settings, crlb, anchors) -> list[dict]:
     p = OscillatorParams.preset(law, **settings)
     seed = seed_of(law, snr, periods, excitation, trial)
     rec = simulate_record(p, periods * PERIOD, snr_db=snr, rng=np.random.default_rng(seed),
                           start=START)
     known = {"eta": p.eta, "nu": p.nu, "u0": p.u0, "V": p.V}
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     res = identify(rec["t"], rec["x"], known=known)
-    seconds = time.perf_counter() - t0
+    seconds, cpu = time.perf_counter() - t0, time.process_time() - c0
     fit = res.fits[law]
+    sides = true_sides(p, law, rec["t"])
+    ratio = fit.sigma["x"] / noise_level(rec["t"], rec["x"])
     tanh, sindy = {}, {}
     if anchors:
         from identification_anchors import sindy_fit, tanh_fit
@@ -123,8 +147,10 @@ def run_trial(law, snr, periods, excitation, trial, settings, crlb, anchors) -> 
     for name in names_of(law):
         rows.append({
             "law": law, "snr_db": snr, "periods": periods, "excitation": excitation,
-            "trial": trial, "seed": seed, "best": res.best, "converged": fit.converged,
-            "seconds": round(seconds, 4), "u0": p.u0, "nu": p.nu, "eta": p.eta,
+            "trial": trial, "seed": seed, "best": res.best, "tie": "|".join(res.tie),
+            "true_sides": sides, "converged": fit.converged, "seconds": round(seconds, 4),
+            "cpu_seconds": round(cpu, 4), "residual_ratio": round(ratio, 4),
+            "u0": p.u0, "nu": p.nu, "eta": p.eta,
             "param": name, "truth": getattr(p, name), "estimate": fit.estimates[name],
             "se": fit.se[name], "ci_lo": fit.ci[name][0], "ci_hi": fit.ci[name][1],
             "crlb": crlb[name], "flagged": name in fit.undetermined,
@@ -136,6 +162,12 @@ def done_trials(path: Path) -> set:
     if not path.exists():
         return set()
     with path.open() as f:
+        header = next(csv.reader(f), [])
+        if header != FIELDS:
+            raise SystemExit(f"{path} has the columns {header}, not this benchmark's "
+                             f"{FIELDS}: it was written by an earlier version of the fit. "
+                             "Move it away to start a new CSV.")
+        f.seek(0)
         return {(r["law"], float(r["snr_db"]), int(r["periods"]), r["excitation"],
                  int(r["trial"])) for r in csv.DictReader(f)}
 

@@ -11,8 +11,8 @@ import numpy as np
 
 from ..checks import check_int, got
 from ..params import OscillatorParams
-from .fit import LawFit, fit_law
-from .model import DEFAULT_LAWS, check_known, check_laws, check_record
+from .fit import RESCUE_RATIO, LawFit, fit_law
+from .model import DEFAULT_LAWS, LAW_UNKNOWNS, check_known, check_laws, check_record
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -26,6 +26,11 @@ class IdentificationResult:
     95 % intervals by name; ``fits`` holds every candidate's :class:`LawFit`;
     ``weights`` the BIC weights (``exp(-BIC/2)`` normalised), a rough posterior
     probability of each law among the candidates.
+
+    ``tie`` names the laws this record cannot tell apart, ``best`` first: more than one
+    where another candidate produces exactly the same motion as ``best``'s after a change
+    of its parameters (:data:`ONE_SIDED_TWINS`), so that BIC prefers ``best`` only for
+    its fewer parameters; ``(best,)`` otherwise. ``tie_reason`` says why.
     """
 
     best: str
@@ -38,11 +43,18 @@ class IdentificationResult:
     v: np.ndarray | None
     known: dict[str, float]
     seconds: float
+    tie: tuple[str, ...] = ()
+    tie_reason: str = ""
 
     @property
     def fit(self) -> LawFit:
         """The best law's fit."""
         return self.fits[self.best]
+
+    @property
+    def distinguishable(self) -> bool:
+        """Whether the record singles out one law among the candidates (no :attr:`tie`)."""
+        return len(self.tie) <= 1
 
     @property
     def converged(self) -> bool:
@@ -104,6 +116,47 @@ def _cross_nested(fits: dict[str, LawFit], t: np.ndarray, x: np.ndarray,
                 fits[law] = refit
 
 
+#: Pairs of laws (smaller, larger) whose fits are the same motion whenever it slips on one
+#: side of the belt speed only: the viscous term ``b1 |v - V|`` is then linear in v, so
+#: that b1 moves into lam and into the kinetic level (below the belt speed the record
+#: determines ``lam - b1`` and ``xfk - b1 V`` only), and a Coulomb plant with those values
+#: makes the identical record.
+ONE_SIDED_TWINS = (("coulomb", "viscous"),)
+
+
+def _tie(fits: dict[str, LawFit], best: str) -> tuple[tuple[str, ...], str]:
+    """The laws the record cannot tell apart from ``best``, and why: a twin of
+    :data:`ONE_SIDED_TWINS` where both fitted motions slip on one side of the belt speed
+    only (the two laws are then the same model), or where the larger law's fit leaves
+    its own parameter undetermined with an interval that holds the smaller law (a record
+    whose only slip on the other side is too short to separate them, such as the start's
+    first instants before the block first sticks)."""
+    for small, big in ONE_SIDED_TWINS:
+        if best not in (small, big) or small not in fits or big not in fits:
+            continue
+        other = big if best == small else small
+        sides = {fits[small].slip_sides, fits[big].slip_sides}
+        extra = LAW_UNKNOWNS[big][0]
+        if len(sides) == 1 and len(next(iter(sides))) <= 1:
+            phrases: dict[tuple[int, ...], str] = {(-1,): "slips only below",
+                                                   (1,): "slips only above"}
+            why = (f"the fitted motion {phrases.get(next(iter(sides)), 'never slips off')} "
+                   f"the belt speed, where the viscous term is linear in v, so that {extra} "
+                   "only shifts lam and xfk (the record determines two combinations of the "
+                   "three)")
+        elif (extra in fits[big].undetermined
+              and fits[big].ci[extra][0] <= 0.0 <= fits[big].ci[extra][1]):
+            lo, hi = fits[big].ci[extra]
+            why = (f"the {big} fit cannot determine {extra}, whose 95 % interval "
+                   f"[{lo:.3g}, {hi:.3g}] holds {extra} = 0, the {small} law")
+        else:
+            continue
+        return (best, other), (
+            f"{small} and {big} are indistinguishable on this record: {why}; BIC's "
+            f"preference for {best} is no evidence against {other}")
+    return (best,), ""
+
+
 def identify(t: Sequence[float] | np.ndarray, x: Sequence[float] | np.ndarray, *,
              known: Mapping[str, float], laws: Sequence[str] = DEFAULT_LAWS,
              v: Sequence[float] | np.ndarray | None = None, n_starts: int = 3,
@@ -142,15 +195,17 @@ def identify(t: Sequence[float] | np.ndarray, x: Sequence[float] | np.ndarray, *
     ordered = sorted(laws_, key=lambda law: law != "coulomb")  # its fit seeds the others
     for law in ordered:
         seeds = [fits["coulomb"].estimates] if "coulomb" in fits else []
+        explained = any(f.residual_ratio <= RESCUE_RATIO for f in fits.values())
         fits[law] = fit_law(law, ta, xa, va, known_, n_starts=n_starts, max_nfev=max_nfev,
-                            rng=rng, seeds=seeds)
+                            rng=rng, seeds=seeds, explained=explained)
     _cross_nested(fits, ta, xa, va, known_, max_nfev)
     fits = {law: fits[law] for law in laws_}
     best = min(fits, key=lambda law: fits[law].bic)
     b = min(f.bic for f in fits.values())
     w = {law: math.exp(-0.5 * (f.bic - b)) for law, f in fits.items()}
     total = sum(w.values())
+    tie, why = _tie(fits, best)
     return IdentificationResult(
         best=best, params=fits[best].params, ci=dict(fits[best].ci), fits=fits,
         weights={law: w[law] / total for law in fits}, t=ta, x=xa, v=va, known=known_,
-        seconds=time.perf_counter() - t0)
+        seconds=time.perf_counter() - t0, tie=tie, tie_reason=why)

@@ -20,11 +20,19 @@ def _fmt_ci(lo: float, hi: float) -> str:
     return f"[{lo:.4g}, {hi:.4g}]"
 
 
+def _tie_note(res: IdentificationResult) -> str:
+    """`` (indistinguishable from ...)`` where the record cannot tell ``best`` apart."""
+    others = [law for law in res.tie if law != res.best]
+    return f" (indistinguishable from {', '.join(others)})" if others else ""
+
+
 def summary_text(res: IdentificationResult) -> str:
     """The selection table, the best law's estimates, flags and convergence notes."""
-    lines = [f"best law: {res.best}  (BIC weight {res.weights[res.best]:.3f}; "
+    lines = [f"best law: {res.best}{_tie_note(res)}  (BIC weight {res.weights[res.best]:.3f}; "
              f"{res.t.size} samples, {res.seconds:.2f} s)", "",
              f"{'law':<12}{'k':>3}{'logL':>12}{'BIC':>12}{'dBIC':>9}{'weight':>9}  converged"]
+    if len(res.tie) > 1:
+        lines[1:1] = [f"tie: {res.tie_reason}"]
     for row in res.table():
         lines.append(f"{row['law']:<12}{row['k']:>3}{row['loglik']:>12.2f}{row['bic']:>12.2f}"
                      f"{row['delta_bic']:>9.2f}{row['weight']:>9.3f}  {row['converged']}")
@@ -33,7 +41,9 @@ def summary_text(res: IdentificationResult) -> str:
               *(f"  {n:<5}{fit.estimates[n]:>11.5g} {fit.se[n]:>11.3g}  "
                 f"{_fmt_ci(*fit.ci[n])}" + ("  (undetermined)" if n in fit.undetermined
                                            else "") for n in fit.names),
-              "  noise sigma: " + ", ".join(f"{k} {s:.4g}" for k, s in fit.sigma.items())]
+              "  noise sigma: " + ", ".join(f"{k} {s:.4g}" for k, s in fit.sigma.items())
+              + f" (the record's own noise level in x: {fit.noise:.4g}, residual ratio "
+              f"{fit.residual_ratio:.3f})"]
     if fit.undetermined:
         lines += ["", "not determined by this record:"]
         lines += [f"  {n}: {why}" for n, why in fit.undetermined.items()]
@@ -83,7 +93,7 @@ def result_figure(res: IdentificationResult) -> Figure:
     table = ax4.table(cellText=rows, colLabels=["law", "BIC", "dBIC", "weight", "conv."],
                       loc="center")
     table.scale(1, 1.3)
-    fig.suptitle(f"identified: {res.best}", fontsize=11)
+    fig.suptitle(f"identified: {res.best}{_tie_note(res)}", fontsize=11)
     return fig
 
 
@@ -113,7 +123,9 @@ def write_report(res: IdentificationResult, folder: str | Path, *, source: str =
     lines = [f"# Friction identification of `{source}`", "",
              "Settings: " + ", ".join(f"{k} = {v:g}" for k, v in res.known.items()
                                        if not (k == "u0" and v == 0.0)), "",
-             f"Best law: **{res.best}** (BIC weight {res.weights[res.best]:.3f}).", "",
+             f"Best law: **{res.best}**{_tie_note(res)} (BIC weight "
+             f"{res.weights[res.best]:.3f}).", *(["", res.tie_reason + "."]
+                                                 if len(res.tie) > 1 else []), "",
              "| law | k | log-likelihood | BIC | ΔBIC | weight | converged |",
              "|---|---|---|---|---|---|---|"]
     lines += [f"| {r['law']} | {r['k']} | {r['loglik']:.2f} | {r['bic']:.2f} | "
