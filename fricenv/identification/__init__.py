@@ -6,7 +6,7 @@ reveals the friction best.
 - :func:`design_excitation` chooses the two-tone forcing that maximises the expected
   Fisher information of a prior plant.
 
-SciPy is needed (the ``identify`` extra): ``pip install 'fricenv[identify]'``.
+SciPy and threadpoolctl are needed (the ``identify`` extra): ``pip install 'fricenv[identify]'``.
 """
 
 from __future__ import annotations

@@ -24,6 +24,7 @@ from ..params import OscillatorParams
 from ..sensitivity import law_wrt
 from ..simulate import SimulationError, simulate
 from .model import DEFAULT_EXCITATION, noise_sigma, start_state
+from .threads import one_blas_thread
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -244,7 +245,8 @@ def design_excitation(prior: OscillatorParams, *, duration: float,
             return -math.inf
         return criterion_value(marginal_covariance(F, len(names)), values, criterion)
 
-    best_u, best = _search(score, lo, hi, n_candidates, seed)
+    with one_blas_thread():  # (Fisher matrices of a few columns: see .threads)
+        best_u, best = _search(score, lo, hi, n_candidates, seed)
     settings = dict(zip(keys, best_u.tolist(), strict=True))
     design = Design(prior, settings, criterion, best, names, {}, {}, np.empty((0, 0)),
                     duration, snr_db, dt, (float(start[0]), float(start[1])), box, count[0])

@@ -13,6 +13,7 @@ from ..checks import check_int, got
 from ..params import OscillatorParams
 from .fit import RESCUE_RATIO, LawFit, fit_law
 from .model import DEFAULT_LAWS, LAW_UNKNOWNS, check_known, check_laws, check_record
+from .threads import one_blas_thread
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -193,12 +194,13 @@ def identify(t: Sequence[float] | np.ndarray, x: Sequence[float] | np.ndarray, *
     rng = np.random.default_rng(seed)
     fits: dict[str, LawFit] = {}
     ordered = sorted(laws_, key=lambda law: law != "coulomb")  # its fit seeds the others
-    for law in ordered:
-        seeds = [fits["coulomb"].estimates] if "coulomb" in fits else []
-        explained = any(f.residual_ratio <= RESCUE_RATIO for f in fits.values())
-        fits[law] = fit_law(law, ta, xa, va, known_, n_starts=n_starts, max_nfev=max_nfev,
-                            rng=rng, seeds=seeds, explained=explained)
-    _cross_nested(fits, ta, xa, va, known_, max_nfev)
+    with one_blas_thread():  # (small SVDs at every iteration: see .threads)
+        for law in ordered:
+            seeds = [fits["coulomb"].estimates] if "coulomb" in fits else []
+            explained = any(f.residual_ratio <= RESCUE_RATIO for f in fits.values())
+            fits[law] = fit_law(law, ta, xa, va, known_, n_starts=n_starts,
+                                max_nfev=max_nfev, rng=rng, seeds=seeds, explained=explained)
+        _cross_nested(fits, ta, xa, va, known_, max_nfev)
     fits = {law: fits[law] for law in laws_}
     best = min(fits, key=lambda law: fits[law].bic)
     b = min(f.bic for f in fits.values())
