@@ -94,6 +94,25 @@ def read_episodes(path: Path) -> list[dict[str, Any]]:
     return rows
 
 
+def episode_grid(rows: list[dict[str, Any]], controller: str = "mpc") -> tuple[int, int]:
+    """How many evaluation seeds and episodes per seed the nominal rows of ``controller``
+    span: the grid a rerun on the benchmark's episodes must cover."""
+    own = [r for r in rows if r["condition"] == "nominal" and r["controller"] == controller]
+    return len({r["eval_seed"] for r in own}), len({r["episode"] for r in own})
+
+
+def write_report(out: Path, stem: str, data: Any, page: str) -> Path:
+    """Write ``<stem>.json`` (``data``) and ``<stem>.md`` (``page``) into ``out``, print the
+    page and return its path: the ending of every report command."""
+    import json
+
+    (out / f"{stem}.json").write_text(json.dumps(data, indent=1))
+    path = out / f"{stem}.md"
+    path.write_text(page)
+    print(page)
+    return path
+
+
 def cell_of(rows: list[dict[str, Any]], scene: str, condition: str, controller: str,
             metric: str = "ret") -> np.ndarray:
     """The ``(runs, episodes)`` matrix of one benchmark cell from CSV rows: one row per

@@ -28,13 +28,19 @@ that MPC for reference.
 from __future__ import annotations
 
 import argparse
-import json
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
 from . import statistics as S
-from .benchmark_records import METRICS, cell_of, read_episodes, versions
+from .benchmark_records import (
+    METRICS,
+    cell_of,
+    episode_grid,
+    read_episodes,
+    versions,
+    write_report,
+)
 from .cli import HelpFormatter, Stages
 from .layout import check_scene, eval_env_seed
 
@@ -198,9 +204,7 @@ def main(argv: Sequence[str] | None = None) -> Path:
     for s in args.scenes:
         check_scene(s)
     bench = read_episodes(args.csv)
-    nominal = [r for r in bench if r["condition"] == "nominal" and r["controller"] == "mpc"]
-    n_seeds = len({r["eval_seed"] for r in nominal})
-    episodes = len({r["episode"] for r in nominal})
+    n_seeds, episodes = episode_grid(bench)
     args.out.mkdir(parents=True, exist_ok=True)
     path = args.out / CSV_NAME
     tuned = read_episodes(path) if path.exists() else []
@@ -218,13 +222,9 @@ def main(argv: Sequence[str] | None = None) -> Path:
     results = {s: compare_scene(rows, s) for s in done}
     old = {s: compare_scene(rows, s, ref=GENERIC_KEY) for s in done
            if any(r["scene"] == s for r in generic)}
-    (args.out / "mpc_compare.json").write_text(json.dumps(
-        {"tail": TAIL, "bootstrap": {"replicates": S.N_BOOT, "seed": BOOT_SEED},
-         "tuned": results, "earlier_settings": old}, indent=1))
-    page = args.out / "mpc_compare.md"
-    page.write_text(markdown(results, old))
-    print(page.read_text())
-    return page
+    return write_report(args.out, "mpc_compare",
+                        {"tail": TAIL, "bootstrap": {"replicates": S.N_BOOT, "seed": BOOT_SEED},
+                         "tuned": results, "earlier_settings": old}, markdown(results, old))
 
 
 if __name__ == "__main__":

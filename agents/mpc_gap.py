@@ -26,7 +26,6 @@ scored again, so the page can be remade without loading a model.
 from __future__ import annotations
 
 import argparse
-import json
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -34,7 +33,7 @@ from typing import Any
 import yaml
 
 from . import statistics as S
-from .benchmark_records import episode_rows, read_episodes
+from .benchmark_records import episode_grid, episode_rows, read_episodes, write_report
 from .cli import HelpFormatter, Stages
 from .layout import check_disjoint, check_scene
 from .mpc_compare import (
@@ -199,9 +198,7 @@ def main(argv: Sequence[str] | None = None) -> Path:
     for s in args.scenes:
         check_scene(s)
     bench = [r for r in read_episodes(args.csv) if r["condition"] == "nominal"]
-    mpc = [r for r in bench if r["controller"] == "mpc"]
-    n_seeds = len({r["eval_seed"] for r in mpc})
-    episodes = len({r["episode"] for r in mpc})
+    n_seeds, episodes = episode_grid(bench)
     args.out.mkdir(parents=True, exist_ok=True)
     path = args.out / CSV_NAME
     new = read_episodes(path) if path.exists() else []
@@ -214,13 +211,9 @@ def main(argv: Sequence[str] | None = None) -> Path:
             _write_csv(path, new)
     rows = bench + read_episodes(args.tuned) + new
     results = {s: compare(rows, s, scene_runs(args.runs, s)) for s in args.scenes}
-    (args.out / "mpc_gap.json").write_text(json.dumps(
-        {"tail": TAIL, "bootstrap": {"replicates": S.N_BOOT, "seed": BOOT_SEED},
-         "scenes": results}, indent=1))
-    page = args.out / "mpc_gap.md"
-    page.write_text(markdown(results))
-    print(page.read_text())
-    return page
+    return write_report(args.out, "mpc_gap",
+                        {"tail": TAIL, "bootstrap": {"replicates": S.N_BOOT, "seed": BOOT_SEED},
+                         "scenes": results}, markdown(results))
 
 
 if __name__ == "__main__":

@@ -22,13 +22,12 @@ the two are paired. Writes ``noise_report.md`` and ``noise_report.json`` to ``--
 from __future__ import annotations
 
 import argparse
-import json
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
 from . import statistics as S
-from .benchmark_records import cell_of, read_episodes
+from .benchmark_records import cell_of, read_episodes, write_report
 from .benchmark_rows import CUT_AGGREGATE
 from .cli import HelpFormatter
 
@@ -127,11 +126,7 @@ def main(argv: Sequence[str] | None = None) -> Path:
     args = p.parse_args(argv)
     rep = report(read_episodes(args.csv))
     args.out.mkdir(parents=True, exist_ok=True)
-    (args.out / "noise_report.json").write_text(json.dumps(rep, indent=1))
-    page = args.out / "noise_report.md"
-    page.write_text(markdown(rep))
-    print(page.read_text())
-    return page
+    return write_report(args.out, "noise_report", rep, markdown(rep))
 
 
 if __name__ == "__main__":
